@@ -1,0 +1,220 @@
+"""First-order second-moment (FOSM) precision reliability, Eqs. (19)–(23).
+
+At a pose, each comprehensive error ``y`` is treated as normal with mean ``μ`` (the exact
+model at the error means, Eq. 20, zero for zero-mean errors) and standard deviation
+``σ_y² = Σ_i (∂y/∂x_i)² σ_i²`` (Eq. 20). The requirement is ``|y| < I``.
+
+Two probabilities are reported:
+
+* ``one_sided`` — the paper's ``P = Φ(β)`` with ``β = (I − |μ|)/σ`` (Eqs. 21–23). It counts
+  only one tail of ``|y| > I`` and so overstates reliability: at β = 2.326 (the paper's 99 %)
+  the true probability of ``|y| < I`` is 98 %.
+* ``two_sided`` — the exact ``P(|y| < I) = Φ((I − μ)/σ) − Φ((−I − μ)/σ)`` for a normal
+  output. It is the honest default for new designs.
+
+An allocated tolerance ``t`` is read as ``±kσ`` (k = 3): ``σ = t/k``. Sampling that truncates
+the normal at ``±t`` (Sec. 5.3) has a slightly smaller spread; ``distribution='truncated'``
+uses that standard deviation instead.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+from scipy.stats import norm
+
+from .machine import OUTPUTS
+
+SIDES = ("one_sided", "two_sided")
+
+
+def error_sigma(tolerances, k: float = 3.0, distribution: str = "normal") -> np.ndarray:
+    """Standard deviation of each error from its tolerance ``t = ±kσ``.
+
+    Parameters
+    ----------
+    tolerances : array_like
+        Positive tolerances.
+    k : float
+        Coverage factor; the paper's ±3σ reading is k = 3.
+    distribution : {'normal', 'truncated'}
+        'normal': σ = t/k. 'truncated': the standard deviation of N(0, (t/k)²) truncated at
+        ±t, ``σ √(1 − 2kφ(k)/(2Φ(k) − 1))`` (0.9866 σ at k = 3).
+    """
+    if not np.isfinite(k) or k <= 0:
+        raise ValueError(f"coverage factor k must be finite and > 0; got {k!r}")
+    sigma = np.asarray(tolerances, dtype=float) / k
+    if distribution == "normal":
+        return sigma
+    if distribution == "truncated":
+        mass = 2.0 * norm.cdf(k) - 1.0
+        return sigma * np.sqrt(1.0 - 2.0 * k * norm.pdf(k) / mass)
+    raise ValueError(f"unknown distribution {distribution!r}; use 'normal' or 'truncated'")
+
+
+def output_variance_terms(jacobian, sigma) -> np.ndarray:
+    """Per-error terms ``(∂y/∂x_i)² σ_i²`` of Eq. (20), ``(..., 6, n_errors)``."""
+    return np.square(jacobian) * np.square(sigma)[..., None, :]
+
+
+def output_sigma(jacobian, sigma) -> np.ndarray:
+    """σ of each comprehensive error, Eq. (20): ``(..., 6, n) , (n,) -> (..., 6)``."""
+    return np.sqrt(np.square(jacobian) @ np.square(sigma))  # Eq. (20)
+
+
+def reliability_index(limit, sigma, mean=0.0) -> np.ndarray:
+    """β = μ_g/σ_g with g = I − |y| (Eqs. 19, 21)."""
+    return (limit - np.abs(mean)) / sigma  # Eq. (21)
+
+
+def one_sided_probability(limit, sigma, mean=0.0) -> np.ndarray:
+    """The paper's precision reliability P = Φ(β), Eqs. (22)–(23)."""
+    return norm.cdf(reliability_index(limit, sigma, mean))  # Eq. (22)
+
+
+def two_sided_probability(limit, sigma, mean=0.0) -> np.ndarray:
+    """Exact ``P(|y| < I)`` for ``y ~ N(μ, σ²)``: ``Φ((I − μ)/σ) − Φ((−I − μ)/σ)``."""
+    upper = norm.cdf((limit - mean) / sigma)
+    lower = norm.cdf((-limit - mean) / sigma)
+    return upper - lower
+
+
+def required_index(target, side: str = "two_sided") -> np.ndarray:
+    """β needed at zero mean for probability ``target``: ``Φ⁻¹(R)`` or ``Φ⁻¹((1 + R)/2)``."""
+    target = np.asarray(target, dtype=float)
+    if np.any(~((target > 0) & (target < 1))):
+        raise ValueError(f"target probabilities must lie in (0, 1); got {target}")
+    if side == "one_sided":
+        return norm.ppf(target)
+    if side == "two_sided":
+        return norm.ppf(0.5 * (1.0 + target))
+    raise ValueError(f"unknown side {side!r}; use 'one_sided' or 'two_sided'")
+
+
+@dataclass(frozen=True)
+class FosmResult:
+    """FOSM reliability of one allocation over a pose set.
+
+    Attributes
+    ----------
+    poses : ndarray (n_poses, n_axes)
+    limits, targets : ndarray (6,)
+    mean, sigma, beta : ndarray (n_poses, 6)
+        Output mean, standard deviation and reliability index (Eqs. 20–21).
+    one_sided, two_sided : ndarray (n_poses, 6)
+        Φ(β) (Eq. 22) and the exact P(|y| < I).
+    worst_pose : ndarray (6,) of int
+        Per output, the pose of lowest two-sided probability.
+    contributions : DataFrame (n_errors × 6)
+        Percent of σ² contributed by each error at each output's worst pose.
+    """
+
+    poses: np.ndarray
+    limits: np.ndarray
+    targets: np.ndarray
+    mean: np.ndarray
+    sigma: np.ndarray
+    beta: np.ndarray
+    one_sided: np.ndarray
+    two_sided: np.ndarray
+    worst_pose: np.ndarray
+    contributions: pd.DataFrame
+
+    def worst(self, side: str = "two_sided") -> np.ndarray:
+        """Lowest probability over the poses, per output (the workspace constraint)."""
+        return self._probability(side).min(axis=0)
+
+    def workspace_mean(self, side: str = "two_sided") -> np.ndarray:
+        """Mean probability over the poses, per output (expected share in tolerance)."""
+        return self._probability(side).mean(axis=0)
+
+    def meets_targets(self, side: str = "two_sided", workspace: str = "worst") -> np.ndarray:
+        """Whether each output meets its target, worst case or on the workspace mean."""
+        if workspace not in ("worst", "mean"):
+            raise ValueError(f"unknown workspace criterion {workspace!r}; use 'worst' or 'mean'")
+        value = self.worst(side) if workspace == "worst" else self.workspace_mean(side)
+        return value >= self.targets
+
+    def to_frame(self) -> pd.DataFrame:
+        """One row per output: limit, target, worst pose, σ, β, probabilities, verdicts."""
+        rows = np.arange(len(OUTPUTS))
+        worst = self.worst_pose
+        frame = pd.DataFrame({
+            "limit": self.limits,
+            "target": self.targets,
+            "worst_pose": worst,
+            "sigma": self.sigma[worst, rows],
+            "beta": self.beta[worst, rows],
+            "worst_one_sided": self.worst("one_sided"),
+            "worst_two_sided": self.worst("two_sided"),
+            "mean_one_sided": self.workspace_mean("one_sided"),
+            "mean_two_sided": self.workspace_mean("two_sided"),
+            "meets_one_sided": self.meets_targets("one_sided"),
+            "meets_two_sided": self.meets_targets("two_sided"),
+        }, index=pd.Index(OUTPUTS, name="output"))
+        return frame
+
+    def _probability(self, side: str) -> np.ndarray:
+        if side not in SIDES:
+            raise ValueError(f"unknown side {side!r}; use 'one_sided' or 'two_sided'")
+        return getattr(self, side)
+
+
+def fosm(machine, tolerances, poses, *, k: float = 3.0, means=None,
+         distribution: str = "normal", jacobian=None) -> FosmResult:
+    """FOSM precision reliability of an allocation over a pose set (Eqs. 19–23).
+
+    Parameters
+    ----------
+    machine : Machine
+    tolerances : array_like
+        ``(n_errors,)`` allocated tolerances, read as ±kσ.
+    poses : array_like
+        ``(n_poses, n_axes)`` positions, e.g. :func:`reliability.poses.workspace_grid`.
+    k : float
+        Coverage factor of the tolerances (3 in the paper).
+    means : array_like, optional
+        ``(n_errors,)`` error means; zero by default. The output mean is the exact model
+        evaluated at the error means (Eq. 20).
+    distribution : {'normal', 'truncated'}
+        How σ follows from t, see :func:`error_sigma`.
+    jacobian : ndarray, optional
+        Precomputed ``machine.jacobian(poses)`` to reuse across allocations.
+
+    Returns
+    -------
+    FosmResult
+    """
+    t = machine.check_tolerances(tolerances)
+    if t.ndim != 1:
+        raise ValueError(f"tolerances must be one allocation of shape ({machine.n_errors},)")
+    poses = np.atleast_2d(machine.check_positions(poses))
+    if jacobian is None:
+        jacobian = machine.jacobian(poses)
+    elif jacobian.shape != poses.shape[:-1] + (6, machine.n_errors):
+        raise ValueError(f"jacobian must have shape {poses.shape[:-1] + (6, machine.n_errors)}; "
+                         f"got {jacobian.shape}")
+    sigma_x = error_sigma(t, k, distribution)
+    sigma = output_sigma(jacobian, sigma_x)
+    mean = np.zeros_like(sigma) if means is None else \
+        machine.comprehensive_error(poses, machine.check_errors(means))  # Eq. (20)
+    two = two_sided_probability(machine.limits, sigma, mean)
+    worst = np.argmin(two, axis=0)
+    return FosmResult(
+        poses=poses, limits=machine.limits, targets=machine.targets, mean=mean, sigma=sigma,
+        beta=reliability_index(machine.limits, sigma, mean),
+        one_sided=one_sided_probability(machine.limits, sigma, mean), two_sided=two,
+        worst_pose=worst,
+        contributions=_contributions(machine, jacobian, sigma_x, worst),
+    )
+
+
+def _contributions(machine, jacobian, sigma_x, worst) -> pd.DataFrame:
+    """Percent of σ² from each error at each output's worst pose (Eq. 20's terms)."""
+    rows = np.arange(len(OUTPUTS))
+    terms = output_variance_terms(jacobian[worst, rows], sigma_x)  # (6, n_errors)
+    percent = 100.0 * terms / terms.sum(axis=-1, keepdims=True)
+    return pd.DataFrame(percent.T, index=pd.Index(machine.error_names, name="error"),
+                        columns=pd.Index(OUTPUTS, name="output"))

@@ -1,0 +1,398 @@
+"""A serial machine described as data (DESIGN §3), loaded and validated from TOML.
+
+A machine is an ordered chain of axes from the workpiece to the tool. Each axis is linear
+or rotary about/along x, y or z, with a stroke and a size (guide length or rotation
+diameter, used by the cost model of Eqs. 25–26). Between consecutive axes sits a joint
+carrying six assembly errors (Eq. 14). The description also holds the design limits and
+reliability targets of the six comprehensive errors (Table 2), the initial tolerance
+allocation (Table 4) and the cost coefficients (Table 5).
+
+The error vector has ``6 * n_axes`` motion errors (axis by axis in chain order) followed by
+``6 * (n_axes - 1)`` assembly errors (joint by joint), each in the component order
+``dx dy dz ex ey ez``; lengths in mm, angles in rad.
+"""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from dataclasses import dataclass, field
+from importlib import resources
+from pathlib import Path
+from types import MappingProxyType
+from typing import Mapping
+
+import numpy as np
+
+COMPONENTS = ("dx", "dy", "dz", "ex", "ey", "ez")
+OUTPUTS = COMPONENTS
+AXIS_KINDS = ("linear", "rotary")
+DIRECTIONS = ("x", "y", "z")
+FULL_TURN = (0.0, 2.0 * math.pi)
+
+
+class MachineDescriptionError(ValueError):
+    """A machine description is malformed; the message names the offending item."""
+
+
+@dataclass(frozen=True)
+class Axis:
+    """One axis of the chain.
+
+    Attributes
+    ----------
+    name : str
+        Unique label, e.g. ``"X"``.
+    kind : {'linear', 'rotary'}
+    direction : {'x', 'y', 'z'}
+        Direction of travel (linear) or of the rotation axis (rotary).
+    stroke : tuple of float
+        ``(min, max)`` in mm (linear) or rad (rotary).
+    size : float
+        Guide length L (linear) or rotation diameter D (rotary), in m (Table 3).
+    full_turn : bool
+        A rotary axis that turns a whole revolution; its stroke is ``[0, 2π)`` and grids
+        do not repeat 0 = 2π.
+    offset : tuple of float
+        Fixed translation (mm) from the previous axis' frame to this axis' frame, applied
+        before the axis' motion. Zero in the paper, whose frames all share one origin.
+    """
+
+    name: str
+    kind: str
+    direction: str
+    stroke: tuple[float, float]
+    size: float
+    full_turn: bool = False
+    offset: tuple[float, float, float] = (0.0, 0.0, 0.0)
+
+
+@dataclass(frozen=True)
+class CostCoefficients:
+    """Fuzzy cost coefficients of Eqs. (25)–(27) (Table 5).
+
+    ``a``: linear positioning along the axis; ``b``: other linear-axis items, per m of
+    guide; ``c``: rotation about the axis; ``d``: other rotary-axis items, per m of
+    diameter; ``assembly``: ``m_ij`` per joint name.
+    """
+
+    a: float
+    b: float
+    c: float
+    d: float
+    assembly: Mapping[str, float]
+
+
+@dataclass(frozen=True)
+class Machine:
+    """A serial machine: axes, requirements, initial allocation and cost coefficients.
+
+    Build one with :func:`load_machine`, :func:`machine_from_dict` or
+    :func:`hobbing_machine`. The kinematic model is :meth:`comprehensive_error` (exact,
+    Eq. 18) and :meth:`jacobian` (analytic first-order sensitivities).
+    """
+
+    name: str
+    axis_specs: tuple[Axis, ...]
+    limits: np.ndarray
+    targets: np.ndarray
+    initial_allocation: np.ndarray
+    cost_coefficients: CostCoefficients
+    tool_offset: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    _index: Mapping[str, int] = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self):
+        for name in ("limits", "targets", "initial_allocation"):
+            value = np.array(getattr(self, name), dtype=float)
+            value.setflags(write=False)
+            object.__setattr__(self, name, value)
+        index = {n: i for i, n in enumerate(self.error_names)}
+        object.__setattr__(self, "_index", MappingProxyType(index))
+
+    # ----- names -------------------------------------------------------------------
+    @property
+    def axes(self) -> tuple[str, ...]:
+        """Axis names in chain order, workpiece to tool."""
+        return tuple(a.name for a in self.axis_specs)
+
+    @property
+    def joints(self) -> tuple[str, ...]:
+        """Joint names ``"<axis>-<axis>"`` between consecutive axes."""
+        return joint_names(self.axes)
+
+    @property
+    def outputs(self) -> tuple[str, ...]:
+        """The six comprehensive errors, ``dx dy dz ex ey ez``."""
+        return OUTPUTS
+
+    @property
+    def error_names(self) -> tuple[str, ...]:
+        """All error names: motion errors axis by axis, then assembly errors (DESIGN §2)."""
+        return error_names(self.axes)
+
+    @property
+    def n_errors(self) -> int:
+        """Number of geometric errors, ``12 n_axes − 6`` (66 for six axes)."""
+        return 6 * (2 * len(self.axis_specs) - 1)
+
+    def error_index(self, name: str) -> int:
+        """Position of an error name in the error vector; unknown names raise KeyError."""
+        try:
+            return self._index[name]
+        except KeyError:
+            raise KeyError(f"unknown error name {name!r}; known names look like "
+                           f"{self.error_names[0]!r} or {self.error_names[-1]!r}") from None
+
+    def error_vector(self, values, default: float | None = 0.0) -> np.ndarray:
+        """Build an error (or tolerance) vector from ``{name: value}`` or a pandas Series.
+
+        Parameters
+        ----------
+        values : Mapping[str, float] or pandas.Series
+            Values by error name; unknown names are refused.
+        default : float or None
+            Value of the errors not named. ``None`` requires every error to be named.
+
+        Returns
+        -------
+        numpy.ndarray
+            ``(n_errors,)`` in the order of :attr:`error_names`.
+        """
+        items = dict(values.items())
+        missing = [n for n in self.error_names if n not in items]
+        if default is None and missing:
+            raise KeyError(f"values missing for {len(missing)} errors, first {missing[0]!r}")
+        out = np.full(self.n_errors, np.nan if default is None else float(default))
+        for name, value in items.items():
+            out[self.error_index(name)] = float(value)
+        return out
+
+    # ----- model -------------------------------------------------------------------
+    def comprehensive_error(self, q, x) -> np.ndarray:
+        """Exact tool–workpiece pose error, Eqs. (16)–(18); see :mod:`reliability.kinematics`."""
+        from .kinematics import comprehensive_error
+
+        return comprehensive_error(self, q, x)
+
+    def jacobian(self, q) -> np.ndarray:
+        """First-order sensitivities ``(..., 6, n_errors)``; see :mod:`reliability.kinematics`."""
+        from .kinematics import jacobian
+
+        return jacobian(self, q)
+
+    def check_positions(self, q) -> np.ndarray:
+        """Return ``q`` as a float array of shape ``(..., n_axes)`` or raise ValueError."""
+        q = np.asarray(q, dtype=float)
+        if q.ndim < 1 or q.shape[-1] != len(self.axis_specs):
+            raise ValueError(f"positions must have shape (..., {len(self.axis_specs)}) "
+                             f"for axes {self.axes}; got {q.shape}")
+        if not np.all(np.isfinite(q)):
+            raise ValueError("positions contain non-finite values")
+        return q
+
+    def check_errors(self, x) -> np.ndarray:
+        """Return ``x`` as a float array of shape ``(..., n_errors)`` or raise ValueError."""
+        x = np.asarray(x, dtype=float)
+        if x.ndim < 1 or x.shape[-1] != self.n_errors:
+            raise ValueError(f"errors must have shape (..., {self.n_errors}); got {x.shape}")
+        if not np.all(np.isfinite(x)):
+            raise ValueError("errors contain non-finite values")
+        return x
+
+    def check_tolerances(self, tolerances) -> np.ndarray:
+        """Return tolerances ``(..., n_errors)``, all finite and > 0, or raise ValueError."""
+        t = np.asarray(tolerances, dtype=float)
+        if t.ndim < 1 or t.shape[-1] != self.n_errors:
+            raise ValueError(f"tolerances must have shape (..., {self.n_errors}); got {t.shape}")
+        bad = ~(np.isfinite(t) & (t > 0))
+        if np.any(bad):
+            first = int(np.argwhere(bad)[0][-1])
+            raise ValueError(f"tolerance of {self.error_names[first]!r} must be finite and "
+                             f"> 0; got {t[np.nonzero(bad)][0]!r}")
+        return t
+
+
+def joint_names(axes) -> tuple[str, ...]:
+    """Joint names ``"<axis>-<axis>"`` between consecutive axes of a chain."""
+    return tuple(f"{a}-{b}" for a, b in zip(axes[:-1], axes[1:]))
+
+
+def error_names(axes) -> tuple[str, ...]:
+    """Error names of a chain with these axis names, in the order of DESIGN §2."""
+    owners = tuple(axes) + joint_names(axes)
+    return tuple(f"{owner}.{comp}" for owner in owners for comp in COMPONENTS)
+
+
+# ----- loading -----------------------------------------------------------------------
+def hobbing_machine() -> Machine:
+    """The paper's large CNC gear hobbing machine (CNC-LGHM), Tables 2–5.
+
+    The δz limit is 0.02 mm as in Eq. (35) and Table 8, not the 0.05 mm printed in
+    Table 2 (an erratum, DESIGN §2).
+    """
+    text = resources.files(__package__).joinpath("machines/hobbing.toml").read_text()
+    return machine_from_dict(tomllib.loads(text), source="hobbing.toml")
+
+
+def load_machine(path) -> Machine:
+    """Load and validate a machine description from a TOML file.
+
+    Raises
+    ------
+    MachineDescriptionError
+        Naming the offending key, axis or value.
+    """
+    path = Path(path)
+    try:
+        data = tomllib.loads(path.read_text())
+    except tomllib.TOMLDecodeError as exc:
+        raise MachineDescriptionError(f"{path}: not valid TOML: {exc}") from None
+    return machine_from_dict(data, source=str(path))
+
+
+def machine_from_dict(data: Mapping, source: str = "machine") -> Machine:
+    """Validate a parsed description (the TOML layout) and build a :class:`Machine`."""
+    _only_keys(data, {"name", "axes", "requirements", "initial_allocation", "cost",
+                      "tool_offset"}, source)
+    axes = _parse_axes(_require(data, "axes", source), source)
+    names = tuple(a.name for a in axes)
+    limits, targets = _parse_requirements(_require(data, "requirements", source), source)
+    return Machine(
+        name=str(data.get("name", source)),
+        axis_specs=tuple(axes),
+        limits=limits,
+        targets=targets,
+        initial_allocation=_parse_initial(_require(data, "initial_allocation", source),
+                                          error_names(names), source),
+        cost_coefficients=_parse_cost(_require(data, "cost", source), joint_names(names),
+                                      source),
+        tool_offset=_vector3(data.get("tool_offset", (0, 0, 0)), f"{source}: tool_offset"),
+    )
+
+
+def _require(table: Mapping, key: str, where: str):
+    if key not in table:
+        raise MachineDescriptionError(f"{where}: missing key {key!r}")
+    return table[key]
+
+
+def _only_keys(table: Mapping, allowed: set[str], where: str) -> None:
+    if not isinstance(table, Mapping):
+        raise MachineDescriptionError(f"{where}: expected a table, got {type(table).__name__}")
+    unknown = sorted(set(table) - allowed)
+    if unknown:
+        raise MachineDescriptionError(f"{where}: unknown key {unknown[0]!r}; "
+                                      f"allowed: {', '.join(sorted(allowed))}")
+
+
+def _number(value, where: str, positive: bool = False) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise MachineDescriptionError(f"{where}: expected a number, got {value!r}")
+    value = float(value)
+    if not math.isfinite(value):
+        raise MachineDescriptionError(f"{where}: must be finite, got {value!r}")
+    if positive and value <= 0:
+        raise MachineDescriptionError(f"{where}: must be > 0, got {value!r}")
+    return value
+
+
+def _vector3(value, where: str) -> tuple[float, float, float]:
+    if not isinstance(value, (list, tuple)) or len(value) != 3:
+        raise MachineDescriptionError(f"{where}: expected three numbers [x, y, z]")
+    return tuple(_number(v, where) for v in value)
+
+
+def _parse_axes(entries, source: str) -> list[Axis]:
+    if not isinstance(entries, list) or len(entries) < 1:
+        raise MachineDescriptionError(f"{source}: 'axes' must be a non-empty array of tables")
+    axes, seen = [], set()
+    for position, entry in enumerate(entries):
+        axis = _parse_axis(entry, f"{source}: axes[{position}]")
+        if axis.name in seen:
+            raise MachineDescriptionError(f"{source}: duplicate axis {axis.name!r}")
+        seen.add(axis.name)
+        axes.append(axis)
+    return axes
+
+
+def _parse_axis(entry, where: str) -> Axis:
+    _only_keys(entry, {"name", "kind", "direction", "stroke", "size", "full_turn", "offset"},
+               where)
+    name = _require(entry, "name", where)
+    if not isinstance(name, str) or not name or any(c in name for c in ".- "):
+        raise MachineDescriptionError(f"{where}: axis name must be a non-empty string "
+                                      f"without '.', '-' or spaces, got {name!r}")
+    where = f"{where} (axis {name!r})"
+    kind = _require(entry, "kind", where)
+    if kind not in AXIS_KINDS:
+        raise MachineDescriptionError(f"{where}: unknown kind {kind!r}; use 'linear' or 'rotary'")
+    direction = _require(entry, "direction", where)
+    if direction not in DIRECTIONS:
+        raise MachineDescriptionError(f"{where}: unknown direction {direction!r}; "
+                                      f"use 'x', 'y' or 'z'")
+    full_turn = entry.get("full_turn", False)
+    if not isinstance(full_turn, bool):
+        raise MachineDescriptionError(f"{where}: full_turn must be true or false")
+    if full_turn and kind != "rotary":
+        raise MachineDescriptionError(f"{where}: full_turn applies to rotary axes only")
+    stroke = _parse_stroke(entry, full_turn, where)
+    size = _number(_require(entry, "size", where), f"{where}: size", positive=True)
+    offset = _vector3(entry.get("offset", (0, 0, 0)), f"{where}: offset")
+    return Axis(name, kind, direction, stroke, size, full_turn, offset)
+
+
+def _parse_stroke(entry, full_turn: bool, where: str) -> tuple[float, float]:
+    if full_turn:
+        if "stroke" in entry:
+            raise MachineDescriptionError(f"{where}: give either full_turn or a stroke, not both")
+        return FULL_TURN
+    stroke = _require(entry, "stroke", where)
+    if not isinstance(stroke, list) or len(stroke) != 2:
+        raise MachineDescriptionError(f"{where}: stroke must be [min, max]")
+    low, high = (_number(v, f"{where}: stroke") for v in stroke)
+    if low >= high:
+        raise MachineDescriptionError(f"{where}: stroke min {low} must be < max {high}")
+    return (low, high)
+
+
+def _parse_requirements(table, source: str) -> tuple[np.ndarray, np.ndarray]:
+    where = f"{source}: requirements"
+    _only_keys(table, set(OUTPUTS), where)
+    limits, targets = [], []
+    for output in OUTPUTS:
+        entry = _require(table, output, where)
+        at = f"{where}.{output}"
+        _only_keys(entry, {"limit", "target"}, at)
+        limits.append(_number(_require(entry, "limit", at), f"{at}.limit", positive=True))
+        target = _number(_require(entry, "target", at), f"{at}.target")
+        if not 0.0 < target < 1.0:
+            raise MachineDescriptionError(f"{at}.target: must lie in (0, 1), got {target}")
+        targets.append(target)
+    return np.array(limits), np.array(targets)
+
+
+def _parse_cost(table, joints: tuple[str, ...], source: str) -> CostCoefficients:
+    where = f"{source}: cost"
+    _only_keys(table, {"a", "b", "c", "d", "assembly"}, where)
+    coefficients = {k: _number(_require(table, k, where), f"{where}.{k}", positive=True)
+                    for k in "abcd"}
+    assembly = _require(table, "assembly", where) if joints else table.get("assembly", {})
+    _only_keys(assembly, set(joints), f"{where}.assembly")
+    m = {j: _number(_require(assembly, j, f"{where}.assembly"), f"{where}.assembly.{j}",
+                    positive=True) for j in joints}
+    return CostCoefficients(**coefficients, assembly=MappingProxyType(m))
+
+
+def _parse_initial(table, names: tuple[str, ...], source: str) -> np.ndarray:
+    where = f"{source}: initial_allocation"
+    _only_keys(table, {"translation", "rotation", "items"}, where)
+    translation = _number(_require(table, "translation", where), f"{where}.translation",
+                          positive=True)
+    rotation = _number(_require(table, "rotation", where), f"{where}.rotation", positive=True)
+    angular = np.array([n.split(".")[1].startswith("e") for n in names])
+    initial = np.where(angular, rotation, translation)
+    items = table.get("items", {})
+    _only_keys(items, set(names), f"{where}.items")
+    for name, value in items.items():
+        initial[names.index(name)] = _number(value, f"{where}.items.{name}", positive=True)
+    return initial

@@ -1,0 +1,449 @@
+"""Honest uncertainty for Monte-Carlo precision-reliability estimates.
+
+The paper (Sec. 5.3, Tables 8 and 9) reads the fraction of grid poses whose comprehensive
+error stays inside its limit as the "precision reliability" and reports it without an error
+bar. This module supplies the error bars, and is explicit about what counts as an
+independent sample:
+
+* :func:`binomial_interval` and :func:`proportion` -- for *independent* Bernoulli trials
+  (Wilson score or Clopper-Pearson exact interval).
+* :func:`between_experiment_interval` -- for per-experiment fractions whose poses share
+  their random errors; the experiment is the unit of replication (Student-t interval).
+* :func:`machine_yield` -- the share of simulated machines (experiments) in which every pose
+  meets every limit; experiments are independent, so a binomial interval applies.
+
+Every function is vectorised over trailing "output" axes (e.g. the six comprehensive
+errors ``dx dy dz ex ey ez``) and returns a frozen result that carries its own standard
+error and interval and turns into a :class:`pandas.DataFrame` with ``.to_frame()``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+from scipy import stats
+
+__all__ = [
+    "METHODS",
+    "ProportionEstimate",
+    "ReplicateEstimate",
+    "between_experiment_interval",
+    "binomial_interval",
+    "machine_yield",
+    "proportion",
+]
+
+METHODS = ("wilson", "clopper-pearson")
+
+
+# --------------------------------------------------------------------------- input checks
+def _index_text(name, bad, values):
+    """Describe the first offending element of ``values`` where ``bad`` is true."""
+    idx = tuple(int(i) for i in np.argwhere(bad)[0])
+    where = f"{name}[{', '.join(map(str, idx))}]" if idx else name
+    return f"{where} = {values[idx]!r}"
+
+
+def _check_confidence(confidence):
+    """Return ``confidence`` as a float in the open interval (0, 1)."""
+    c = float(confidence)
+    if not 0.0 < c < 1.0:
+        raise ValueError(f"confidence must lie in (0, 1); got {confidence!r}")
+    return c
+
+
+def _check_method(method):
+    """Refuse interval methods other than those in :data:`METHODS`."""
+    if method not in METHODS:
+        raise ValueError(f"unknown interval method {method!r}; choose one of {METHODS}")
+
+
+def _integer_array(name, values):
+    """Return ``values`` as an int64 array, refusing non-finite or non-integral entries."""
+    x = np.asarray(values)
+    if x.dtype.kind not in "biuf":
+        raise TypeError(f"{name} must be numeric; got dtype {x.dtype}")
+    x = x.astype(float)
+    bad = ~np.isfinite(x) | (x != np.round(x))
+    if bad.any():
+        raise ValueError(f"{name} must be whole numbers; {_index_text(name, bad, x)}")
+    return x.astype(np.int64)
+
+
+def _check_counts(successes, trials):
+    """Validate and broadcast success and trial counts; return int64 arrays."""
+    k = _integer_array("successes", successes)
+    n = _integer_array("trials", trials)
+    if (n <= 0).any():
+        raise ValueError(f"trials must be positive; {_index_text('trials', n <= 0, n)}")
+    try:
+        k, n = np.broadcast_arrays(k, n)
+    except ValueError:
+        raise ValueError(
+            f"successes of shape {k.shape} and trials of shape {n.shape} do not broadcast"
+        ) from None
+    bad = (k < 0) | (k > n)
+    if bad.any():
+        raise ValueError(
+            "successes must lie in [0, trials]; "
+            f"{_index_text('successes', bad, k)} with {_index_text('trials', bad, n)}"
+        )
+    return k, n
+
+
+def _check_names(names, shape):
+    """Return ``names`` as a tuple matching a 0-d or 1-d result ``shape`` (or None)."""
+    if names is None:
+        return None
+    names = (names,) if isinstance(names, str) else tuple(names)
+    if len(shape) > 1:
+        raise ValueError(f"names label a 1-d result; this result has shape {shape}")
+    size = shape[0] if shape else 1
+    if len(names) != size:
+        raise ValueError(f"got {len(names)} names for {size} outputs: {names!r}")
+    return names
+
+
+def _frozen(x):
+    """Return a read-only array, or a Python float for a 0-d value."""
+    x = np.array(x, dtype=float)
+    if x.ndim == 0:
+        return float(x)
+    x.setflags(write=False)
+    return x
+
+
+# --------------------------------------------------------------------------- intervals
+def _wilson(k, n, z):
+    """Wilson score interval (no continuity correction)."""
+    p = k / n
+    denom = 1.0 + z**2 / n
+    centre = (p + z**2 / (2 * n)) / denom
+    half = z / denom * np.sqrt(p * (1 - p) / n + z**2 / (4 * n**2))
+    # At k = 0 and k = n the bounds are exactly 0 and 1; rounding would leave +-1e-17.
+    return np.where(k == 0, 0.0, centre - half), np.where(k == n, 1.0, centre + half)
+
+
+def _clopper_pearson(k, n, alpha):
+    """Clopper-Pearson interval from beta quantiles; bounds 0 at k = 0 and 1 at k = n."""
+    lower = stats.beta.ppf(alpha / 2, np.maximum(k, 1), n - k + 1)
+    upper = stats.beta.ppf(1 - alpha / 2, k + 1, np.maximum(n - k, 1))
+    return np.where(k == 0, 0.0, lower), np.where(k == n, 1.0, upper)
+
+
+def binomial_interval(successes, trials, confidence=0.95, method="wilson"):
+    """Two-sided confidence interval for a binomial proportion.
+
+    Parameters
+    ----------
+    successes : array_like of int
+        Number of successes ``k``, ``0 <= k <= trials``.
+    trials : array_like of int
+        Number of independent trials ``n > 0``; broadcast against `successes`.
+    confidence : float, default 0.95
+        Two-sided confidence level in (0, 1).
+    method : {"wilson", "clopper-pearson"}
+        ``"wilson"``: score interval, coverage close to nominal on average.
+        ``"clopper-pearson"``: exact interval from beta quantiles, coverage never below
+        nominal (conservative); lower bound 0 at ``k = 0``, upper bound 1 at ``k = n``.
+
+    Returns
+    -------
+    lower, upper : float or ndarray
+        Interval bounds, with the broadcast shape of the inputs.
+
+    Raises
+    ------
+    ValueError
+        If a count is negative, non-integral or exceeds its trials, if `confidence` is
+        outside (0, 1), or if `method` is unknown.
+
+    Notes
+    -----
+    Both intervals assume independent trials. Poses of one grid experiment are not
+    independent (they share the experiment's errors); use
+    :func:`between_experiment_interval` for them.
+    """
+    confidence = _check_confidence(confidence)
+    _check_method(method)
+    k, n = _check_counts(successes, trials)
+    alpha = 1.0 - confidence
+    if method == "wilson":
+        lower, upper = _wilson(k, n, stats.norm.ppf(1 - alpha / 2))
+    else:
+        lower, upper = _clopper_pearson(k, n, alpha)
+    return _frozen(lower), _frozen(upper)
+
+
+# --------------------------------------------------------------------------- results
+class _FrameMixin:
+    """``as_dict`` and ``to_frame`` for the frozen estimate dataclasses."""
+
+    def as_dict(self):
+        """Return the fields as a plain dict (arrays stay arrays)."""
+        return {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
+
+    def to_frame(self):
+        """Return one row per output, indexed by ``names`` when they were given.
+
+        Raises
+        ------
+        ValueError
+            If the estimate has more than one dimension.
+        """
+        shape = np.shape(self.estimate)
+        if len(shape) > 1:
+            raise ValueError(f"to_frame needs a 0-d or 1-d estimate; got shape {shape}")
+        size = shape[0] if shape else 1
+        columns = {
+            f.name: np.broadcast_to(getattr(self, f.name), (size,))
+            for f in dataclasses.fields(self)
+            if f.name != "names"
+        }
+        index = pd.Index(self.names if self.names else range(size), name="output")
+        return pd.DataFrame(columns, index=index)
+
+
+@dataclass(frozen=True, eq=False)
+class ProportionEstimate(_FrameMixin):
+    """A proportion from independent trials, with its interval.
+
+    Attributes
+    ----------
+    estimate : float or ndarray
+        ``successes / trials``.
+    lower, upper : float or ndarray
+        Confidence bounds from `method`.
+    standard_error : float or ndarray
+        Plug-in binomial standard error ``sqrt(p (1 - p) / n)``; it is 0 at ``p = 0`` or 1,
+        where only the interval is informative.
+    n : int or ndarray
+        Number of trials.
+    method : str
+        ``"wilson"`` or ``"clopper-pearson"``.
+    confidence : float
+        Two-sided confidence level.
+    names : tuple of str or None
+        Output names, used as the index of :meth:`to_frame`.
+    """
+
+    estimate: float | np.ndarray
+    lower: float | np.ndarray
+    upper: float | np.ndarray
+    standard_error: float | np.ndarray
+    n: int | np.ndarray
+    method: str
+    confidence: float
+    names: tuple[str, ...] | None = None
+
+
+@dataclass(frozen=True, eq=False)
+class ReplicateEstimate(_FrameMixin):
+    """A mean over independent experiments, with a Student-t interval.
+
+    Attributes
+    ----------
+    estimate : float or ndarray
+        Mean of the per-experiment fractions.
+    lower, upper : float or ndarray
+        ``estimate -+ t_{(1+c)/2, n-1} * standard_error``. Not clipped to [0, 1]: an upper
+        bound above 1 says the normal approximation is strained, and is shown as such.
+    standard_error : float or ndarray
+        ``std / sqrt(n)``.
+    n : int
+        Number of experiments.
+    method : str
+        Always ``"student-t"``.
+    confidence : float
+        Two-sided confidence level.
+    std : float or ndarray
+        Sample standard deviation across experiments (``ddof=1``).
+    minimum, maximum : float or ndarray
+        Smallest and largest per-experiment fraction (Table 9's "Min" and "Max" rows).
+    names : tuple of str or None
+        Output names, used as the index of :meth:`to_frame`.
+    """
+
+    estimate: float | np.ndarray
+    lower: float | np.ndarray
+    upper: float | np.ndarray
+    standard_error: float | np.ndarray
+    n: int
+    method: str
+    confidence: float
+    std: float | np.ndarray
+    minimum: float | np.ndarray
+    maximum: float | np.ndarray
+    names: tuple[str, ...] | None = None
+
+
+# --------------------------------------------------------------------------- estimators
+def proportion(successes, trials, confidence=0.95, method="wilson", *, names=None):
+    """Estimate a proportion from independent trials.
+
+    Parameters
+    ----------
+    successes, trials, confidence, method
+        As in :func:`binomial_interval`.
+    names : sequence of str, optional
+        One name per output (last axis of a 1-d result), e.g. ``("dx", ..., "ez")``.
+
+    Returns
+    -------
+    ProportionEstimate
+    """
+    lower, upper = binomial_interval(successes, trials, confidence, method)
+    k, n = _check_counts(successes, trials)
+    p = k / n
+    return ProportionEstimate(
+        estimate=_frozen(p),
+        lower=lower,
+        upper=upper,
+        standard_error=_frozen(np.sqrt(p * (1 - p) / n)),
+        n=int(n) if n.ndim == 0 else _frozen(n).astype(np.int64),
+        method=method,
+        confidence=float(confidence),
+        names=_check_names(names, p.shape),
+    )
+
+
+def _check_fractions(fractions):
+    """Return per-experiment fractions as a float array of shape (n >= 2, ...)."""
+    f = np.asarray(fractions, dtype=float)
+    if f.ndim == 0 or f.shape[0] < 2:
+        n = 0 if f.ndim == 0 else f.shape[0]
+        raise ValueError(
+            f"need at least 2 experiments along axis 0 to estimate a spread; got {n}"
+        )
+    bad = ~np.isfinite(f) | (f < 0) | (f > 1)
+    if bad.any():
+        raise ValueError(
+            f"fractions must be finite and in [0, 1]; {_index_text('fractions', bad, f)}"
+        )
+    return f
+
+
+def between_experiment_interval(fractions, confidence=0.95, *, names=None):
+    """Mean in-tolerance fraction over repeated experiments, with a Student-t interval.
+
+    One grid experiment (Sec. 5.3) evaluates 5^6 = 15 625 poses, but draws the 30 assembly
+    errors once and each axis' six motion errors only at its five grid points, so every
+    pose shares its assembly errors with all others and its motion errors with thousands
+    of others. Out-of-tolerance poses therefore come in clusters: one unlucky draw pushes
+    hundreds of poses out at once (Table 9, experiment 8, εz: 99.14 %). The poses are not
+    independent trials, and the unit of replication is the experiment.
+
+    A binomial interval on the 20 x 15 625 = 312 500 pooled poses treats them as
+    independent and is far too narrow. For the εz column of Table 9 the pooled binomial
+    standard error is 7.4e-5, while the spread between experiments gives 5.9e-4: a design
+    effect of about 60, so the pooled interval is about 8 times too narrow and would
+    claim a precision the 20 experiments do not have. This function uses the experiments'
+    own spread instead.
+
+    Parameters
+    ----------
+    fractions : array_like, shape (n_experiments, ...)
+        Per-experiment fraction of poses within the limit, each in [0, 1]; trailing axes
+        are outputs (e.g. shape (20, 6) for Table 9).
+    confidence : float, default 0.95
+        Two-sided confidence level in (0, 1).
+    names : sequence of str, optional
+        One name per output for :meth:`ReplicateEstimate.to_frame`.
+
+    Returns
+    -------
+    ReplicateEstimate
+        Mean, ``std(ddof=1) / sqrt(n)`` standard error, Student-t interval with
+        ``n - 1`` degrees of freedom, minimum and maximum, per output.
+
+    Raises
+    ------
+    ValueError
+        If there are fewer than 2 experiments, or a fraction is non-finite or outside
+        [0, 1] (the offending element is named).
+
+    Notes
+    -----
+    The t-interval is exact for normally distributed fractions. Fractions near 1 are
+    skewed (many experiments at exactly 1, a few well below), so with 20 experiments its
+    coverage is only approximate, and if every experiment is at 1 the interval collapses
+    to a point. :func:`machine_yield` answers the complementary question "how often is a
+    machine entirely within its limits" with an exact binomial interval.
+
+    Examples
+    --------
+    >>> est = between_experiment_interval([[0.999, 1.0], [0.997, 1.0], [0.998, 0.999]],
+    ...                                   names=("dx", "ez"))
+    >>> est.to_frame().loc["dx", "estimate"].round(6)
+    np.float64(0.998)
+    """
+    confidence = _check_confidence(confidence)
+    f = _check_fractions(fractions)
+    n = f.shape[0]
+    mean = f.mean(axis=0)
+    std = f.std(axis=0, ddof=1)
+    se = std / np.sqrt(n)
+    half = stats.t.ppf(0.5 + confidence / 2, n - 1) * se
+    return ReplicateEstimate(
+        estimate=_frozen(mean),
+        lower=_frozen(mean - half),
+        upper=_frozen(mean + half),
+        standard_error=_frozen(se),
+        n=n,
+        method="student-t",
+        confidence=confidence,
+        std=_frozen(std),
+        minimum=_frozen(f.min(axis=0)),
+        maximum=_frozen(f.max(axis=0)),
+        names=_check_names(names, mean.shape),
+    )
+
+
+def machine_yield(all_within, confidence=0.95, method="clopper-pearson", *, trials=None):
+    """Share of simulated machines whose every pose meets every limit.
+
+    Each grid experiment is one simulated machine (one draw of all its errors);
+    experiments are independent, so the share is a binomial proportion over experiments.
+
+    Parameters
+    ----------
+    all_within : array_like of bool, shape (n_experiments, ...), or int
+        Without `trials`: a boolean array whose first axis is the experiment; any trailing
+        axes (poses, outputs) are reduced with ``all``, so an experiment counts only if
+        every entry is True. With `trials`: the number of experiments that were entirely
+        within their limits.
+    confidence : float, default 0.95
+        Two-sided confidence level in (0, 1).
+    method : {"clopper-pearson", "wilson"}
+        Interval method; the exact interval is the default because the number of
+        experiments is small and the yield is often 0 or 1.
+    trials : int, optional
+        Number of experiments, when `all_within` is a count.
+
+    Returns
+    -------
+    ProportionEstimate
+
+    Raises
+    ------
+    TypeError
+        If `all_within` is not boolean and no `trials` is given.
+    ValueError
+        If there is no experiment, or as in :func:`binomial_interval`.
+    """
+    if trials is not None:
+        return proportion(all_within, trials, confidence, method)
+    ok = np.asarray(all_within)
+    if ok.dtype != bool:
+        raise TypeError(
+            f"all_within must be a boolean array (n_experiments, ...); got dtype "
+            f"{ok.dtype}. To pass a count of all-within experiments, also give trials="
+        )
+    if ok.ndim == 0:
+        raise ValueError("all_within needs a leading experiment axis; got a scalar")
+    per_machine = ok.all(axis=tuple(range(1, ok.ndim)))
+    return proportion(int(per_machine.sum()), per_machine.size, confidence, method)
