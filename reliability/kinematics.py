@@ -9,15 +9,15 @@ transform, ``M_i`` its ideal motion, ``E^p_i`` the assembly error of the joint t
 axis (none after the last axis) and ``T`` the tool offset. The comprehensive error is
 ``E = M⁻¹ M_e`` (Eq. 18) with ``M`` the error-free chain.
 
-Every error transform is ``I + ξ_k^`` (Eq. 2). Moving each one to the tool frame through
-the ideal chain ``B_k`` that follows it gives the identity
+A chain segment is written ``G_0 (I + ξ_1^) G_1 … (I + ξ_m^) G_m``: ideal rigid factors ``G``
+and error transforms ``I + ξ^`` (Eq. 2 is exactly this form). Moving each error to the end
+of the segment through the ideal factors that follow it, ``B_k = G_k … G_m``, gives
 
-    E = Π_k (I + η_k^),    η_k = Ad(B_k⁻¹) ξ_k,
+    (G_0 … G_m)⁻¹ · segment = Π_k (I + η_k^),    η_k = Ad(B_k⁻¹) ξ_k,
 
-in chain order, which holds exactly (it telescopes ``B_k B_k⁻¹``). The product is formed
-on deviations from the identity, so the result is accurate to rounding relative to the
-errors themselves rather than to the 500 mm of the chain. Its first-order part,
-``Σ_k Ad(B_k⁻¹) ξ_k``, is the analytic Jacobian.
+in chain order, exactly (the ``B_k B_k⁻¹`` telescope). The product is formed on deviations
+from the identity, so rounding is relative to the errors rather than to the 500 mm of the
+chain. Its first-order part, ``Σ_k Ad(B_k⁻¹) ξ_k``, is the analytic Jacobian.
 """
 
 from __future__ import annotations
@@ -41,31 +41,79 @@ def offset_transform(offset) -> np.ndarray:
     return out
 
 
-def error_locations(machine, q) -> list[np.ndarray]:
-    """Ideal transforms ``B_k`` from each error's frame to the tool frame.
-
-    Parameters
-    ----------
-    machine : Machine
-    q : array_like
-        ``(..., n_axes)`` positions.
+def chain_factors(machine, q) -> tuple[list[np.ndarray], list[int]]:
+    """Ideal factors ``G_0 … G_m`` of the whole chain and the error block of each gap.
 
     Returns
     -------
-    list of numpy.ndarray
-        ``2 n_axes − 1`` arrays ``(..., 4, 4)`` in the order of the error vector's blocks:
-        the motion error of each axis, then the assembly error of each joint.
+    factors : list of ndarray
+        ``m + 1`` transforms ``(..., 4, 4)`` (or ``(4, 4)`` when constant).
+    blocks : list of int
+        For each of the ``m = 2 n_axes − 1`` error transforms in chain order, the index of
+        its six-error block in the error vector (motion blocks 0…n−1, joints n…2n−2).
     """
-    q = machine.check_positions(q)
     n = len(machine.axis_specs)
-    motions = [ideal_motion(axis, q[..., i]) for i, axis in enumerate(machine.axis_specs)]
-    after = [None] * (n + 1)  # after[i]: ideal chain from the frame before O_i to the tool
-    after[n] = np.broadcast_to(offset_transform(machine.tool_offset), q.shape[:-1] + (4, 4))
-    for i in range(n - 1, -1, -1):
-        after[i] = offset_transform(machine.axis_specs[i].offset) @ motions[i] @ after[i + 1]
-    motion_blocks = [motions[i] @ after[i + 1] for i in range(n)]
-    assembly_blocks = [after[i + 1] for i in range(n - 1)]
-    return motion_blocks + assembly_blocks
+    factors, blocks = [offset_transform(machine.axis_specs[0].offset)], []
+    for i, axis in enumerate(machine.axis_specs):
+        blocks.append(i)  # motion error E^m_i, then M_i
+        factors.append(ideal_motion(axis, q[..., i]))
+        if i < n - 1:  # assembly error E^p_i, then the next axis' offset
+            blocks.append(n + i)
+            factors.append(offset_transform(machine.axis_specs[i + 1].offset))
+    factors[-1] = factors[-1] @ offset_transform(machine.tool_offset)
+    return factors, blocks
+
+
+def transports(factors) -> list[np.ndarray]:
+    """``Ad(B_k⁻¹)`` for ``B_k = G_k … G_m``, k = 1…m: each gap's error seen at the end."""
+    after = factors[-1]
+    out = [adjoint_to_frame(after)]
+    for factor in factors[-2:0:-1]:
+        after = factor @ after
+        out.append(adjoint_to_frame(after))
+    return out[::-1]
+
+
+def segment_deviation(factors, twists) -> np.ndarray:
+    """``(G_0 … G_m)⁻¹ · G_0 (I + ξ_1^) G_1 … (I + ξ_m^) G_m − I``, exactly.
+
+    Parameters
+    ----------
+    factors : list of ndarray
+        ``m + 1`` ideal rigid transforms ``(..., 4, 4)``; leading dimensions broadcast.
+    twists : list of ndarray
+        ``m`` error twists ``(..., 6)`` (δx δy δz εx εy εz).
+
+    Returns
+    -------
+    numpy.ndarray
+        ``(..., 4, 4)`` deviation from the identity (last row zero).
+    """
+    if len(factors) != len(twists) + 1:
+        raise ValueError("a segment needs one more ideal factor than error twists")
+    return deviation_from_transports(transports(factors), twists)
+
+
+def deviation_from_transports(adjoints, twists) -> np.ndarray:
+    """``Π_k (I + (Ad_k ξ_k)^) − I`` in chain order, accumulated on deviations.
+
+    The workhorse of :func:`segment_deviation` for callers that reuse the transports
+    ``Ad(B_k⁻¹)`` across many error draws.
+    """
+    deviation = np.zeros((4, 4))
+    for adjoint, xi in zip(adjoints, twists):
+        step = twist_matrix(np.einsum("...ij,...j->...i", adjoint, xi))
+        deviation = deviation + step + deviation @ step
+    return deviation
+
+
+def twist_matrix(twist) -> np.ndarray:
+    """The 4×4 matrix ``ξ^`` of a twist ``(..., 6)`` (last row zero)."""
+    twist = np.asarray(twist)
+    out = np.zeros(twist.shape[:-1] + (4, 4))
+    out[..., :3, :3] = skew(twist[..., 3:])
+    out[..., :3, 3] = twist[..., :3]
+    return out
 
 
 def jacobian(machine, q) -> np.ndarray:
@@ -83,27 +131,12 @@ def jacobian(machine, q) -> np.ndarray:
         ``(..., 6, n_errors)``: ``J[..., o, i] = ∂y_o/∂x_i`` at zero error, with outputs
         δx δy δz εx εy εz and errors in the order of ``machine.error_names``.
     """
-    blocks = [adjoint_to_frame(b) for b in error_locations(machine, q)]
-    return np.concatenate(blocks, axis=-1)
-
-
-def chain_order(n_axes: int) -> list[int]:
-    """Block indices of the error vector in chain order: motion 0, joint 0, motion 1, …"""
-    order = []
-    for i in range(n_axes):
-        order.append(i)
-        if i < n_axes - 1:
-            order.append(n_axes + i)
-    return order
-
-
-def twist_matrix(twist) -> np.ndarray:
-    """The 4×4 matrix ``ξ^`` of a twist ``(..., 6)`` (last row zero)."""
-    twist = np.asarray(twist)
-    out = np.zeros(twist.shape[:-1] + (4, 4))
-    out[..., :3, :3] = skew(twist[..., 3:])
-    out[..., :3, 3] = twist[..., :3]
-    return out
+    q = machine.check_positions(q)
+    factors, blocks = chain_factors(machine, q)
+    columns = [None] * len(blocks)
+    for block, adjoint in zip(blocks, transports(factors)):
+        columns[block] = np.broadcast_to(adjoint, q.shape[:-1] + (6, 6))
+    return np.concatenate(columns, axis=-1)
 
 
 def comprehensive_error(machine, q, x) -> np.ndarray:
@@ -125,11 +158,8 @@ def comprehensive_error(machine, q, x) -> np.ndarray:
     """
     q = machine.check_positions(q)
     x = machine.check_errors(x)
-    locations = error_locations(machine, q)
-    deviation = None  # E − I, accumulated in chain order
-    for block in chain_order(len(machine.axis_specs)):
-        xi = x[..., 6 * block: 6 * block + 6]
-        eta = np.einsum("...ij,...j->...i", adjoint_to_frame(locations[block]), xi)
-        step = twist_matrix(eta)
-        deviation = step if deviation is None else deviation + step + deviation @ step
-    return read_pose_error(deviation)
+    factors, blocks = chain_factors(machine, q)
+    twists = [x[..., 6 * b: 6 * b + 6] for b in blocks]
+    deviation = segment_deviation(factors, twists)
+    shape = np.broadcast_shapes(q.shape[:-1], x.shape[:-1])
+    return np.broadcast_to(read_pose_error(deviation), shape + (6,))

@@ -1,0 +1,341 @@
+"""Monte-Carlo verification on the exact model: the grid experiment of Sec. 5.3 and
+random-pose sampling.
+
+Grid experiment (DESIGN §2). Each axis takes ``P`` equidistant points (P = 5 in the
+paper); at every point of every axis its six motion errors are drawn once per experiment;
+the assembly errors are drawn once per experiment; all ``P^n`` pose combinations are then
+evaluated with the exact model (Eq. 18). All poses of one experiment share its assembly
+errors, and each motion-error draw is shared by ``P^(n−1)`` poses, so the poses of one
+experiment are *not* independent samples: the unit of replication is the experiment.
+
+How it is computed. Split the chain into a head (the first ``h`` axes) and a tail, with
+ideal transforms ``A``, ``B`` and actual ones ``A (I + D_h)``, ``B (I + D_t)``. Then exactly
+
+    E − I = D_t + B⁻¹ D_h B (I + D_t),
+
+which is linear in the twelve non-zero entries of ``D_h``. ``D_h`` has only ``P^h`` values
+per experiment and ``D_t`` only ``P^(n−h)``, so the ``P^n`` poses come from one matrix
+product ``(P^h × 12) · (12 × 6 P^(n−h))`` instead of a 17-matrix chain per pose.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .fosm import error_sigma, one_sided_probability, output_sigma, two_sided_probability
+from .kinematics import deviation_from_transports, ideal_motion, offset_transform, transports
+from .poses import grid_axis_points, random_poses
+from .results import GridExperimentResult, RandomPoseResult
+from .transforms import read_pose_error, rigid_inverse
+
+DISTRIBUTIONS = ("truncated", "normal")
+
+# READ[o, r, s]: output o of a deviation matrix X is Σ READ[o, r, s] X[r, s]
+# (translation column for δ, skew part of the rotation block for ε; see read_pose_error).
+READ = np.zeros((6, 3, 4))
+READ[0, 0, 3] = READ[1, 1, 3] = READ[2, 2, 3] = 1.0
+READ[3, 2, 1], READ[3, 1, 2] = 0.5, -0.5
+READ[4, 0, 2], READ[4, 2, 0] = 0.5, -0.5
+READ[5, 1, 0], READ[5, 0, 1] = 0.5, -0.5
+
+
+def draw_errors(tolerances, size, *, k: float = 3.0, distribution: str = "truncated",
+                rng=None) -> np.ndarray:
+    """Draw zero-mean errors with σ = t/k, optionally truncated at ±t (Sec. 5.3).
+
+    Parameters
+    ----------
+    tolerances : array_like
+        ``(n,)`` positive tolerances.
+    size : tuple of int
+        Leading shape; the result is ``size + (n,)``.
+    k : float
+        Coverage factor (t = ±kσ).
+    distribution : {'truncated', 'normal'}
+        'truncated': normal "within the allowable range", by rejection of |z| > k
+        (exact; 0.27 % rejected at k = 3). 'normal': untruncated.
+    rng : None, int or numpy.random.Generator
+    """
+    if distribution not in DISTRIBUTIONS:
+        raise ValueError(f"unknown distribution {distribution!r}; use one of {DISTRIBUTIONS}")
+    rng = np.random.default_rng(rng)
+    t = np.asarray(tolerances, dtype=float)
+    z = rng.standard_normal(tuple(size) + t.shape)
+    if distribution == "truncated":
+        outside = np.abs(z) > k
+        while np.any(outside):
+            z[outside] = rng.standard_normal(int(outside.sum()))
+            outside = np.abs(z) > k
+    return z * (t / k)
+
+
+def _grid_shape(position: int, dims: int, points: int) -> tuple[int, ...]:
+    return tuple(points if d == position else 1 for d in range(dims))
+
+
+class GridExperiment:
+    """The Sec. 5.3 grid experiment for one machine and grid, ready to run many times.
+
+    The pose-dependent part (transports of every error to the tool frame) is computed once
+    here; :meth:`run` then costs one small matrix product per experiment.
+
+    Parameters
+    ----------
+    machine : Machine
+    points_per_axis : int
+        Grid points per axis (5 in the paper).
+    """
+
+    def __init__(self, machine, points_per_axis: int = 5):
+        self.machine = machine
+        self.points = grid_axis_points(machine, points_per_axis)
+        self.points_per_axis = int(points_per_axis)
+        n = len(machine.axis_specs)
+        self.n_head = (n + 1) // 2
+        self._head_factors, self._head_gaps = self._segment(0, self.n_head)
+        self._tail_factors, self._tail_gaps = self._segment(self.n_head, n)
+        self._head_transports = transports(self._head_factors)
+        self._tail_transports = transports(self._tail_factors)
+        tail = self._product(self._tail_factors, n - self.n_head)
+        self._tail_ideal_inverse = rigid_inverse(tail)
+        self._tail_ideal = tail
+
+    @property
+    def n_poses(self) -> int:
+        """``P^n``: 15 625 for the paper's machine."""
+        return self.points_per_axis ** len(self.machine.axis_specs)
+
+    @property
+    def poses(self) -> np.ndarray:
+        """``(P^n, n_axes)`` grid poses, first axis slowest (as ``workspace_grid``)."""
+        mesh = np.meshgrid(*self.points, indexing="ij")
+        return np.stack([m.ravel() for m in mesh], axis=-1)
+
+    # ----- set-up ------------------------------------------------------------------
+    def _segment(self, first: int, stop: int):
+        """Ideal factors and gap labels of axes ``first … stop−1`` on their own grid.
+
+        A gap label is ``('motion', axis)`` or ``('joint', j)``. The tail starts with the
+        assembly error of the joint into its first axis.
+        """
+        specs = self.machine.axis_specs
+        dims, points = stop - first, self.points_per_axis
+        factors, gaps = [np.eye(4)], []
+        if first > 0:
+            gaps.append(("joint", first - 1))
+            factors.append(np.eye(4))
+        for i in range(first, stop):
+            factors[-1] = factors[-1] @ offset_transform(specs[i].offset)
+            gaps.append(("motion", i))
+            position = self.points[i].reshape(_grid_shape(i - first, dims, points))
+            factors.append(ideal_motion(specs[i], position))
+            if i < stop - 1:
+                gaps.append(("joint", i))
+                factors.append(np.eye(4))
+        if stop == len(specs):
+            factors[-1] = factors[-1] @ offset_transform(self.machine.tool_offset)
+        return factors, gaps
+
+    def _product(self, factors, dims: int) -> np.ndarray:
+        out = factors[0]
+        for factor in factors[1:]:
+            out = out @ factor
+        shape = (self.points_per_axis,) * dims
+        return np.broadcast_to(out, shape + (4, 4)).reshape(-1, 4, 4)
+
+    # ----- evaluation --------------------------------------------------------------
+    def evaluate(self, motion_errors, assembly_errors) -> np.ndarray:
+        """Exact comprehensive errors at every grid pose for given error draws.
+
+        Parameters
+        ----------
+        motion_errors : array_like
+            ``(R, n_axes, P, 6)``: each axis' six motion errors at each of its points.
+        assembly_errors : array_like
+            ``(R, n_axes − 1, 6)``.
+
+        Returns
+        -------
+        numpy.ndarray
+            ``(R, P^n, 6)``, poses in the order of :attr:`poses`.
+        """
+        motion, assembly = self._check_draws(motion_errors, assembly_errors)
+        repeats = motion.shape[0]
+        head = self._deviation(self._head_transports, self._head_gaps, 0, motion, assembly)
+        tail = self._deviation(self._tail_transports, self._tail_gaps, self.n_head, motion,
+                               assembly)
+        head = head.reshape(repeats, -1, 4, 4)
+        tail = tail.reshape(repeats, -1, 4, 4)
+        tail_actual = self._tail_ideal @ (np.eye(4) + tail)
+        # E − I = D_t + B⁻¹ D_h B (I + D_t): linear in the 12 non-zero entries of D_h.
+        coupling = np.einsum("ors,jra,Rjbs->Rabjo", READ, self._tail_ideal_inverse[:, :3, :3],
+                             tail_actual, optimize=True)
+        coupling = coupling.reshape(repeats, 12, -1)
+        through_head = head[:, :, :3, :].reshape(repeats, -1, 12) @ coupling
+        out = through_head.reshape(repeats, head.shape[1], tail.shape[1], 6)
+        out += read_pose_error(tail)[:, None, :, :]
+        return out.reshape(repeats, -1, 6)
+
+    def _deviation(self, adjoints, gaps, first: int, motion, assembly) -> np.ndarray:
+        """Deviation of a segment for every repeat and every combination of its points."""
+        dims = len([g for g in gaps if g[0] == "motion"])
+        twists = []
+        for kind, index in gaps:
+            if kind == "motion":
+                shape = _grid_shape(index - first, dims, self.points_per_axis)
+                twists.append(motion[:, index].reshape((-1,) + shape + (6,)))
+            else:
+                twists.append(assembly[:, index].reshape((-1,) + (1,) * dims + (6,)))
+        if not twists:
+            return np.zeros((motion.shape[0], 1, 4, 4))
+        return deviation_from_transports(adjoints, twists)
+
+    def reference_evaluate(self, motion_errors, assembly_errors) -> np.ndarray:
+        """Same as :meth:`evaluate`, by the straightforward per-pose exact model.
+
+        Builds each pose's full error vector and calls ``machine.comprehensive_error`` on
+        all ``P^n`` poses at once: the simple reference the benchmark compares against.
+        """
+        motion, assembly = self._check_draws(motion_errors, assembly_errors)
+        index = np.stack(np.meshgrid(*[np.arange(self.points_per_axis)] * motion.shape[1],
+                                     indexing="ij"), axis=-1).reshape(-1, motion.shape[1])
+        per_pose = motion[:, np.arange(motion.shape[1]), index]  # (R, P^n, n_axes, 6)
+        x = np.concatenate([per_pose.reshape(motion.shape[0], len(index), -1),
+                            np.broadcast_to(assembly.reshape(motion.shape[0], 1, -1),
+                                            (motion.shape[0], len(index),
+                                             assembly[0].size))], axis=-1)
+        return self.machine.comprehensive_error(self.poses, x)
+
+    def _check_draws(self, motion, assembly):
+        n = len(self.machine.axis_specs)
+        motion = np.asarray(motion, dtype=float)
+        assembly = np.asarray(assembly, dtype=float)
+        expected = (n, self.points_per_axis, 6)
+        if motion.ndim != 4 or motion.shape[1:] != expected:
+            raise ValueError(f"motion errors must have shape (R, {n}, {self.points_per_axis}, 6);"
+                             f" got {motion.shape}")
+        if assembly.shape != (motion.shape[0], n - 1, 6):
+            raise ValueError(f"assembly errors must have shape ({motion.shape[0]}, {n - 1}, 6);"
+                             f" got {assembly.shape}")
+        return motion, assembly
+
+    # ----- experiments -------------------------------------------------------------
+    def run(self, tolerances, *, repeats: int = 20, rng=None, k: float = 3.0,
+            distribution: str = "truncated", keep_values: str = "first",
+            batch: int = 50, progress=None) -> "GridExperimentResult":
+        """Run ``repeats`` independent grid experiments (Tables 8 and 9).
+
+        Parameters
+        ----------
+        tolerances : array_like
+            ``(n_errors,)`` allocation, read as ±kσ.
+        repeats : int
+            Number of experiments (20 in the paper); each draws from its own generator
+            spawned from ``rng``, so repeat r is the same whatever the batch size.
+        rng : None, int or numpy.random.Generator
+        k : float
+            Coverage factor.
+        distribution : {'truncated', 'normal'}
+            Truncated at ±t as in Sec. 5.3 (default), or untruncated.
+        keep_values : {'first', 'all', 'none'}
+            Which experiments' per-pose values to keep (for Figs. 10–15).
+        batch : int
+            Experiments evaluated together (memory ≈ batch × P^n × 6 × 8 bytes).
+        progress : callable, optional
+            Called as ``progress(done, total)`` after each batch.
+
+        Returns
+        -------
+        GridExperimentResult
+        """
+        t = self.machine.check_tolerances(tolerances)
+        _check_run_options(repeats, keep_values, batch, distribution)
+        children = np.random.default_rng(rng).spawn(int(repeats))
+        inside, kept = [], []
+        for start in range(0, repeats, batch):
+            draws = [self._draw(t, child, k, distribution)
+                     for child in children[start:start + batch]]
+            values = self.evaluate(np.stack([d[0] for d in draws]),
+                                   np.stack([d[1] for d in draws]))
+            inside.append(np.sum(np.abs(values) < self.machine.limits, axis=1))  # Eq. (19)
+            if keep_values == "all" or (keep_values == "first" and start == 0):
+                kept.append(values if keep_values == "all" else values[:1])
+            if progress is not None:
+                progress(min(start + batch, repeats), repeats)
+        return GridExperimentResult(
+            limits=self.machine.limits.copy(), inside=np.concatenate(inside),
+            n_poses=self.n_poses, distribution=distribution, k=float(k),
+            points_per_axis=self.points_per_axis,
+            values=np.concatenate(kept) if kept else None)
+
+    def _draw(self, t, rng, k, distribution):
+        """One experiment's errors from its own generator: motion errors ``(n_axes, P, 6)``
+        (one draw per axis point), then assembly errors ``(n_axes − 1, 6)``."""
+        n = len(self.machine.axis_specs)
+        motion_t = np.broadcast_to(t[:6 * n].reshape(n, 1, 6), (n, self.points_per_axis, 6))
+        motion = draw_errors(motion_t, (), k=k, distribution=distribution, rng=rng)
+        assembly = draw_errors(t[6 * n:].reshape(n - 1, 6), (), k=k,
+                               distribution=distribution, rng=rng)
+        return motion, assembly
+
+
+def _check_run_options(repeats, keep_values, batch, distribution) -> None:
+    if isinstance(repeats, bool) or not isinstance(repeats, (int, np.integer)) or repeats < 1:
+        raise ValueError(f"repeats must be a positive integer; got {repeats!r}")
+    if keep_values not in ("first", "all", "none"):
+        raise ValueError(f"keep_values must be 'first', 'all' or 'none'; got {keep_values!r}")
+    if isinstance(batch, bool) or not isinstance(batch, (int, np.integer)) or batch < 1:
+        raise ValueError(f"batch must be a positive integer; got {batch!r}")
+    if distribution not in DISTRIBUTIONS:
+        raise ValueError(f"unknown distribution {distribution!r}; use one of {DISTRIBUTIONS}")
+
+
+def sample_random_poses(machine, tolerances, n_samples: int, *, rng=None, k: float = 3.0,
+                        distribution: str = "truncated", chunk: int = 50_000,
+                        progress=None) -> RandomPoseResult:
+    """Pose-level reliability from independent samples (DESIGN §2, issue "random poses").
+
+    Every sample draws a pose uniformly over the workspace and a fresh set of all errors,
+    so samples are independent and a binomial interval applies. The FOSM prediction for
+    the same poses is averaged alongside.
+
+    Parameters
+    ----------
+    machine : Machine
+    tolerances : array_like
+        ``(n_errors,)`` allocation, read as ±kσ.
+    n_samples : int
+    rng : None, int or numpy.random.Generator
+    k : float
+        Coverage factor.
+    distribution : {'truncated', 'normal'}
+    chunk : int
+        Samples evaluated together (memory ≈ chunk × 3 kB).
+    progress : callable, optional
+        ``progress(done, total)`` after each chunk.
+
+    Returns
+    -------
+    RandomPoseResult
+    """
+    t = machine.check_tolerances(tolerances)
+    _check_run_options(n_samples, "none", chunk, distribution)
+    rng = np.random.default_rng(rng)
+    sigma_x = error_sigma(t, k)
+    inside = np.zeros(6, dtype=np.int64)
+    one_sided, two_sided = np.zeros(6), np.zeros(6)
+    for start in range(0, n_samples, chunk):
+        size = min(chunk, n_samples - start)
+        poses = random_poses(machine, size, rng)
+        errors = draw_errors(t, (size,), k=k, distribution=distribution, rng=rng)
+        inside += np.sum(np.abs(machine.comprehensive_error(poses, errors)) < machine.limits,
+                         axis=0)  # Eq. (19)
+        sigma = output_sigma(machine.jacobian(poses), sigma_x)  # Eq. (20)
+        one_sided += one_sided_probability(machine.limits, sigma).sum(axis=0)
+        two_sided += two_sided_probability(machine.limits, sigma).sum(axis=0)
+        if progress is not None:
+            progress(start + size, n_samples)
+    return RandomPoseResult(limits=machine.limits.copy(), inside=inside,
+                            n_samples=int(n_samples), fosm_one_sided=one_sided / n_samples,
+                            fosm_two_sided=two_sided / n_samples, distribution=distribution,
+                            k=float(k))
