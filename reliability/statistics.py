@@ -20,7 +20,6 @@ error and interval and turns into a :class:`pandas.DataFrame` with ``.to_frame()
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -45,7 +44,7 @@ def _index_text(name, bad, values):
     """Describe the first offending element of ``values`` where ``bad`` is true."""
     idx = tuple(int(i) for i in np.argwhere(bad)[0])
     where = f"{name}[{', '.join(map(str, idx))}]" if idx else name
-    return f"{where} = {values[idx]!r}"
+    return f"{where} = {values[idx].item()!r}"
 
 
 def _check_confidence(confidence):
@@ -108,11 +107,11 @@ def _check_names(names, shape):
     return names
 
 
-def _frozen(x):
-    """Return a read-only array, or a Python float for a 0-d value."""
-    x = np.array(x, dtype=float)
+def _frozen(x, dtype=float):
+    """Return a read-only copy of ``x``, or a Python scalar for a 0-d value."""
+    x = np.array(x, dtype=dtype)
     if x.ndim == 0:
-        return float(x)
+        return x.item()
     x.setflags(write=False)
     return x
 
@@ -133,6 +132,16 @@ def _clopper_pearson(k, n, alpha):
     lower = stats.beta.ppf(alpha / 2, np.maximum(k, 1), n - k + 1)
     upper = stats.beta.ppf(1 - alpha / 2, k + 1, np.maximum(n - k, 1))
     return np.where(k == 0, 0.0, lower), np.where(k == n, 1.0, upper)
+
+
+def _bounds(k, n, confidence, method):
+    """Interval bounds for validated counts, as read-only arrays or floats."""
+    alpha = 1.0 - confidence
+    if method == "wilson":
+        lower, upper = _wilson(k, n, stats.norm.ppf(1 - alpha / 2))
+    else:
+        lower, upper = _clopper_pearson(k, n, alpha)
+    return _frozen(lower), _frozen(upper)
 
 
 def binomial_interval(successes, trials, confidence=0.95, method="wilson"):
@@ -171,12 +180,7 @@ def binomial_interval(successes, trials, confidence=0.95, method="wilson"):
     confidence = _check_confidence(confidence)
     _check_method(method)
     k, n = _check_counts(successes, trials)
-    alpha = 1.0 - confidence
-    if method == "wilson":
-        lower, upper = _wilson(k, n, stats.norm.ppf(1 - alpha / 2))
-    else:
-        lower, upper = _clopper_pearson(k, n, alpha)
-    return _frozen(lower), _frozen(upper)
+    return _bounds(k, n, confidence, method)
 
 
 # --------------------------------------------------------------------------- results
@@ -296,17 +300,19 @@ def proportion(successes, trials, confidence=0.95, method="wilson", *, names=Non
     -------
     ProportionEstimate
     """
-    lower, upper = binomial_interval(successes, trials, confidence, method)
+    confidence = _check_confidence(confidence)
+    _check_method(method)
     k, n = _check_counts(successes, trials)
+    lower, upper = _bounds(k, n, confidence, method)
     p = k / n
     return ProportionEstimate(
         estimate=_frozen(p),
         lower=lower,
         upper=upper,
         standard_error=_frozen(np.sqrt(p * (1 - p) / n)),
-        n=int(n) if n.ndim == 0 else _frozen(n).astype(np.int64),
+        n=_frozen(n, dtype=np.int64),
         method=method,
-        confidence=float(confidence),
+        confidence=confidence,
         names=_check_names(names, p.shape),
     )
 
@@ -376,10 +382,12 @@ def between_experiment_interval(fractions, confidence=0.95, *, names=None):
 
     Examples
     --------
+    Three experiments, two outputs:
+
     >>> est = between_experiment_interval([[0.999, 1.0], [0.997, 1.0], [0.998, 0.999]],
     ...                                   names=("dx", "ez"))
-    >>> est.to_frame().loc["dx", "estimate"].round(6)
-    np.float64(0.998)
+    >>> est.n, round(float(est.standard_error[0]), 6)
+    (3, 0.000577)
     """
     confidence = _check_confidence(confidence)
     f = _check_fractions(fractions)
