@@ -264,6 +264,8 @@ def plot_comprehensive_error_scatter(
                label=f"outside limit: {n_out} poses")
     ax.axhline(limit, color="k", ls="--", lw=1.0, label=f"limit ±{limit:g} {unit}")
     ax.axhline(-limit, color="k", ls="--", lw=1.0)
+    span = 1.15 * max(limit, float(np.abs(values).max()))
+    ax.set_ylim(-span, span)  # both limit lines in view, symmetric about zero
     ax.set_xlabel("pose index in the grid experiment")
     ax.set_ylabel(f"{output_label} ({unit})")
     ax.set_title(f"Comprehensive error {output_label}: {n_out} of {values.size} poses "

@@ -1,0 +1,305 @@
+"""The precision-allocation problem of Eq. (34), built from a machine and a pose set.
+
+    minimise    F(t) = Σ_i w_i / t_i²                                  (Eq. 28)
+    subject to  P_o(pose, t) ≥ R_o for every output o and pose          (Eqs. 24, 35)
+                lower_i ≤ t_i ≤ upper_i
+
+With FOSM (Eqs. 19–23) at zero error mean, ``P ≥ R`` at a pose is ``σ_o ≤ I_o / z_o`` with
+``z = Φ⁻¹(R)`` (the paper's one-sided reading) or ``z = Φ⁻¹((1 + R)/2)`` (exact two-sided);
+in ``u = t²`` it is the linear row ``Σ_i J_oi² u_i / k² ≤ (I_o / z_o)²``. The workspace
+constraint of Eq. (35) is read as "at every pose of the grid" (DESIGN §2); a
+workspace-mean variant asks the mean of P over the poses to reach R instead.
+
+Rows that can never bind are removed before any solver sees them:
+
+1. *box*: a row whose load stays ≤ 1 even with every tolerance at its upper bound;
+2. *duplicates*: poses that give the same row (e.g. εx does not depend on X, Y, Z);
+3. *dominance*: a row that is ≤ another row of the same output in every entry.
+
+All three are exact: the screened problem has the same feasible set inside the box.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+
+from reliability.fosm import (error_sigma, fosm, one_sided_probability, output_sigma,
+                              required_index, two_sided_probability)
+from reliability.machine import OUTPUTS
+from reliability.poses import workspace_grid
+
+from .cost import CostModel
+
+SIDES = ("one_sided", "two_sided")
+WORKSPACES = ("worst", "mean")
+DUPLICATE_DIGITS = 10  # rows equal to 10 significant digits count as one
+
+
+@dataclass(frozen=True, eq=False)
+class ScreenedRows:
+    """Constraint rows ``matrix @ u ≤ 1`` that survive screening, with their origin.
+
+    Attributes
+    ----------
+    matrix : ndarray (n_rows, n_errors)
+        Normalised rows over all items (locked ones included).
+    pose, output : ndarray (n_rows,) of int
+        Pose index and output index of each row.
+    counts : dict
+        Rows remaining after each screening step.
+    """
+
+    matrix: np.ndarray
+    pose: np.ndarray
+    output: np.ndarray
+    counts: dict
+
+
+@dataclass(frozen=True, eq=False)
+class AllocationProblem:
+    """Eq. (34) for one machine, pose set and reliability reading; build with :meth:`build`.
+
+    Attributes
+    ----------
+    machine : Machine
+    poses : ndarray (n_poses, n_axes)
+    jacobian : ndarray (n_poses, 6, n_errors)
+    side : {'one_sided', 'two_sided'}
+    workspace : {'worst', 'mean'}
+    k : float
+        Tolerances are ±kσ.
+    lower, upper : ndarray (n_errors,)
+        Tolerance bounds; equal bounds lock an item.
+    reference : ndarray (n_errors,)
+        Allocation the bounds and optimisation rates refer to (Table 4 by default).
+    cost : CostModel
+    rows : ScreenedRows or None
+        The linear rows of the worst-case reading (None for the mean reading).
+    """
+
+    machine: object
+    poses: np.ndarray
+    jacobian: np.ndarray
+    side: str
+    workspace: str
+    k: float
+    lower: np.ndarray
+    upper: np.ndarray
+    reference: np.ndarray
+    cost: CostModel
+    rows: ScreenedRows | None
+
+    @classmethod
+    def build(cls, machine, poses=None, *, side: str = "two_sided", workspace: str = "worst",
+              bounds=(0.5, 1.5), lower=None, upper=None, locked=(), reference=None,
+              k: float = 3.0, cost_factors=(1.0, 1.0, 1.0)) -> "AllocationProblem":
+        """Set up the problem.
+
+        Parameters
+        ----------
+        machine : Machine
+        poses : array_like, optional
+            ``(n_poses, n_axes)``; default the 5-point workspace grid (5^6 poses).
+        side : {'one_sided', 'two_sided'}
+            The paper's Φ(β) or the exact two-sided probability.
+        workspace : {'worst', 'mean'}
+            Target at every pose (Eq. 35 as read in DESIGN §2) or on the workspace mean.
+        bounds : (float, float)
+            Default box as multiples of ``reference`` ([0.5, 1.5]: Table 6 moves no item by
+            more than +50 %).
+        lower, upper : array_like, optional
+            Explicit tolerance bounds, overriding ``bounds``.
+        locked : iterable of str
+            Error names held at their reference value.
+        reference : array_like or mapping, optional
+            Reference allocation, default ``machine.initial_allocation`` (Table 4).
+        k : float
+            Coverage factor of the tolerances.
+        cost_factors : (k1, k2, k3)
+            Group weights of Eq. (28).
+        """
+        _check_choice(side, SIDES, "side")
+        _check_choice(workspace, WORKSPACES, "workspace")
+        poses = workspace_grid(machine) if poses is None else np.atleast_2d(
+            machine.check_positions(poses))
+        reference = _reference(machine, reference)
+        low, high = _bounds(machine, reference, bounds, lower, upper, locked)
+        jacobian = machine.jacobian(poses)
+        problem = cls(machine=machine, poses=poses, jacobian=jacobian, side=side,
+                      workspace=workspace, k=float(k), lower=low, upper=high,
+                      reference=reference, cost=CostModel.from_machine(machine, *cost_factors),
+                      rows=None)
+        if workspace == "worst":
+            object.__setattr__(problem, "rows", screen_rows(problem.row_matrix(), high ** 2))
+        return problem
+
+    # ----- description ---------------------------------------------------------------
+    @property
+    def names(self) -> tuple[str, ...]:
+        """Error names (the decision variables)."""
+        return self.machine.error_names
+
+    @property
+    def locked(self) -> np.ndarray:
+        """Boolean mask of items held fixed (lower == upper)."""
+        return self.lower == self.upper
+
+    @property
+    def required_index(self) -> np.ndarray:
+        """β each output needs at zero mean: ``z_o`` for the chosen side."""
+        return required_index(self.machine.targets, self.side)
+
+    @property
+    def allowed_sigma(self) -> np.ndarray:
+        """Largest σ of each output that meets its target, ``I_o / z_o``."""
+        return self.machine.limits / self.required_index
+
+    def row_matrix(self) -> np.ndarray:
+        """All rows ``J_oi² / (k² (I_o/z_o)²)`` as ``(n_poses, 6, n_errors)``."""
+        return np.square(self.jacobian / self.k) / np.square(self.allowed_sigma)[:, None]
+
+    # ----- evaluation ----------------------------------------------------------------
+    def sigma(self, t) -> np.ndarray:
+        """σ of every output at every pose, ``(..., n_poses, 6)`` for ``t (..., n)``."""
+        sigma_x = error_sigma(t, self.k)
+        return np.sqrt(np.einsum("pon,...n->...po", np.square(self.jacobian),
+                                 np.square(sigma_x)))  # Eq. (20)
+
+    def probability(self, t) -> np.ndarray:
+        """FOSM probability of the chosen side, ``(..., n_poses, 6)``."""
+        sigma = self.sigma(t)
+        if self.side == "one_sided":
+            return one_sided_probability(self.machine.limits, sigma)
+        return two_sided_probability(self.machine.limits, sigma)
+
+    def violation(self, t) -> np.ndarray:
+        """Total constraint violation ``(...,)``, 0 when ``t`` meets every target.
+
+        Worst case: Σ over the screened rows of ``max(0, load − 1)``, in units of the
+        allowed variance. Mean: Σ over outputs of ``max(0, R_o − mean_p P)``.
+        """
+        t = np.asarray(t, dtype=float)
+        if self.workspace == "worst":
+            load = np.square(t) @ self.rows.matrix.T
+            return np.maximum(load - 1.0, 0.0).sum(axis=-1)
+        shortfall = self.machine.targets - self.probability(t).mean(axis=-2)
+        return np.maximum(shortfall, 0.0).sum(axis=-1)
+
+    def evaluate(self, t) -> pd.DataFrame:
+        """Per output: worst-pose and mean probability (both sides) and the verdict."""
+        result = fosm(self.machine, t, self.poses, k=self.k, jacobian=self.jacobian)
+        frame = result.to_frame()
+        frame["required"] = self.machine.targets
+        frame["meets"] = result.meets_targets(self.side, self.workspace)
+        return frame
+
+    def meets_targets(self, t) -> bool:
+        """True when ``t`` satisfies every constraint of this problem (all poses)."""
+        probability = self.probability(np.asarray(t, dtype=float))
+        value = probability.min(axis=0) if self.workspace == "worst" else \
+            probability.mean(axis=0)
+        return bool(np.all(value >= self.machine.targets * (1 - 1e-12)))
+
+    # ----- solvers -------------------------------------------------------------------
+    def solve_exact(self, **options):
+        """Certified optimum; see :func:`allocation.solve.solve_exact`."""
+        from .solve import solve_exact
+
+        return solve_exact(self, **options)
+
+    def solve_gwo(self, **options):
+        """Grey Wolf Optimiser as in the paper; see :func:`allocation.solve.solve_gwo`."""
+        from .solve import solve_gwo
+
+        return solve_gwo(self, **options)
+
+
+def screen_rows(rows, upper_u) -> ScreenedRows:
+    """Remove rows that can never bind inside the box (box, duplicate, dominance).
+
+    Parameters
+    ----------
+    rows : ndarray (n_poses, 6, n)
+        Normalised rows; the constraint is ``row @ u ≤ 1``.
+    upper_u : ndarray (n,)
+        Upper bounds of ``u = t²``.
+    """
+    n_poses, n_outputs, n = rows.shape
+    counts = {"candidates": n_poses * n_outputs, "box": 0, "duplicates": 0, "dominance": 0}
+    kept_rows, kept_pose, kept_output = [], [], []
+    for output in range(n_outputs):
+        matrix = rows[:, output, :]
+        pose = np.flatnonzero(matrix @ upper_u > 1.0)
+        counts["box"] += len(pose)
+        pose = pose[_unique_rows(matrix[pose])]
+        counts["duplicates"] += len(pose)
+        pose = pose[_undominated(matrix[pose])]
+        counts["dominance"] += len(pose)
+        kept_rows.append(matrix[pose])
+        kept_pose.append(pose)
+        kept_output.append(np.full(len(pose), output))
+    return ScreenedRows(matrix=np.concatenate(kept_rows), pose=np.concatenate(kept_pose),
+                        output=np.concatenate(kept_output), counts=counts)
+
+
+def _unique_rows(matrix) -> np.ndarray:
+    """Indices of the first occurrence of each distinct row (to DUPLICATE_DIGITS)."""
+    if len(matrix) == 0:
+        return np.arange(0)
+    scale = matrix.max(axis=1, keepdims=True)
+    scale[scale == 0] = 1.0
+    key = np.round(matrix / scale, DUPLICATE_DIGITS) * scale
+    _, first = np.unique(key, axis=0, return_index=True)
+    return np.sort(first)
+
+
+def _undominated(matrix, block: int = 256) -> np.ndarray:
+    """Indices of rows not dominated entrywise by another row (duplicates already gone).
+
+    Rows are compared in order of decreasing sum: only a row with a larger sum can
+    dominate, so each block is tested against the rows before it and itself.
+    """
+    order = np.argsort(-matrix.sum(axis=1), kind="stable")
+    sorted_rows = matrix[order]
+    dominated = np.zeros(len(order), dtype=bool)
+    for start in range(0, len(order), block):
+        stop = min(start + block, len(order))
+        candidates = sorted_rows[:stop]
+        covers = np.all(candidates[None, :, :] >= sorted_rows[start:stop, None, :], axis=-1)
+        covers[np.arange(stop - start), np.arange(start, stop)] = False
+        dominated[start:stop] = covers.any(axis=1)
+    return np.sort(order[~dominated])
+
+
+def _check_choice(value, allowed, what) -> None:
+    if value not in allowed:
+        raise ValueError(f"unknown {what} {value!r}; use one of {allowed}")
+
+
+def _reference(machine, reference) -> np.ndarray:
+    if reference is None:
+        return machine.initial_allocation.copy()
+    if hasattr(reference, "items"):
+        reference = machine.error_vector(reference, default=None)
+    return machine.check_tolerances(reference).astype(float)
+
+
+def _bounds(machine, reference, bounds, lower, upper, locked):
+    """Tolerance bounds from factors of the reference or explicit arrays, with locks."""
+    low_factor, high_factor = bounds
+    if not (np.isfinite(low_factor) and np.isfinite(high_factor)
+            and 0 < low_factor <= high_factor):
+        raise ValueError(f"bounds must be finite factors 0 < low <= high; got {bounds!r}")
+    low = reference * low_factor if lower is None else machine.check_tolerances(lower)
+    high = reference * high_factor if upper is None else machine.check_tolerances(upper)
+    low, high = np.array(low, dtype=float), np.array(high, dtype=float)
+    bad = np.flatnonzero(low > high)
+    if len(bad):
+        raise ValueError(f"lower bound exceeds upper bound for {machine.error_names[bad[0]]!r}")
+    for name in locked:
+        index = machine.error_index(name)
+        low[index] = high[index] = reference[index]
+    return low, high
