@@ -177,7 +177,8 @@ def fosm(machine, tolerances, poses, *, k: float = 3.0, means=None,
         Coverage factor of the tolerances (3 in the paper).
     means : array_like, optional
         ``(n_errors,)`` error means; zero by default. The output mean is the exact model
-        evaluated at the error means (Eq. 20).
+        evaluated at the error means (Eq. 20). σ uses the sensitivities at zero error; the
+        paper takes them at the means, which differs only at second order.
     distribution : {'normal', 'truncated'}
         How σ follows from t, see :func:`error_sigma`.
     jacobian : ndarray, optional
@@ -191,9 +192,13 @@ def fosm(machine, tolerances, poses, *, k: float = 3.0, means=None,
     if t.ndim != 1:
         raise ValueError(f"tolerances must be one allocation of shape ({machine.n_errors},)")
     poses = np.atleast_2d(machine.check_positions(poses))
+    if poses.ndim != 2:
+        raise ValueError(f"poses must have shape (n_poses, {len(machine.axes)}); "
+                         f"got {poses.shape}")
     if jacobian is None:
         jacobian = machine.jacobian(poses)
-    elif jacobian.shape != poses.shape[:-1] + (6, machine.n_errors):
+    jacobian = np.asarray(jacobian, dtype=float)
+    if jacobian.shape != poses.shape[:-1] + (6, machine.n_errors):
         raise ValueError(f"jacobian must have shape {poses.shape[:-1] + (6, machine.n_errors)}; "
                          f"got {jacobian.shape}")
     sigma_x = error_sigma(t, k, distribution)

@@ -158,8 +158,11 @@ def comprehensive_error(machine, q, x) -> np.ndarray:
     """
     q = machine.check_positions(q)
     x = machine.check_errors(x)
+    try:
+        shape = np.broadcast_shapes(q.shape[:-1], x.shape[:-1])
+    except ValueError:
+        raise ValueError(f"positions {q.shape} and errors {x.shape} do not broadcast") from None
     factors, blocks = chain_factors(machine, q)
     twists = [x[..., 6 * b: 6 * b + 6] for b in blocks]
     deviation = segment_deviation(factors, twists)
-    shape = np.broadcast_shapes(q.shape[:-1], x.shape[:-1])
     return np.broadcast_to(read_pose_error(deviation), shape + (6,))
