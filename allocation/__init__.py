@@ -1,0 +1,21 @@
+"""Precision allocation (paper Secs. 4.2–4.4): cost model, FCEM, the problem of Eq. (34)
+and its solvers — the Grey Wolf Optimiser as in the paper, and a certified exact optimum.
+
+>>> import reliability, allocation
+>>> machine = reliability.hobbing_machine()
+>>> problem = allocation.AllocationProblem.build(machine, side="two_sided")  # doctest: +SKIP
+>>> best = problem.solve_exact()                                          # doctest: +SKIP
+"""
+
+from .convex import ConvexSolution, InfeasibleAllocationError, solve_convex_allocation
+from .cost import CostModel, cost_weights
+from .fcem import FcemResult, fcem_coefficient
+from .gwo import GwoResult, grey_wolf, grey_wolf_reference
+from .problem import AllocationProblem, ScreenedRows, screen_rows
+from .solve import AllocationResult, TargetUnreachableError, solve_exact, solve_gwo
+
+__all__ = ["AllocationProblem", "AllocationResult", "ConvexSolution", "CostModel",
+           "FcemResult", "GwoResult", "InfeasibleAllocationError", "ScreenedRows",
+           "TargetUnreachableError", "cost_weights", "fcem_coefficient", "grey_wolf",
+           "grey_wolf_reference", "screen_rows", "solve_convex_allocation", "solve_exact",
+           "solve_gwo"]

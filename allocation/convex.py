@@ -1,0 +1,502 @@
+"""Exact, certified solution of the convex core of the allocation problem (Eq. 34).
+
+With ``u_i = t_i**2`` the cost of Eq. 28 is ``f(u) = sum_i w_i / u_i`` (convex) and every
+FOSM reliability constraint ``sum_i (dg/dX_i)**2 u_i / 9 <= (I / z)**2`` is linear in ``u``.
+After dividing each constraint by its right-hand side the problem reads::
+
+    minimise    f(u) = sum_i w_i / u_i
+    subject to  G u <= 1          (G >= 0, one row per constraint)
+                lo <= u <= hi     (lo > 0; lo == hi locks an item)
+
+This module solves it and certifies the answer on its own terms:
+
+* **Primal.** In ``v = log u`` the problem is a geometric program in convex form,
+  ``min log sum_i w_i exp(-v_i)`` s.t. ``log sum_j G_rj exp(v_j) <= 0``. Tolerances of
+  lengths (~1e-3 mm) and angles (~1e-5 rad) give ``u`` spanning five orders of magnitude;
+  in ``v`` every variable moves on the same scale and the objective and constraints are
+  O(1), which is what SLSQP (analytic gradients and Jacobians) needs to converge tightly.
+  Rows are brought in by constraint generation (start with the rows most loaded at ``hi``,
+  add the most violated rows until none is violated), so thousands of (output, pose) rows
+  are cheap. The SLSQP point is finally pulled back inside ``G u <= 1`` if it overshoots
+  by rounding, so ``fun`` is the cost of a feasible allocation. The cost is flat at the
+  optimum, so SLSQP pins ``u`` to about 1e-7 (relative) while ``fun`` is exact to about
+  1e-12; the certificate below measures the latter.
+* **Multipliers.** Not taken from the solver: they are fitted by non-negative least
+  squares to the stationarity equations ``(G^T lam)_i - w_i / u_i**2 = mu_lo_i - mu_hi_i``
+  (scaled by ``u_i**2 / w_i``) over the near-active rows, with bound multipliers
+  ``mu >= 0`` only for the items at a bound. Lawson-Hanson NNLS returns a sparse ``lam``
+  even when thousands of rows are active (many poses give the same row).
+* **Certificate.** For any ``lam >= 0`` the Lagrangian dual
+  ``g(lam) = sum_i min_{lo_i <= u_i <= hi_i} (w_i / u_i + c_i u_i) - sum_r lam_r``,
+  ``c = G^T lam``, is a lower bound on the optimum (weak duality); the inner minimum is
+  attained at ``clip(sqrt(w_i / c_i), lo_i, hi_i)``. So the optimum lies in
+  ``[dual_bound, fun]``, and the KKT residuals say how well the pair satisfies the
+  optimality conditions.
+"""
+
+import itertools
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+from scipy.optimize import minimize, nnls
+
+__all__ = [
+    "ConvexSolution",
+    "InfeasibleAllocationError",
+    "KktResiduals",
+    "solve_convex_allocation",
+]
+
+#: A row outside the working set is added when its load exceeds 1 by more than this.
+ROW_ADD_TOLERANCE = 1e-9
+#: Rows added to the working set per round of constraint generation, per free item.
+ROWS_PER_ROUND = 2
+
+
+class InfeasibleAllocationError(ValueError):
+    """No allocation in the box meets the constraints.
+
+    Attributes
+    ----------
+    rows : tuple of int
+        Indices of the constraint rows that exceed 1 even with every item at its lower
+        bound (the tightest tolerances allowed).
+    loads : numpy.ndarray
+        ``(G @ lower)[rows]``.
+    """
+
+    def __init__(self, rows, loads):
+        self.rows = tuple(int(row) for row in rows)
+        self.loads = np.asarray(loads, dtype=float)
+        shown = ", ".join(
+            f"{row} (load {load:.6g})" for row, load in zip(self.rows[:10], self.loads[:10])
+        )
+        more = f" and {len(self.rows) - 10} more" if len(self.rows) > 10 else ""
+        super().__init__(
+            f"allocation is infeasible: constraint row(s) {shown}{more} exceed 1 even "
+            "with every tolerance at its lower bound"
+        )
+
+
+@dataclass(frozen=True)
+class KktResiduals:
+    """Residuals of the Karush-Kuhn-Tucker conditions at (u, lam).
+
+    Attributes
+    ----------
+    stationarity : float
+        Largest relative violation of ``w_i / u_i**2 = (G^T lam)_i`` over the items:
+        ``|(G^T lam)_i u_i**2 / w_i - 1|`` for free items, and only the wrong-signed part
+        for items at a bound (locked items are exempt).
+    primal_feasibility : float
+        ``max(0, max_r (G u - 1)_r)``.
+    complementary_slackness : float
+        ``max_r |lam_r (G u - 1)_r|``, divided by ``fun`` to be comparable to the
+        relative duality gap.
+    """
+
+    stationarity: float
+    primal_feasibility: float
+    complementary_slackness: float
+
+
+@dataclass(frozen=True, eq=False)
+class ConvexSolution:
+    """Certified solution of ``min sum w/u s.t. G u <= 1, lo <= u <= hi``.
+
+    Attributes
+    ----------
+    u : numpy.ndarray, shape (n,)
+        Optimal ``u = t**2``.
+    t : numpy.ndarray, shape (n,)
+        Optimal tolerances ``sqrt(u)``.
+    fun : float
+        Cost ``sum w / u`` at ``u`` (an upper bound on the optimum when ``u`` is feasible).
+    multipliers : numpy.ndarray, shape (m,)
+        Lagrange multipliers ``lam >= 0`` of the rows of ``G``.
+    dual_bound : float
+        Lagrangian dual ``g(lam)``, a lower bound on the optimum (weak duality).
+    duality_gap : float
+        ``fun - dual_bound``.
+    relative_gap : float
+        ``duality_gap / fun``.
+    kkt : KktResiduals
+    active : numpy.ndarray of int
+        Rows with ``G u >= 1 - tol``.
+    at_lower, at_upper : numpy.ndarray of int
+        Unlocked items within ``tol`` (relative) of their lower or upper bound.
+    locked : numpy.ndarray of int
+        Items with ``lo == hi``.
+    success : bool
+        True when the certificate holds: ``relative_gap <= gap_tol`` and
+        ``kkt.primal_feasibility <= gap_tol``.
+    message : str
+        The primal solver's message and the certificate's verdict.
+    """
+
+    u: np.ndarray
+    t: np.ndarray
+    fun: float
+    multipliers: np.ndarray
+    dual_bound: float
+    duality_gap: float
+    relative_gap: float
+    kkt: KktResiduals
+    active: np.ndarray
+    at_lower: np.ndarray
+    at_upper: np.ndarray
+    locked: np.ndarray
+    success: bool
+    message: str
+
+    def to_frame(self):
+        """One row per item: ``u``, ``t`` and ``status`` (free/lower/upper/locked).
+
+        Returns
+        -------
+        pandas.DataFrame
+            Indexed by item number; set the index to the error names as needed.
+        """
+        status = np.full(self.u.size, "free", dtype=object)
+        status[self.at_lower] = "lower"
+        status[self.at_upper] = "upper"
+        status[self.locked] = "locked"
+        frame = pd.DataFrame({"u": self.u, "t": self.t, "status": status})
+        frame.index.name = "item"
+        return frame
+
+
+def solve_convex_allocation(
+    weights, constraints, lower, upper, *, tol=1e-7, gap_tol=1e-6, max_iter=1000
+):
+    """Minimise ``sum_i w_i / u_i`` subject to ``G u <= 1`` and ``lower <= u <= upper``.
+
+    Parameters
+    ----------
+    weights : array_like, shape (n,)
+        Cost weights ``w_i`` (Eq. 28 with ``F = sum w_i / t_i**2``), finite and > 0.
+    constraints : array_like, shape (m, n)
+        ``G``, finite and >= 0, each row already divided by its right-hand side.
+    lower, upper : array_like, shape (n,) or scalar
+        Bounds on ``u = t**2``, finite, ``0 < lower <= upper``; equal bounds lock an item.
+    tol : float, optional
+        Relative closeness that counts as "active" for rows and "at a bound" for items.
+    gap_tol : float, optional
+        Relative duality gap and primal infeasibility accepted as ``success``.
+    max_iter : int, optional
+        Iteration limit of each SLSQP solve.
+
+    Returns
+    -------
+    ConvexSolution
+
+    Raises
+    ------
+    InfeasibleAllocationError
+        If some row has ``G @ lower > 1``; its ``rows`` attribute lists them.
+    ValueError
+        On bad shapes or entries (the message names the item).
+    """
+    w, G, lo, hi = _check_inputs(weights, constraints, lower, upper)
+    _check_feasible(G, lo)
+    u, lam, message = _solve_dual(w, G, lo, hi, max_iter)
+    solution = _certify(w, G, lo, hi, u, lam, tol, gap_tol, message)
+    if solution.success:
+        return solution
+    u, message = _solve_primal(w, G, lo, hi, max_iter)
+    u = _restore_feasibility(G, u, lo)
+    lam = _refine_multipliers(w, G, u, lo, hi, tol)
+    return _certify(w, G, lo, hi, u, lam, tol, gap_tol, message)
+
+
+def _dual_minimiser(w, c, lo, hi):
+    """``argmin_{lo <= u <= hi} w/u + c u`` item by item: ``clip(sqrt(w/c), lo, hi)``."""
+    with np.errstate(divide="ignore"):
+        return np.clip(np.sqrt(w / c), lo, hi)  # c = 0 gives inf, clipped to hi
+
+
+def _solve_dual(w, G, lo, hi, max_iter):
+    """Maximise the Lagrangian dual ``g(lam)`` over ``lam >= 0`` by L-BFGS-B.
+
+    ``g`` is concave, and differentiable because the inner minimiser is unique:
+    ``grad g = G u*(lam) - 1``. The primal point ``u*(lam)`` at the dual optimum is the
+    primal optimum. Only a working set of rows gets a multiplier (most have none at the
+    optimum): it starts with the rows most loaded at ``hi`` and grows by the rows that
+    ``u*(lam)`` violates, as in :func:`_constraint_generation`. Rounding leaves the final
+    point slightly infeasible, which :func:`_restore_feasibility` repairs. Costs are
+    divided by ``f(hi)`` so that the multipliers are O(1) for the solver.
+    """
+    if G.shape[0] == 0 or np.max(G @ hi) <= 1.0:
+        return hi.copy(), np.zeros(G.shape[0]), "every item at its upper bound is feasible"
+    scale = np.sum(w / hi)
+    per_round = ROWS_PER_ROUND * int(np.sum(lo < hi))
+    working = np.argsort(G @ hi)[::-1][:per_round]
+    lam = np.zeros(G.shape[0])
+    for round_ in itertools.count(1):
+        lam[working], nit = _maximise_dual(w / scale, G[working], lo, hi, lam[working] / scale,
+                                           max_iter)
+        lam[working] *= scale
+        load = G @ _dual_minimiser(w, G.T @ lam, lo, hi)
+        violated = np.setdiff1d(np.flatnonzero(load > 1.0 + ROW_ADD_TOLERANCE), working)
+        if violated.size == 0:
+            break
+        working = np.union1d(working, violated[np.argsort(load[violated])[::-1][:per_round]])
+    u = _restore_feasibility(G, _dual_minimiser(w, G.T @ lam, lo, hi), lo)
+    return u, lam, (f"dual L-BFGS-B ({round_} round(s), {working.size} of {G.shape[0]} "
+                    f"rows in the working set)")
+
+
+def _maximise_dual(w, G, lo, hi, start, max_iter):
+    """``argmax_{lam >= 0} g(lam)`` for rows ``G`` (costs already scaled to O(1))."""
+
+    def negative_dual(lam):
+        u = _dual_minimiser(w, G.T @ lam, lo, hi)
+        slack = G @ u - 1.0
+        return -(np.sum(w / u) + slack @ lam), -slack
+
+    result = minimize(negative_dual, start, jac=True, method="L-BFGS-B",
+                      bounds=[(0.0, None)] * G.shape[0],
+                      options={"maxiter": max_iter * 10, "maxfun": max_iter * 20,
+                               "ftol": 1e-15, "gtol": 1e-13})
+    return result.x, result.nit
+
+
+def _check_inputs(weights, constraints, lower, upper):
+    w = np.asarray(weights, dtype=float)
+    if w.ndim != 1 or w.size == 0:
+        raise ValueError(f"weights must be a non-empty 1-D vector, got shape {w.shape}")
+    _require(np.isfinite(w) & (w > 0), w, "weights", "finite and > 0")
+    G = np.asarray(constraints, dtype=float)
+    if G.ndim != 2 or G.shape[1] != w.size:
+        raise ValueError(
+            f"constraints must have shape (m, {w.size}) to match weights, got {G.shape}"
+        )
+    _require(np.isfinite(G) & (G >= 0), G, "constraints", "finite and >= 0")
+    lo = _bound_vector(lower, w.size, "lower")
+    hi = _bound_vector(upper, w.size, "upper")
+    _require(lo > 0, lo, "lower", "> 0")
+    bad = np.flatnonzero(lo > hi)
+    if bad.size:
+        i = bad[0]
+        raise ValueError(f"lower[{i}] = {lo[i]} exceeds upper[{i}] = {hi[i]}")
+    return w, G, lo, hi
+
+
+def _bound_vector(bound, n, name):
+    bound = np.asarray(bound, dtype=float)
+    if bound.ndim > 1 or bound.size not in (1, n):
+        raise ValueError(f"{name} must be a scalar or have shape ({n},), got {bound.shape}")
+    bound = np.broadcast_to(bound, (n,)).copy()
+    _require(np.isfinite(bound), bound, name, "finite")
+    return bound
+
+
+def _require(ok, values, name, condition):
+    bad = np.argwhere(~ok)
+    if bad.size:
+        where = tuple(int(i) for i in bad[0])
+        label = ", ".join(map(str, where))
+        raise ValueError(f"{name}[{label}] = {values[where]} must be {condition}")
+
+
+def _check_feasible(G, lo):
+    loads = G @ lo
+    rows = np.flatnonzero(loads > 1.0)
+    if rows.size:
+        raise InfeasibleAllocationError(rows, loads[rows])
+
+
+def _solve_primal(w, G, lo, hi, max_iter):
+    """Optimal ``u`` by SLSQP in ``v = log u``, locked items held at their value."""
+    if G.shape[0] == 0 or np.max(G @ hi) <= 1.0:
+        return hi.copy(), "every item at its upper bound meets all constraints"
+    free = lo < hi
+    program = _GeometricProgram.reduced(w, G, lo, free)
+    v_lo, v_hi = np.log(lo[free]), np.log(hi[free])
+    v, message = _constraint_generation(program, v_lo, v_hi, max_iter)
+    u = lo.copy()
+    # exp(log(lo)) may differ from lo in the last bit; keep u inside its bounds exactly
+    u[free] = np.clip(np.exp(v), lo[free], hi[free])
+    return u, message
+
+
+def _constraint_generation(program, v_lo, v_hi, max_iter):
+    """Solve on a working set of rows, adding the most violated rows until none is."""
+    per_round = ROWS_PER_ROUND * v_lo.size
+    working = np.sort(np.argsort(program.G @ np.exp(v_hi))[::-1][:per_round])
+    v = _feasible_start(program.G, v_lo, v_hi)
+    for round_ in itertools.count(1):
+        v, message = program.solve(v, v_lo, v_hi, working, max_iter)
+        load = program.G @ np.exp(v)
+        violated = np.setdiff1d(np.flatnonzero(load > 1.0 + ROW_ADD_TOLERANCE), working)
+        if violated.size == 0:
+            rows = f"{working.size} of {load.size} rows"
+            return v, f"SLSQP: {message} ({round_} round(s), {rows} in the working set)"
+        worst = violated[np.argsort(load[violated])[::-1][:per_round]]
+        working = np.union1d(working, worst)
+
+
+@dataclass(frozen=True)
+class _GeometricProgram:
+    """``min log(sum w e^-v + fixed_cost)`` s.t. ``log(G_r e^v) <= 0`` for working rows.
+
+    Only the free items are variables; ``G`` holds the rows that involve one, each
+    divided by what the locked items leave of its budget of 1.
+    """
+
+    w: np.ndarray
+    G: np.ndarray
+    fixed_cost: float
+
+    @classmethod
+    def reduced(cls, w, G, lo, free):
+        budget = 1.0 - G[:, ~free] @ lo[~free]  # > 0 on rows involving a free item
+        rows = np.flatnonzero(np.any(G[:, free] > 0, axis=1))
+        scaled = G[np.ix_(rows, free)] / budget[rows, None]
+        return cls(w[free], scaled, np.sum(w[~free] / lo[~free]))
+
+    def objective(self, v):
+        terms = self.w * np.exp(-v)
+        total = terms.sum() + self.fixed_cost
+        return np.log(total), -terms / total
+
+    def constraint(self, v, rows):
+        return -np.log(self.G[rows] @ np.exp(v))
+
+    def jacobian(self, v, rows):
+        terms = self.G[rows] * np.exp(v)
+        return -terms / terms.sum(axis=1, keepdims=True)
+
+    def solve(self, v0, v_lo, v_hi, rows, max_iter):
+        result = minimize(
+            self.objective,
+            v0,
+            jac=True,
+            method="SLSQP",
+            bounds=list(zip(v_lo, v_hi)),
+            constraints=[{
+                "type": "ineq",
+                "fun": self.constraint,
+                "jac": self.jacobian,
+                "args": (rows,),
+            }],
+            options={"ftol": 1e-15, "maxiter": max_iter},
+        )
+        return result.x, result.message
+
+
+def _feasible_start(G, v_lo, v_hi):
+    """Furthest feasible point on the segment from ``log lo`` to ``log hi`` (bisection)."""
+    low, high = 0.0, 1.0
+    for _ in range(60):
+        middle = 0.5 * (low + high)
+        if np.max(G @ np.exp(v_lo + middle * (v_hi - v_lo))) <= 1.0:
+            low = middle
+        else:
+            high = middle
+    return v_lo + low * (v_hi - v_lo)
+
+
+def _restore_feasibility(G, u, lo):
+    """Shrink ``u`` towards ``lo`` just enough that ``G u <= 1`` holds (rounding repair).
+
+    ``u(rho) = max(lo, rho u)`` is feasible at ``rho = 0`` (``G lo <= 1`` was checked)
+    and the loads grow with ``rho``, so the largest feasible ``rho`` is found by bisection.
+    Returns ``u`` unchanged when it is already feasible.
+    """
+    if G.shape[0] == 0 or np.max(G @ u) <= 1.0:
+        return u
+    low, high = 0.0, 1.0
+    for _ in range(60):
+        middle = 0.5 * (low + high)
+        if np.max(G @ np.maximum(lo, middle * u)) <= 1.0:
+            low = middle
+        else:
+            high = middle
+    return np.maximum(lo, low * u)
+
+
+def _refine_multipliers(w, G, u, lo, hi, tol):
+    """Multipliers by NNLS on the scaled stationarity equations.
+
+    For every unlocked item ``i``:
+    ``sum_r lam_r G_ri u_i**2 / w_i - mu_lo_i + mu_hi_i = 1`` with ``lam``, ``mu >= 0``,
+    over the rows with ``G u >= 1 - tol`` and bound multipliers only for items at a bound.
+    ``lam`` is scaled by ``f(u)`` so that the columns are O(1).
+    """
+    lam = np.zeros(G.shape[0])
+    items = np.flatnonzero(lo < hi)
+    rows = np.flatnonzero(G @ u >= 1.0 - tol)
+    if rows.size == 0 or items.size == 0:
+        return lam
+    fun = np.sum(w / u)
+    scale = u[items] ** 2 / w[items]
+    at_lower, at_upper = (mask[items] for mask in _at_bounds(u, lo, hi, tol))
+    identity = np.eye(items.size)
+    matrix = np.hstack([
+        fun * G[np.ix_(rows, items)].T * scale[:, None],
+        -identity[:, at_lower],
+        identity[:, at_upper],
+    ])
+    solution, _ = nnls(matrix, np.ones(items.size), maxiter=50 * items.size)
+    lam[rows] = fun * solution[: rows.size]
+    return lam
+
+
+def _at_bounds(u, lo, hi, tol):
+    """Masks of the unlocked items at their lower and at their upper bound."""
+    unlocked = lo < hi
+    return unlocked & (u <= lo * (1.0 + tol)), unlocked & (u >= hi * (1.0 - tol))
+
+
+def _dual_bound(w, G, lo, hi, lam):
+    """Lagrangian dual ``g(lam)``, a lower bound on the optimum for any ``lam >= 0``."""
+    c = G.T @ lam
+    u_best = _dual_minimiser(w, c, lo, hi)
+    return float(np.sum(w / u_best + c * u_best) - lam.sum())
+
+
+def _certify(w, G, lo, hi, u, lam, tol, gap_tol, message):
+    fun = float(np.sum(w / u))  # Eq. (28) with u = t**2
+    dual = _dual_bound(w, G, lo, hi, lam)
+    slack = G @ u - 1.0
+    at_lower, at_upper = _at_bounds(u, lo, hi, tol)
+    kkt = KktResiduals(
+        stationarity=_stationarity(w, G, u, lam, lo < hi, at_lower, at_upper),
+        primal_feasibility=float(max(0.0, slack.max(initial=-np.inf))),
+        complementary_slackness=float(np.max(np.abs(lam * slack), initial=0.0) / fun),
+    )
+    gap = fun - dual
+    success = gap / fun <= gap_tol and kkt.primal_feasibility <= gap_tol
+    verdict = "certified" if success else "NOT certified"
+    return ConvexSolution(
+        u=_read_only(u),
+        t=_read_only(np.sqrt(u)),
+        fun=fun,
+        multipliers=_read_only(lam),
+        dual_bound=dual,
+        duality_gap=gap,
+        relative_gap=gap / fun,
+        kkt=kkt,
+        active=np.flatnonzero(slack >= -tol),
+        at_lower=np.flatnonzero(at_lower),
+        at_upper=np.flatnonzero(at_upper),
+        locked=np.flatnonzero(lo == hi),
+        success=bool(success),
+        message=f"{message}; {verdict}: relative duality gap {gap / fun:.3g}",
+    )
+
+
+def _read_only(array):
+    array = np.array(array)
+    array.setflags(write=False)
+    return array
+
+
+def _stationarity(w, G, u, lam, unlocked, at_lower, at_upper):
+    """Largest relative stationarity residual; only the wrong sign counts at a bound."""
+    residual = (G.T @ lam) * u**2 / w - 1.0
+    residual[at_lower] = np.maximum(0.0, -residual[at_lower])
+    residual[at_upper] = np.maximum(0.0, residual[at_upper])
+    return float(np.max(np.abs(residual[unlocked]), initial=0.0))
