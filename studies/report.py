@@ -81,6 +81,12 @@ def _allocation(study, tables) -> str:
                      f"{exact.certificate['relative_gap']:.1e}; GWO (500 × 100) "
                      f"{gwo.cost:.6g}, {PERCENT(gwo.cost / exact.cost - 1)} above the "
                      f"optimum, feasible: {'yes' if gwo.feasible else 'no'}.")
+    lines += ["", "Marginal cost of each requirement at the exact optima (`elasticity`: relaxing "
+              "that output's limit by 1 % saves about this many % of the cost; summed over "
+              "its binding (output, pose) rows):", ""]
+    requirements = tables["exact_requirements.csv"].reset_index()
+    lines.append(markdown_table(requirements, {"multiplier": "{:.4g}".format,
+                                               "elasticity": "{:.3f}".format}, index=False))
     paper_worst = study.fosm["paper"].worst("one_sided")
     lines += ["", f"The paper's Table 6 allocation reaches a worst-pose one-sided FOSM "
               f"reliability of {', '.join(PERCENT(p) for p in paper_worst)} "

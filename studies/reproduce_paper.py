@@ -51,7 +51,7 @@ OUTPUT_FILES = (
     "table4_initial.csv", "table5_coefficients.csv", "table6_allocation.csv",
     "table7_cost.csv", "table8_experiment.csv", "table9_repeats.csv", "table9_summary.csv",
     "fosm_summary.csv", "fosm_vs_mc.csv", "random_pose.csv", "machine_yield.csv",
-    "exact_active_constraints.csv", "gwo_history.csv", "fig08.png", "fig09.png",
+    "exact_active_constraints.csv", "exact_requirements.csv", "gwo_history.csv", "fig08.png", "fig09.png",
     *SCATTER_FIGURES, "fig_convergence.png", "fig_fosm_vs_mc.png", "fig_repeats.png",
     "report.md")
 
@@ -166,6 +166,9 @@ def tables(study: Study) -> dict[str, pd.DataFrame]:
     out["exact_active_constraints.csv"] = pd.concat(
         {side: study.solutions[f"exact{suffix}"].active for suffix, side in SIDES.items()},
         names=["side", "row"])
+    out["exact_requirements.csv"] = pd.concat(
+        {side: study.solutions[f"exact{suffix}"].requirements for suffix, side in SIDES.items()},
+        names=["side"])
     out["gwo_history.csv"] = pd.concat(
         {side: study.solutions[f"gwo{suffix}"].history for suffix, side in SIDES.items()},
         names=["side"])
@@ -285,6 +288,10 @@ def parse_arguments(argv=None) -> argparse.Namespace:
     parser.add_argument("--seed", type=int, default=2023, help="random seed (default 2023)")
     parser.add_argument("--repeats", type=int, default=20,
                         help="grid experiments per allocation (default 20, as Table 9)")
+    parser.add_argument("--wolves", type=int, default=100,
+                        help="GWO pack size (default 100, the paper's)")
+    parser.add_argument("--iterations", type=int, default=500,
+                        help="GWO iterations (default 500, the paper's)")
     parser.add_argument("--overwrite", action="store_true",
                         help="replace files a previous run left in the output folder")
     parser.add_argument("--quiet", action="store_true", help="no progress output")
@@ -301,7 +308,8 @@ def main(argv=None) -> int:
         return 2
     out.mkdir(parents=True, exist_ok=True)
     log = Progress(args.quiet)
-    study = run_study(seed=args.seed, repeats=args.repeats, log=log)
+    study = run_study(seed=args.seed, repeats=args.repeats, wolves=args.wolves,
+                      iterations=args.iterations, log=log)
     log("computations done; writing tables")
     write_outputs(study, out, log)
     log(f"done: {len(OUTPUT_FILES)} files in {out}/")

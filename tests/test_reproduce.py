@@ -1,0 +1,60 @@
+"""studies.reproduce_paper: files, determinism, refusal to overwrite, paper regressions."""
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from studies import reproduce_paper as rp
+
+
+@pytest.fixture(scope="module")
+def small_study():
+    """A quick study (few wolves, iterations, repeats) to test the plumbing."""
+    return rp.run_study(seed=7, repeats=3, wolves=12, iterations=30, random_samples=2000)
+
+
+def test_same_seed_same_tables(small_study):
+    again = rp.run_study(seed=7, repeats=3, wolves=12, iterations=30, random_samples=2000)
+    first, second = rp.tables(small_study), rp.tables(again)
+    assert first.keys() == second.keys()
+    for name in first:
+        pd.testing.assert_frame_equal(first[name], second[name], obj=name)
+
+
+def test_required_tables_and_columns(small_study):
+    tables = rp.tables(small_study)
+    table6 = tables["table6_allocation.csv"]
+    assert list(table6.index) == list(small_study.machine.error_names)
+    assert {"initial", "paper", "gwo", "exact"} <= set(table6.columns)
+    assert {"initial", "paper", "gwo", "exact"} <= set(tables["table7_cost.csv"].index)
+    repeats = tables["table9_repeats.csv"].reset_index()
+    assert {"allocation", "repeat", "dx", "dy", "dz", "ex", "ey", "ez"} <= set(repeats.columns)
+    assert set(repeats["allocation"]) >= {"paper", "exact"}
+    assert repeats.groupby("allocation").size().eq(3).all()
+
+
+def test_main_writes_every_file_and_refuses_to_overwrite(tmp_path, capsys):
+    out = tmp_path / "run"
+    quick = ["--seed", "1", "--repeats", "2", "--wolves", "10", "--iterations", "20",
+             "--quiet"]
+    assert rp.main(["--out", str(out), *quick]) == 0
+    for name in rp.OUTPUT_FILES:
+        assert (out / name).stat().st_size > 0, name
+    before = (out / "report.md").read_text()
+    assert rp.main(["--out", str(out), "--quiet"]) == 2
+    assert "--overwrite" in capsys.readouterr().err
+    assert (out / "report.md").read_text() == before
+    assert rp.main(["--out", str(out), *quick, "--overwrite"]) == 0
+    assert (out / "report.md").read_text() == before  # same seed, same report
+
+
+def test_fcem_reproduces_a(small_study):
+    np.testing.assert_allclose(small_study.fcem.b, [0, 0.06, 0.24, 0.32, 0.38], atol=1e-12)
+    assert small_study.fcem.value == pytest.approx(1.98, abs=1e-12)
+
+
+def test_exact_optimum_beats_gwo_and_paper(small_study):
+    costs = rp.tables(small_study)["table7_cost.csv"]["cost"]
+    assert costs["exact"] <= costs["gwo"] * (1 + 1e-9)
+    assert costs["exact_two_sided"] <= costs["gwo_two_sided"] * (1 + 1e-9)
+    assert costs["exact"] < costs["paper"] < costs["initial"]
