@@ -26,9 +26,8 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from reliability.fosm import (error_sigma, fosm, one_sided_probability, output_sigma,
-                              required_index, two_sided_probability)
-from reliability.machine import OUTPUTS
+from reliability.fosm import (error_sigma, fosm, one_sided_probability, required_index,
+                              two_sided_probability)
 from reliability.poses import workspace_grid
 
 from .cost import CostModel

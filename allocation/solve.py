@@ -17,7 +17,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import pandas as pd
-from scipy.optimize import minimize, nnls
 from scipy.stats import norm
 
 from reliability.machine import OUTPUTS
@@ -205,36 +204,63 @@ def _active_rows(problem, t, tol: float = 1e-6) -> pd.DataFrame:
 
 
 # ----- workspace-mean reading ----------------------------------------------------------
+MEAN_TOLERANCE = 1e-10  # shortfall of the mean probability that counts as violated
+MAX_CUTS_ROUNDS = 200
+
+
 def _solve_mean(problem) -> AllocationResult:
-    """SLSQP in ``v = log u`` from the worst-case optimum (feasible for the mean reading)."""
-    worst = type(problem).build(problem.machine, problem.poses, side=problem.side,
-                                lower=problem.lower, upper=problem.upper,
-                                reference=problem.reference, k=problem.k,
-                                cost_factors=problem.cost.k)
-    start = solve_exact(worst).tolerances
+    """Kelley's cutting planes for ``mean_p P_o(u) ≥ R_o`` (workspace-mean reading).
+
+    Where every β ≥ √3 the mean probability ``h_o(u)`` is concave in ``u = t²``, so its
+    tangent plane at any point over-estimates it and ``h_o(u₀) + ∇h_o·(u − u₀) ≥ R_o`` is a
+    linear relaxation. Each round solves the certified convex problem with all cuts so far
+    (:func:`solve_convex_allocation`) and adds a cut for every output still short. The last
+    relaxation's dual bound is a lower bound on the optimum wherever the concavity holds,
+    i.e. globally when β ≥ √3 at every pose even with every tolerance at its upper bound
+    (``certificate['global']``).
+    """
     model = _MeanConstraint(problem)
-    w = problem.cost.weights
-    free = ~problem.locked
-    v_lo, v_hi = 2 * np.log(problem.lower), 2 * np.log(problem.upper)
-    bounds = [(lo, hi) if f else (lo, lo) for lo, hi, f in zip(v_lo, v_hi, free)]
-    scale = float(w @ np.exp(-2 * np.log(start)))
-    solution = minimize(lambda v: w @ np.exp(-v) / scale, 2 * np.log(start),
-                        jac=lambda v: -w * np.exp(-v) / scale, method="SLSQP",
-                        bounds=bounds,
-                        constraints=[{"type": "ineq", "fun": model.slack, "jac": model.jacobian}],
-                        options={"maxiter": 500, "ftol": 1e-12})
-    t = np.sqrt(np.exp(np.clip(solution.x, v_lo, v_hi)))
-    certificate = model.kkt(t, w, free, problem)
-    certificate["solver"] = solution.message
-    return AllocationResult(problem=problem, method="exact", tolerances=t,
-                            cost=float(problem.cost.total(t)),
+    w, lo, hi = problem.cost.weights, problem.lower ** 2, problem.upper ** 2
+    u, cuts = hi.copy(), []
+    for rounds in range(1, MAX_CUTS_ROUNDS + 1):
+        shortfall = model.slack(u) < -MEAN_TOLERANCE
+        if not shortfall.any():
+            break
+        cuts.extend(model.cut(u, output) for output in np.flatnonzero(shortfall))
+        relaxed = solve_convex_allocation(w, np.array(cuts), lo, hi)
+        u = relaxed.u
+    u = _restore_mean_feasibility(model, u, lo)
+    t = np.sqrt(u)
+    cost = float(problem.cost.total(t))
+    certificate = {"dual_bound": relaxed.dual_bound,
+                   "relative_gap": (cost - relaxed.dual_bound) / cost,
+                   "primal_feasibility": float(max(0.0, -model.slack(u).min())),
+                   "rounds": rounds, "cuts": len(cuts),
+                   "min_beta_at_upper": float(model.beta(hi).min()),
+                   "global": bool(model.beta(hi).min() >= CONVEX_BETA)}
+    certificate["certified"] = bool(certificate["global"] and relaxed.success)
+    active = np.flatnonzero(model.slack(u) <= 1e-7)
+    return AllocationResult(problem=problem, method="exact", tolerances=t, cost=cost,
                             feasible=problem.meets_targets(t), certificate=certificate,
-                            active=pd.DataFrame({"output": np.array(OUTPUTS)[
-                                certificate.pop("active_outputs")]}))
+                            active=pd.DataFrame({"output": np.array(OUTPUTS)[active]}))
+
+
+def _restore_mean_feasibility(model, u, lo):
+    """Shrink ``u`` towards ``lo`` by bisection until every mean constraint holds."""
+    if model.slack(u).min() >= 0:
+        return u
+    low, high = 0.0, 1.0
+    for _ in range(60):
+        middle = 0.5 * (low + high)
+        if model.slack(np.maximum(lo, middle * u)).min() >= 0:
+            low = middle
+        else:
+            high = middle
+    return np.maximum(lo, low * u)
 
 
 class _MeanConstraint:
-    """``h_o(v) = mean_p P_o(β_p) − R_o ≥ 0`` and its gradient in ``v = log u``."""
+    """``h_o(u) = mean_p P_o(β_p) − R_o`` with ``β_p = I_o/√(a_p·u)``, and its cuts."""
 
     def __init__(self, problem):
         self.a = np.square(problem.jacobian / problem.k)  # (P, 6, n): σ² = a @ u
@@ -242,42 +268,26 @@ class _MeanConstraint:
         self.targets = problem.machine.targets
         self.two_sided = problem.side == "two_sided"
 
-    def _beta(self, u):
-        sigma2 = self.a @ u
-        return self.limits / np.sqrt(sigma2), sigma2
+    def beta(self, u) -> np.ndarray:
+        return self.limits / np.sqrt(self.a @ u)
 
-    def slack(self, v):
-        beta, _ = self._beta(np.exp(v))
+    def slack(self, u) -> np.ndarray:
+        beta = self.beta(u)
         p = 2 * norm.cdf(beta) - 1 if self.two_sided else norm.cdf(beta)
         return p.mean(axis=0) - self.targets
 
-    def jacobian(self, v):
-        u = np.exp(v)
-        beta, sigma2 = self._beta(u)
+    def gradient(self, u) -> np.ndarray:
+        """``∂h_o/∂u_i``, ``(6, n)``: dP/dβ · dβ/dσ² · a."""
+        beta = self.beta(u)
         density = (2 if self.two_sided else 1) * norm.pdf(beta)
-        dp_dsigma2 = -density * beta / (2 * sigma2)  # dP/dβ · dβ/dσ²
-        return np.einsum("po,pon->on", dp_dsigma2, self.a) / beta.shape[0] * u  # chain rule
+        dp_dsigma2 = -density * beta ** 3 / (2 * self.limits ** 2)
+        return np.einsum("po,pon->on", dp_dsigma2, self.a) / beta.shape[0]
 
-    def kkt(self, t, w, free, problem) -> dict:
-        """KKT residuals with multipliers fitted by NNLS, and the convexity check."""
-        v = 2 * np.log(t)
-        u = np.exp(v)
-        slack = self.slack(v)
-        active = np.flatnonzero(slack <= 1e-7)
-        gradient_f = -w / u  # d/dv of Σ w e^{−v}
-        lower_hit = free & (t <= problem.lower * (1 + 1e-7))
-        upper_hit = free & (t >= problem.upper * (1 - 1e-7))
-        inner = free & ~lower_hit & ~upper_hit
-        jac = self.jacobian(v)[active]
-        # Stationarity of min f s.t. h ≥ 0: ∇f = Σ λ_o ∇h_o with λ ≥ 0 (both sides < 0).
-        lam = nnls(jac[:, inner].T, gradient_f[inner])[0] if len(active) else np.zeros(0)
-        residual = gradient_f - lam @ jac
-        scale = np.abs(gradient_f)
-        beta, _ = self._beta(u)
-        return {"stationarity": float(np.max(np.abs(residual[inner]) / scale[inner],
-                                             initial=0.0)),
-                "primal_feasibility": float(max(0.0, -slack.min())),
-                "multipliers": dict(zip(np.array(OUTPUTS)[active], lam)),
-                "min_beta": float(beta.min()),
-                "convex_region": bool(beta.min() >= CONVEX_BETA),
-                "certified": False, "active_outputs": active}
+    def cut(self, u, output) -> np.ndarray:
+        """Row ``r`` of the tangent cut ``r @ u' ≤ 1`` for ``output`` at ``u``."""
+        g = self.gradient(u)[output]
+        rhs = self.slack(u)[output] - g @ u  # cut: −g·u' ≤ h(u) − R − g·u
+        if rhs <= 0:
+            raise ValueError(f"workspace-mean target of {OUTPUTS[output]} cannot be met "
+                             f"inside the bounds")
+        return -g / rhs
