@@ -34,6 +34,7 @@ from reliability.paper_tables import (TABLE6, TABLE7, TABLE8, TABLE9,  # noqa: E
                                       TABLE9_ALL_INSIDE)
 from reliability.sampling import GridExperiment, sample_random_poses  # noqa: E402
 from reliability.statistics import machine_yield  # noqa: E402
+from reliability.worst_case import continuous_worst  # noqa: E402
 
 from .report import write_report  # noqa: E402
 
@@ -51,7 +52,8 @@ OUTPUT_FILES = (
     "table4_initial.csv", "table5_coefficients.csv", "table6_allocation.csv",
     "table7_cost.csv", "table8_experiment.csv", "table9_repeats.csv", "table9_summary.csv",
     "fosm_summary.csv", "fosm_vs_mc.csv", "random_pose.csv", "machine_yield.csv",
-    "exact_active_constraints.csv", "exact_requirements.csv", "gwo_history.csv", "fig08.png", "fig09.png",
+    "exact_active_constraints.csv", "exact_requirements.csv", "continuous_worst.csv",
+    "gwo_history.csv", "fig08.png", "fig09.png",
     *SCATTER_FIGURES, "fig_convergence.png", "fig_fosm_vs_mc.png", "fig_repeats.png",
     "report.md")
 
@@ -70,6 +72,7 @@ class Study:
     fosm: dict = field(default_factory=dict)
     grid: dict = field(default_factory=dict)
     random: dict = field(default_factory=dict)
+    continuous: dict = field(default_factory=dict)
     timings: dict = field(default_factory=dict)
 
 
@@ -115,6 +118,9 @@ def run_study(seed: int = 2023, repeats: int = 20, wolves: int = 100,
     jacobian = study.problems["one_sided"].jacobian
     for name, t in study.allocations.items():
         study.fosm[name] = fosm(machine, t, poses, jacobian=jacobian)
+    log("worst poses between grid points (continuous search)")
+    for name in ("initial", *VERIFIED):
+        study.continuous[name] = continuous_worst(machine, study.allocations[name], poses)
     experiment = GridExperiment(machine)
     for name in VERIFIED:
         log(f"grid experiment x {repeats}: {name} allocation")
@@ -169,6 +175,7 @@ def tables(study: Study) -> dict[str, pd.DataFrame]:
     out["exact_requirements.csv"] = pd.concat(
         {side: study.solutions[f"exact{suffix}"].requirements for suffix, side in SIDES.items()},
         names=["side"])
+    out["continuous_worst.csv"] = pd.concat(study.continuous, names=["allocation"])
     out["gwo_history.csv"] = pd.concat(
         {side: study.solutions[f"gwo{suffix}"].history for suffix, side in SIDES.items()},
         names=["side"])
