@@ -129,9 +129,7 @@ def _between_grid_points(tables) -> str:
     frame = tables["continuous_worst.csv"].reset_index()
     frame = frame[["allocation", "output", "grid_beta", "beta", "grid_one_sided",
                    "one_sided", "grid_two_sided", "two_sided"]]
-    return ("## Between grid points
-
-Eq. (35) asks for the whole stroke of every axis; "
+    return ("## Between grid points\n\nEq. (35) asks for the whole stroke of every axis; "
             "the grid has five points per axis. A bounded local search of the continuous "
             "workspace from each output's worst grid poses (`reliability.worst_case`) finds "
             "where the grid is optimistic; an allocation optimised on the grid can fall "
