@@ -21,13 +21,14 @@ All three are exact: the screened problem has the same feasible set inside the b
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import pandas as pd
 
 from reliability.fosm import (error_sigma, fosm, one_sided_probability, required_index,
                               two_sided_probability)
+from reliability.machine import OUTPUTS
 from reliability.poses import workspace_grid
 
 from .cost import CostModel
@@ -156,9 +157,29 @@ class AllocationProblem:
         """Largest σ of each output that meets its target, ``I_o / z_o``."""
         return self.machine.limits / self.required_index
 
-    def row_matrix(self) -> np.ndarray:
-        """All rows ``J_oi² / (k² (I_o/z_o)²)`` as ``(n_poses, 6, n_errors)``."""
-        return np.square(self.jacobian / self.k) / np.square(self.allowed_sigma)[:, None]
+    def row_matrix(self, jacobian=None) -> np.ndarray:
+        """Rows ``J_oi² / (k² (I_o/z_o)²)`` as ``(n_poses, 6, n_errors)``, of the problem's
+        poses or of the given sensitivities."""
+        jacobian = self.jacobian if jacobian is None else jacobian
+        return np.square(jacobian / self.k) / np.square(self.allowed_sigma)[:, None]
+
+    def with_poses(self, extra) -> "AllocationProblem":
+        """The same problem with more poses; their rows are added unscreened."""
+        extra = np.atleast_2d(self.machine.check_positions(extra))
+        jacobian = self.machine.jacobian(extra)
+        rows = self.rows
+        if rows is not None:
+            added = self.row_matrix(jacobian)
+            counts = dict(rows.counts, added=rows.counts.get("added", 0) + added[:, :, 0].size)
+            rows = ScreenedRows(
+                matrix=np.vstack([rows.matrix, added.reshape(-1, added.shape[-1])]),
+                pose=np.concatenate([rows.pose, len(self.poses) + np.repeat(
+                    np.arange(len(extra)), len(OUTPUTS))]),
+                output=np.concatenate([rows.output, np.tile(np.arange(len(OUTPUTS)),
+                                                            len(extra))]),
+                counts=counts)
+        return replace(self, poses=np.vstack([self.poses, extra]),
+                       jacobian=np.concatenate([self.jacobian, jacobian]), rows=rows)
 
     # ----- evaluation ----------------------------------------------------------------
     def sigma(self, t) -> np.ndarray:
