@@ -12,10 +12,11 @@ from .cost import CostModel, cost_weights
 from .fcem import FcemResult, fcem_coefficient
 from .gwo import GwoResult, grey_wolf, grey_wolf_reference
 from .problem import AllocationProblem, ScreenedRows, screen_rows
+from .refine import solve_over_workspace
 from .solve import AllocationResult, TargetUnreachableError, solve_exact, solve_gwo
 
 __all__ = ["AllocationProblem", "AllocationResult", "ConvexSolution", "CostModel",
            "FcemResult", "GwoResult", "InfeasibleAllocationError", "ScreenedRows",
            "TargetUnreachableError", "cost_weights", "fcem_coefficient", "grey_wolf",
            "grey_wolf_reference", "screen_rows", "solve_convex_allocation", "solve_exact",
-           "solve_gwo"]
+           "solve_gwo", "solve_over_workspace"]
