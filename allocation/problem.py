@@ -112,7 +112,7 @@ class AllocationProblem:
             more than +50 %).
         lower, upper : array_like, optional
             Explicit tolerance bounds, overriding ``bounds``.
-        locked : iterable of str
+        locked : str or iterable of str
             Error names held at their reference value.
         reference : array_like or mapping, optional
             Reference allocation, default ``machine.initial_allocation`` (Table 4).
@@ -319,7 +319,7 @@ def _bounds(machine, reference, bounds, lower, upper, locked):
     bad = np.flatnonzero(low > high)
     if len(bad):
         raise ValueError(f"lower bound exceeds upper bound for {machine.error_names[bad[0]]!r}")
-    for name in locked:
+    for name in (locked,) if isinstance(locked, str) else locked:
         index = machine.error_index(name)
         low[index] = high[index] = reference[index]
     return low, high

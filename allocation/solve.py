@@ -28,26 +28,59 @@ CONVEX_BETA = np.sqrt(3.0)  # Φ(β) and 2Φ(β)−1 are concave in σ² for β 
 
 
 class TargetUnreachableError(InfeasibleAllocationError):
-    """No allocation inside the bounds meets a target; names the output and pose."""
+    """No allocation inside the bounds meets a target.
 
-    def __init__(self, problem, rows, loads):
-        super().__init__(rows, loads)
-        self.blocking = blocking_constraints(problem, rows, loads)
-        first = self.blocking.iloc[0]
-        positions = ", ".join(f"{axis}={first[axis]:.6g}" for axis in problem.machine.axes)
-        self.args = (f"target unreachable inside the bounds: {first['output']} at pose "
-                     f"{int(first['pose'])} ({positions}) needs σ ≤ "
-                     f"{first['allowed_sigma']:.4g} but the tightest allowed tolerances give "
-                     f"{first['sigma_at_lower']:.4g}; {len(self.blocking)} constraint(s) "
-                     f"blocked in all (see .blocking)",)
+    Attributes
+    ----------
+    blocking : DataFrame
+        What blocks, worst first: for the worst-case reading every (output, pose) whose σ
+        exceeds the allowed σ even with every tolerance at its lower bound (with the pose's
+        positions, ``allowed_sigma`` and ``sigma_at_lower``); for the mean reading every
+        output whose mean probability at the lower bounds is short of its target.
+    rows, loads
+        As in :class:`InfeasibleAllocationError` (screened rows; empty for the mean reading).
+    """
+
+    def __init__(self, message: str, blocking: pd.DataFrame, rows=(), loads=()):
+        ValueError.__init__(self, message)
+        self.blocking = blocking
+        self.rows = tuple(int(row) for row in rows)
+        self.loads = np.asarray(loads, dtype=float)
 
 
-def blocking_constraints(problem, rows, loads) -> pd.DataFrame:
-    """The (output, pose) rows that no allocation inside the bounds can satisfy."""
-    frame = _row_frame(problem, np.asarray(rows))
-    frame["allowed_sigma"] = problem.allowed_sigma[problem.rows.output[rows]]
-    frame["sigma_at_lower"] = frame["allowed_sigma"] * np.sqrt(np.asarray(loads))
-    return frame
+def _unreachable_worst(problem, rows=(), loads=()) -> TargetUnreachableError:
+    """The error for the worst-case reading, listing every blocked (output, pose)."""
+    at_lower = problem.row_matrix() @ np.square(problem.lower)  # (n_poses, 6)
+    pose, output = np.nonzero(at_lower > 1.0)
+    order = np.argsort(-at_lower[pose, output], kind="stable")
+    pose, output = pose[order], output[order]
+    frame = pd.DataFrame({"output": np.array(OUTPUTS)[output], "pose": pose})
+    for i, axis in enumerate(problem.machine.axes):
+        frame[axis] = problem.poses[pose, i]
+    frame["allowed_sigma"] = problem.allowed_sigma[output]
+    frame["sigma_at_lower"] = frame["allowed_sigma"] * np.sqrt(at_lower[pose, output])
+    first = frame.iloc[0]
+    positions = ", ".join(f"{axis}={first[axis]:.6g}" for axis in problem.machine.axes)
+    message = (f"target unreachable inside the bounds: {first['output']} at pose "
+               f"{int(first['pose'])} ({positions}) needs σ ≤ {first['allowed_sigma']:.4g} "
+               f"but the tightest allowed tolerances give {first['sigma_at_lower']:.4g}; "
+               f"{len(frame)} (output, pose) pair(s) blocked in all (see .blocking)")
+    return TargetUnreachableError(message, frame, rows, loads)
+
+
+def _unreachable_mean(problem, shortfall) -> TargetUnreachableError:
+    """The error for the workspace-mean reading, naming the outputs that fall short."""
+    short = np.flatnonzero(shortfall < 0)
+    short = short[np.argsort(shortfall[short])]
+    frame = pd.DataFrame({"output": np.array(OUTPUTS)[short],
+                          "target": problem.machine.targets[short],
+                          "mean_probability_at_lower":
+                              problem.machine.targets[short] + shortfall[short]})
+    first = frame.iloc[0]
+    message = (f"workspace-mean target unreachable inside the bounds: {first['output']} "
+               f"reaches {first['mean_probability_at_lower']:.6g} at the tightest allowed "
+               f"tolerances, short of {first['target']:.6g} (see .blocking)")
+    return TargetUnreachableError(message, frame)
 
 
 @dataclass(frozen=True, eq=False)
@@ -122,7 +155,7 @@ def solve_exact(problem, *, gap_tol: float = 1e-6) -> AllocationResult:
         solution = solve_convex_allocation(w, problem.rows.matrix, problem.lower ** 2,
                                            problem.upper ** 2, gap_tol=gap_tol)
     except InfeasibleAllocationError as exc:
-        raise TargetUnreachableError(problem, np.array(exc.rows), exc.loads) from None
+        raise _unreachable_worst(problem, exc.rows, exc.loads) from None
     active = _row_frame(problem, solution.active)
     active["multiplier"] = solution.multipliers[solution.active]
     active["elasticity"] = 2.0 * active["multiplier"] / solution.fun
@@ -211,34 +244,40 @@ MAX_CUTS_ROUNDS = 200
 def _solve_mean(problem) -> AllocationResult:
     """Kelley's cutting planes for ``mean_p P_o(u) ≥ R_o`` (workspace-mean reading).
 
-    Where every β ≥ √3 the mean probability ``h_o(u)`` is concave in ``u = t²``, so its
-    tangent plane at any point over-estimates it and ``h_o(u₀) + ∇h_o·(u − u₀) ≥ R_o`` is a
-    linear relaxation. Each round solves the certified convex problem with all cuts so far
-    (:func:`solve_convex_allocation`) and adds a cut for every output still short. The last
+    Where every β ≥ √3 the mean probability ``h_o(u)`` is concave in ``u = t²``, so the
+    feasible set is convex and a tangent plane at a point of its boundary supports it
+    (Veinott's supporting hyperplanes). Each round solves the certified convex problem
+    with all cuts so far (:func:`solve_convex_allocation`); for every output still short
+    at the relaxed optimum ``u`` it finds the boundary point between the lower bounds
+    (feasible, checked first) and ``u`` and cuts there. The last
     relaxation's dual bound is a lower bound on the optimum wherever the concavity holds,
     i.e. globally when β ≥ √3 at every pose even with every tolerance at its upper bound
     (``certificate['global']``).
     """
     model = _MeanConstraint(problem)
     w, lo, hi = problem.cost.weights, problem.lower ** 2, problem.upper ** 2
-    u, cuts = hi.copy(), []
+    at_lower = model.slack(lo)
+    if np.any(at_lower < 0):
+        raise _unreachable_mean(problem, at_lower)
+    u, cuts, relaxed = hi.copy(), [], None
     for rounds in range(1, MAX_CUTS_ROUNDS + 1):
         shortfall = model.slack(u) < -MEAN_TOLERANCE
         if not shortfall.any():
             break
-        cuts.extend(model.cut(u, output) for output in np.flatnonzero(shortfall))
+        cuts.extend(model.cut(lo, u, output) for output in np.flatnonzero(shortfall))
         relaxed = solve_convex_allocation(w, np.array(cuts), lo, hi)
         u = relaxed.u
     u = _restore_mean_feasibility(model, u, lo)
     t = np.sqrt(u)
     cost = float(problem.cost.total(t))
-    certificate = {"dual_bound": relaxed.dual_bound,
-                   "relative_gap": (cost - relaxed.dual_bound) / cost,
+    bound = cost if relaxed is None else relaxed.dual_bound  # None: the upper bounds are optimal
+    certificate = {"dual_bound": bound, "relative_gap": (cost - bound) / cost,
                    "primal_feasibility": float(max(0.0, -model.slack(u).min())),
                    "rounds": rounds, "cuts": len(cuts),
                    "min_beta_at_upper": float(model.beta(hi).min()),
                    "global": bool(model.beta(hi).min() >= CONVEX_BETA)}
-    certificate["certified"] = bool(certificate["global"] and relaxed.success)
+    certificate["certified"] = bool(certificate["global"]
+                                    and (relaxed is None or relaxed.success))
     active = np.flatnonzero(model.slack(u) <= 1e-7)
     return AllocationResult(problem=problem, method="exact", tolerances=t, cost=cost,
                             feasible=problem.meets_targets(t), certificate=certificate,
@@ -276,6 +315,12 @@ class _MeanConstraint:
         p = 2 * norm.cdf(beta) - 1 if self.two_sided else norm.cdf(beta)
         return p.mean(axis=0) - self.targets
 
+    def output_slack(self, u, output: int) -> float:
+        """``h_o(u)`` for one output (what the bisection of :meth:`cut` needs)."""
+        beta = self.limits[output] / np.sqrt(self.a[:, output, :] @ u)
+        p = 2 * norm.cdf(beta) - 1 if self.two_sided else norm.cdf(beta)
+        return float(p.mean() - self.targets[output])
+
     def gradient(self, u) -> np.ndarray:
         """``∂h_o/∂u_i``, ``(6, n)``: dP/dβ · dβ/dσ² · a."""
         beta = self.beta(u)
@@ -283,11 +328,20 @@ class _MeanConstraint:
         dp_dsigma2 = -density * beta ** 3 / (2 * self.limits ** 2)
         return np.einsum("po,pon->on", dp_dsigma2, self.a) / beta.shape[0]
 
-    def cut(self, u, output) -> np.ndarray:
-        """Row ``r`` of the tangent cut ``r @ u' ≤ 1`` for ``output`` at ``u``."""
-        g = self.gradient(u)[output]
-        rhs = self.slack(u)[output] - g @ u  # cut: −g·u' ≤ h(u) − R − g·u
-        if rhs <= 0:
-            raise ValueError(f"workspace-mean target of {OUTPUTS[output]} cannot be met "
-                             f"inside the bounds")
-        return -g / rhs
+    def cut(self, lo, u, output) -> np.ndarray:
+        """Row ``r`` of the supporting cut ``r @ u' ≤ 1`` for ``output``.
+
+        The cut touches the boundary ``h_o = 0`` on the segment from ``lo`` (where
+        ``h_o ≥ 0``) to ``u`` (where ``h_o < 0``), found by bisection; there
+        ``h_o(u') ≥ 0`` implies ``−∇h_o·u' ≤ −∇h_o·u_b``, and the right-hand side is > 0.
+        """
+        low, high = 0.0, 1.0
+        for _ in range(45):  # 2^-45 of the segment: far below the solver's tolerances
+            middle = 0.5 * (low + high)
+            if self.output_slack(lo + middle * (u - lo), output) >= 0:
+                low = middle
+            else:
+                high = middle
+        boundary = lo + low * (u - lo)
+        g = self.gradient(boundary)[output]
+        return -g / (-g @ boundary)
