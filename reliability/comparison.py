@@ -14,6 +14,7 @@ halves the failure probability: a pose it rates at 99 % is really at 98 %, and t
 
 from __future__ import annotations
 
+import numpy as np
 import pandas as pd
 
 from .machine import OUTPUTS
@@ -43,6 +44,9 @@ def fosm_versus_monte_carlo(fosm_result, grid_result, confidence: float = 0.95
     if len(fosm_result.poses) != grid_result.n_poses:
         raise ValueError(f"FOSM was computed on {len(fosm_result.poses)} poses but the grid "
                          f"experiment has {grid_result.n_poses}")
+    if not np.array_equal(fosm_result.limits, grid_result.limits):
+        raise ValueError(f"FOSM limits {fosm_result.limits} differ from the grid "
+                         f"experiment's {grid_result.limits}")
     mc = grid_result.reliability(confidence)
     frame = pd.DataFrame({
         "output": list(OUTPUTS),

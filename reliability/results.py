@@ -12,6 +12,7 @@ from .machine import OUTPUTS
 from .statistics import between_experiment_interval, machine_yield, proportion
 
 FRAME_COLUMNS = ("repeat", "output", "limit", "inside", "outside", "fraction")
+METADATA_COLUMNS = ("distribution", "k", "points_per_axis")
 
 
 @dataclass(frozen=True, eq=False)
@@ -92,12 +93,14 @@ class GridExperimentResult:
         return pd.DataFrame({"repeat": repeat, "output": np.tile(OUTPUTS, self.repeats),
                              "limit": np.tile(self.limits, self.repeats), "inside": inside,
                              "outside": self.n_poses - inside,
-                             "fraction": inside / self.n_poses})
+                             "fraction": inside / self.n_poses,
+                             "distribution": self.distribution, "k": self.k,
+                             "points_per_axis": self.points_per_axis})
 
     @classmethod
-    def from_frame(cls, frame: pd.DataFrame, **metadata) -> "GridExperimentResult":
+    def from_frame(cls, frame: pd.DataFrame) -> "GridExperimentResult":
         """Rebuild from :meth:`to_frame`'s table (per-pose values are not stored)."""
-        missing = [c for c in FRAME_COLUMNS if c not in frame.columns]
+        missing = [c for c in FRAME_COLUMNS + METADATA_COLUMNS if c not in frame.columns]
         if missing:
             raise ValueError(f"grid-experiment table lacks column {missing[0]!r}")
         wide = frame.pivot(index="repeat", columns="output", values="inside")
@@ -108,18 +111,25 @@ class GridExperimentResult:
         totals = (frame["inside"] + frame["outside"]).unique()
         if len(totals) != 1:
             raise ValueError("grid-experiment table has rows with different pose counts")
+        metadata = {}
+        for column in METADATA_COLUMNS:
+            values = frame[column].unique()
+            if len(values) != 1:
+                raise ValueError(f"grid-experiment table has more than one {column!r}")
+            metadata[column] = values[0]
         limits = frame.groupby("output")["limit"].first().reindex(OUTPUTS).to_numpy()
         return cls(limits=limits, inside=wide[list(OUTPUTS)].to_numpy(dtype=np.int64),
-                   n_poses=int(totals[0]), **metadata)
+                   n_poses=int(totals[0]), distribution=str(metadata["distribution"]),
+                   k=float(metadata["k"]), points_per_axis=int(metadata["points_per_axis"]))
 
     def save_csv(self, path, overwrite: bool = False) -> Path:
         """Write :meth:`to_frame` to CSV; an existing file is kept unless ``overwrite``."""
         return write_csv(self.to_frame(), path, overwrite, index=False)
 
     @classmethod
-    def load_csv(cls, path, **metadata) -> "GridExperimentResult":
+    def load_csv(cls, path) -> "GridExperimentResult":
         """Read a file written by :meth:`save_csv`."""
-        return cls.from_frame(pd.read_csv(path), **metadata)
+        return cls.from_frame(pd.read_csv(path))
 
 
 @dataclass(frozen=True, eq=False)
@@ -133,8 +143,9 @@ class RandomPoseResult:
         Samples with ``|y| < I`` per output.
     n_samples : int
     fosm_one_sided, fosm_two_sided : ndarray (6,)
-        FOSM probabilities (σ = t/k, zero mean) averaged over the sampled poses: what the
-        share in tolerance should be if the model were linear and the errors normal.
+        FOSM probabilities (zero mean, σ of the drawn distribution) averaged over the
+        sampled poses: what the share in tolerance would be if the model were linear and
+        the outputs normal.
     distribution, k
         How the errors were drawn.
     """

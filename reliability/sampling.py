@@ -58,8 +58,12 @@ def draw_errors(tolerances, size, *, k: float = 3.0, distribution: str = "trunca
     """
     if distribution not in DISTRIBUTIONS:
         raise ValueError(f"unknown distribution {distribution!r}; use one of {DISTRIBUTIONS}")
-    rng = np.random.default_rng(rng)
+    if not (np.isfinite(k) and k > 0):
+        raise ValueError(f"coverage factor k must be finite and > 0; got {k!r}")
     t = np.asarray(tolerances, dtype=float)
+    if not np.all(np.isfinite(t) & (t > 0)):
+        raise ValueError("tolerances must be finite and > 0")
+    rng = np.random.default_rng(rng)
     z = rng.standard_normal(tuple(size) + t.shape)
     if distribution == "truncated":
         outside = np.abs(z) > k
@@ -91,7 +95,7 @@ class GridExperiment:
         self.points = grid_axis_points(machine, points_per_axis)
         self.points_per_axis = int(points_per_axis)
         n = len(machine.axis_specs)
-        self.n_head = (n + 1) // 2
+        self.n_head = n // 2  # empty head for a one-axis machine
         self._head_factors, self._head_gaps = self._segment(0, self.n_head)
         self._tail_factors, self._tail_gaps = self._segment(self.n_head, n)
         self._head_transports = transports(self._head_factors)
@@ -248,8 +252,8 @@ class GridExperiment:
         -------
         GridExperimentResult
         """
-        t = self.machine.check_tolerances(tolerances)
-        _check_run_options(repeats, keep_values, batch, distribution)
+        t = _one_allocation(self.machine, tolerances)
+        _check_run_options(repeats, keep_values, batch, distribution, k)
         children = np.random.default_rng(rng).spawn(int(repeats))
         inside, kept = [], []
         for start in range(0, repeats, batch):
@@ -279,15 +283,25 @@ class GridExperiment:
         return motion, assembly
 
 
-def _check_run_options(repeats, keep_values, batch, distribution) -> None:
-    if isinstance(repeats, bool) or not isinstance(repeats, (int, np.integer)) or repeats < 1:
-        raise ValueError(f"repeats must be a positive integer; got {repeats!r}")
+def _check_run_options(repeats, keep_values, batch, distribution, k,
+                       names=("repeats", "batch")) -> None:
+    for value, name in zip((repeats, batch), names):
+        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
+            raise ValueError(f"{name} must be a positive integer; got {value!r}")
     if keep_values not in ("first", "all", "none"):
         raise ValueError(f"keep_values must be 'first', 'all' or 'none'; got {keep_values!r}")
-    if isinstance(batch, bool) or not isinstance(batch, (int, np.integer)) or batch < 1:
-        raise ValueError(f"batch must be a positive integer; got {batch!r}")
     if distribution not in DISTRIBUTIONS:
         raise ValueError(f"unknown distribution {distribution!r}; use one of {DISTRIBUTIONS}")
+    if not (np.isfinite(k) and k > 0):
+        raise ValueError(f"coverage factor k must be finite and > 0; got {k!r}")
+
+
+def _one_allocation(machine, tolerances) -> np.ndarray:
+    t = machine.check_tolerances(tolerances)
+    if t.ndim != 1:
+        raise ValueError(f"tolerances must be one allocation of shape ({machine.n_errors},); "
+                         f"got {t.shape}")
+    return t
 
 
 def sample_random_poses(machine, tolerances, n_samples: int, *, rng=None, k: float = 3.0,
@@ -297,7 +311,8 @@ def sample_random_poses(machine, tolerances, n_samples: int, *, rng=None, k: flo
 
     Every sample draws a pose uniformly over the workspace and a fresh set of all errors,
     so samples are independent and a binomial interval applies. The FOSM prediction for
-    the same poses is averaged alongside.
+    the same poses, with the σ of the drawn distribution (truncated or not), is averaged
+    alongside: where the model is linear-normal the two agree.
 
     Parameters
     ----------
@@ -318,10 +333,10 @@ def sample_random_poses(machine, tolerances, n_samples: int, *, rng=None, k: flo
     -------
     RandomPoseResult
     """
-    t = machine.check_tolerances(tolerances)
-    _check_run_options(n_samples, "none", chunk, distribution)
+    t = _one_allocation(machine, tolerances)
+    _check_run_options(n_samples, "none", chunk, distribution, k, ("n_samples", "chunk"))
     rng = np.random.default_rng(rng)
-    sigma_x = error_sigma(t, k)
+    sigma_x = error_sigma(t, k, distribution)  # the spread actually drawn
     inside = np.zeros(6, dtype=np.int64)
     one_sided, two_sided = np.zeros(6), np.zeros(6)
     for start in range(0, n_samples, chunk):
