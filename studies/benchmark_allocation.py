@@ -25,8 +25,9 @@ from __future__ import annotations
 
 import os
 
-for _variable in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
-    os.environ.setdefault(_variable, "1")  # before numpy is imported
+from studies.timing import best_time, limit_blas_threads  # noqa: E402
+
+limit_blas_threads()  # before numpy is imported
 
 import argparse  # noqa: E402
 import time  # noqa: E402
@@ -43,15 +44,6 @@ from reliability.poses import workspace_grid  # noqa: E402
 PAPER_GWO = {"n_wolves": 100, "n_iterations": 500}
 REFERENCE_BUDGET = 45.0  # s: run the loop-over-wolves GWO in full if projected below this
 
-
-def best_time(function, repeats):
-    """Smallest wall time of ``repeats`` calls, and the last call's result."""
-    best, result = np.inf, None
-    for _ in range(repeats):
-        start = time.perf_counter()
-        result = function()
-        best = min(best, time.perf_counter() - start)
-    return best, result
 
 
 def gwo_functions(problem):

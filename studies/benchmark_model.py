@@ -17,24 +17,15 @@ Nothing is asserted on times; the ratio is the result.
 from __future__ import annotations
 
 import argparse
-import time
 
 import numpy as np
 from scipy.special import ndtr
 
 import reliability
+from studies.timing import best_time
 from reliability.fosm import fosm
 from reliability.poses import workspace_grid
 
-
-def best_time(function, repeats):
-    """Smallest wall time of ``repeats`` calls and the last call's result."""
-    best, result = np.inf, None
-    for _ in range(repeats):
-        start = time.perf_counter()
-        result = function()
-        best = min(best, time.perf_counter() - start)
-    return best, result
 
 
 def batched(machine, tolerances, grid):

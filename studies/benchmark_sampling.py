@@ -27,8 +27,9 @@ from __future__ import annotations
 
 import os
 
-for _variable in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
-    os.environ.setdefault(_variable, "1")  # before numpy is imported
+from studies.timing import best_time, limit_blas_threads  # noqa: E402
+
+limit_blas_threads()  # before numpy is imported
 
 import argparse  # noqa: E402
 import subprocess  # noqa: E402
@@ -42,15 +43,6 @@ from reliability import OUTPUTS  # noqa: E402
 from reliability.paper_tables import TABLE6  # noqa: E402
 from reliability.sampling import GridExperiment  # noqa: E402
 
-
-def best_time(function, rounds):
-    """Smallest wall time of ``rounds`` calls and the last call's result."""
-    best, result = np.inf, None
-    for _ in range(rounds):
-        start = time.perf_counter()
-        result = function()
-        best = min(best, time.perf_counter() - start)
-    return best, result
 
 
 def draw_repeats(experiment, tolerances, repeats, seed):
