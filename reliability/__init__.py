@@ -1,13 +1,20 @@
 """Precision reliability of multi-axis machine tools (Hu, Wang & Ma 2023, made exact).
 
 The machine model (:mod:`reliability.machine`, :mod:`reliability.kinematics`), FOSM
-reliability (:mod:`reliability.fosm`), pose sets (:mod:`reliability.poses`) and the
-Monte-Carlo sampling engine (:mod:`reliability.sampling`).
+reliability (:mod:`reliability.fosm`), pose sets (:mod:`reliability.poses`), the
+Monte-Carlo sampling engine (:mod:`reliability.sampling`) with its results and
+statistics, and the continuous worst-pose search (:mod:`reliability.worst_case`).
 """
 
+from .fosm import FosmResult, fosm
 from .machine import (COMPONENTS, OUTPUTS, Axis, CostCoefficients, Machine,
                       MachineDescriptionError, hobbing_machine, load_machine,
                       machine_from_dict)
+from .poses import random_poses, workspace_grid
+from .results import GridExperimentResult, RandomPoseResult
+from .sampling import GridExperiment, sample_random_poses
 
-__all__ = ["COMPONENTS", "OUTPUTS", "Axis", "CostCoefficients", "Machine",
-           "MachineDescriptionError", "hobbing_machine", "load_machine", "machine_from_dict"]
+__all__ = ["COMPONENTS", "OUTPUTS", "Axis", "CostCoefficients", "FosmResult",
+           "GridExperiment", "GridExperimentResult", "Machine", "MachineDescriptionError",
+           "RandomPoseResult", "fosm", "hobbing_machine", "load_machine",
+           "machine_from_dict", "random_poses", "sample_random_poses", "workspace_grid"]
