@@ -2,7 +2,7 @@
 
 Every function draws onto a given :class:`matplotlib.axes.Axes` (or a new figure when
 ``ax=None``), labels titles, axes (with units) and legends so the figure reads without the
-code, and returns the axes. Nothing here calls ``plt.show()`` or picks a backend.
+code, and returns the axes. Nothing here opens a window or picks a backend.
 """
 
 from __future__ import annotations
