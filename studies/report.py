@@ -232,7 +232,7 @@ def _comparison(tables) -> str:
         "Monte-Carlo slightly more reliable than the untruncated FOSM.",
         markdown_table(frame, percent, index=False),
         "Random poses (independent samples: uniform pose, fresh errors; Wilson 95 %), "
-        "with FOSM averaged over the same poses:",
+        "with FOSM averaged over the same poses, using the σ of the truncated draws:",
         markdown_table(random, {c: "{:.3%}".format for c in random.columns[2:]},
                        index=False),
         "The paper's one-sided Φ(β) counts one tail of |y| > I, so it halves the failure "
