@@ -210,6 +210,29 @@ def solve_convex_allocation(
     return _certify(w, G, lo, hi, u, lam, tol, gap_tol, message)
 
 
+def largest_fraction(holds, steps: int = 60) -> float:
+    """Largest ``s`` in [0, 1] with ``holds(s)``, by bisection.
+
+    ``holds(0)`` must be true and ``holds`` monotone (true up to some point, false after).
+    """
+    low, high = 0.0, 1.0
+    for _ in range(steps):
+        middle = 0.5 * (low + high)
+        if holds(middle):
+            low = middle
+        else:
+            high = middle
+    return low
+
+
+def _add_violated_rows(working, load, per_round):
+    """The working set grown by the ``per_round`` most violated rows outside it, and
+    whether any row outside it was violated."""
+    violated = np.setdiff1d(np.flatnonzero(load > 1.0 + ROW_ADD_TOLERANCE), working)
+    worst = violated[np.argsort(load[violated])[::-1][:per_round]]
+    return np.union1d(working, worst), violated.size > 0
+
+
 def _dual_minimiser(w, c, lo, hi):
     """``argmin_{lo <= u <= hi} w/u + c u`` item by item: ``clip(sqrt(w/c), lo, hi)``."""
     with np.errstate(divide="ignore"):
@@ -234,14 +257,12 @@ def _solve_dual(w, G, lo, hi, max_iter):
     working = np.argsort(G @ hi)[::-1][:per_round]
     lam = np.zeros(G.shape[0])
     for round_ in itertools.count(1):
-        lam[working], nit = _maximise_dual(w / scale, G[working], lo, hi, lam[working] / scale,
-                                           max_iter)
-        lam[working] *= scale
+        lam[working] = scale * _maximise_dual(w / scale, G[working], lo, hi,
+                                              lam[working] / scale, max_iter)
         load = G @ _dual_minimiser(w, G.T @ lam, lo, hi)
-        violated = np.setdiff1d(np.flatnonzero(load > 1.0 + ROW_ADD_TOLERANCE), working)
-        if violated.size == 0:
+        working, grew = _add_violated_rows(working, load, per_round)
+        if not grew:
             break
-        working = np.union1d(working, violated[np.argsort(load[violated])[::-1][:per_round]])
     lam = _polish_multipliers(w, G, lo, hi, lam)
     u = _restore_feasibility(G, _dual_minimiser(w, G.T @ lam, lo, hi), lo)
     return u, lam, (f"dual L-BFGS-B ({round_} round(s), {working.size} of {G.shape[0]} "
@@ -298,7 +319,7 @@ def _maximise_dual(w, G, lo, hi, start, max_iter):
                       bounds=[(0.0, None)] * G.shape[0],
                       options={"maxiter": max_iter * 10, "maxfun": max_iter * 20,
                                "ftol": 1e-15, "gtol": 1e-13})
-    return result.x, result.nit
+    return result.x
 
 
 def _check_inputs(weights, constraints, lower, upper):
@@ -368,12 +389,11 @@ def _constraint_generation(program, v_lo, v_hi, max_iter):
     for round_ in itertools.count(1):
         v, message = program.solve(v, v_lo, v_hi, working, max_iter)
         load = program.G @ np.exp(v)
-        violated = np.setdiff1d(np.flatnonzero(load > 1.0 + ROW_ADD_TOLERANCE), working)
-        if violated.size == 0:
+        grown, grew = _add_violated_rows(working, load, per_round)
+        if not grew:
             rows = f"{working.size} of {load.size} rows"
             return v, f"SLSQP: {message} ({round_} round(s), {rows} in the working set)"
-        worst = violated[np.argsort(load[violated])[::-1][:per_round]]
-        working = np.union1d(working, worst)
+        working = grown
 
 
 @dataclass(frozen=True)
@@ -427,14 +447,8 @@ class _GeometricProgram:
 
 def _feasible_start(G, v_lo, v_hi):
     """Furthest feasible point on the segment from ``log lo`` to ``log hi`` (bisection)."""
-    low, high = 0.0, 1.0
-    for _ in range(60):
-        middle = 0.5 * (low + high)
-        if np.max(G @ np.exp(v_lo + middle * (v_hi - v_lo))) <= 1.0:
-            low = middle
-        else:
-            high = middle
-    return v_lo + low * (v_hi - v_lo)
+    s = largest_fraction(lambda s: np.max(G @ np.exp(v_lo + s * (v_hi - v_lo))) <= 1.0)
+    return v_lo + s * (v_hi - v_lo)
 
 
 def _restore_feasibility(G, u, lo):
@@ -446,14 +460,8 @@ def _restore_feasibility(G, u, lo):
     """
     if G.shape[0] == 0 or np.max(G @ u) <= 1.0:
         return u
-    low, high = 0.0, 1.0
-    for _ in range(60):
-        middle = 0.5 * (low + high)
-        if np.max(G @ np.maximum(lo, middle * u)) <= 1.0:
-            low = middle
-        else:
-            high = middle
-    return np.maximum(lo, low * u)
+    rho = largest_fraction(lambda rho: np.max(G @ np.maximum(lo, rho * u)) <= 1.0)
+    return np.maximum(lo, rho * u)
 
 
 def _refine_multipliers(w, G, u, lo, hi, tol):

@@ -26,8 +26,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 import pandas as pd
 
-from reliability.fosm import (error_sigma, fosm, one_sided_probability, required_index,
-                              two_sided_probability)
+from reliability.fosm import error_sigma, fosm, probability, required_index
 from reliability.machine import OUTPUTS
 from reliability.poses import workspace_grid
 
@@ -190,10 +189,7 @@ class AllocationProblem:
 
     def probability(self, t) -> np.ndarray:
         """FOSM probability of the chosen side, ``(..., n_poses, 6)``."""
-        sigma = self.sigma(t)
-        if self.side == "one_sided":
-            return one_sided_probability(self.machine.limits, sigma)
-        return two_sided_probability(self.machine.limits, sigma)
+        return probability(self.machine.limits, self.sigma(t), self.side)
 
     def violation(self, t) -> np.ndarray:
         """Total constraint violation ``(...,)``, 0 when ``t`` meets every target.

@@ -4,8 +4,9 @@
 problem in ``u = t²``, :mod:`allocation.convex`) with its duality gap, the active
 constraints (which output at which pose) and their Lagrange multipliers. For the
 workspace-mean reading the constraint ``mean_p P(β_p) ≥ R`` is not linear in ``u``; it is
-concave — so the problem convex — wherever every β ≥ √3 (P ≥ 0.92 two-sided), which the
-result reports; the certificate is then the KKT residuals rather than a duality gap.
+concave — so the problem convex — wherever every β ≥ √3 (P ≥ 0.92 two-sided). It is
+solved by supporting-hyperplane cuts on the same convex solver, whose dual bound is a
+certificate where that concavity holds (the result says whether it does).
 
 ``solve_gwo`` runs the Grey Wolf Optimiser (:mod:`allocation.gwo`) on the same problem,
 over the free items, with Deb's feasibility rules, as the paper does.
@@ -19,9 +20,10 @@ import numpy as np
 import pandas as pd
 from scipy.stats import norm
 
+from reliability.fosm import probability
 from reliability.machine import OUTPUTS
 
-from .convex import InfeasibleAllocationError, solve_convex_allocation
+from .convex import InfeasibleAllocationError, largest_fraction, solve_convex_allocation
 from .gwo import grey_wolf
 
 CONVEX_BETA = np.sqrt(3.0)  # Φ(β) and 2Φ(β)−1 are concave in σ² for β ≥ √3
@@ -288,14 +290,8 @@ def _restore_mean_feasibility(model, u, lo):
     """Shrink ``u`` towards ``lo`` by bisection until every mean constraint holds."""
     if model.slack(u).min() >= 0:
         return u
-    low, high = 0.0, 1.0
-    for _ in range(60):
-        middle = 0.5 * (low + high)
-        if model.slack(np.maximum(lo, middle * u)).min() >= 0:
-            low = middle
-        else:
-            high = middle
-    return np.maximum(lo, low * u)
+    rho = largest_fraction(lambda rho: model.slack(np.maximum(lo, rho * u)).min() >= 0)
+    return np.maximum(lo, rho * u)
 
 
 class _MeanConstraint:
@@ -305,26 +301,21 @@ class _MeanConstraint:
         self.a = np.square(problem.jacobian / problem.k)  # (P, 6, n): σ² = a @ u
         self.limits = problem.machine.limits
         self.targets = problem.machine.targets
-        self.two_sided = problem.side == "two_sided"
+        self.side = problem.side
 
     def beta(self, u) -> np.ndarray:
         return self.limits / np.sqrt(self.a @ u)
 
-    def slack(self, u) -> np.ndarray:
-        beta = self.beta(u)
-        p = 2 * norm.cdf(beta) - 1 if self.two_sided else norm.cdf(beta)
-        return p.mean(axis=0) - self.targets
-
-    def output_slack(self, u, output: int) -> float:
-        """``h_o(u)`` for one output (what the bisection of :meth:`cut` needs)."""
-        beta = self.limits[output] / np.sqrt(self.a[:, output, :] @ u)
-        p = 2 * norm.cdf(beta) - 1 if self.two_sided else norm.cdf(beta)
-        return float(p.mean() - self.targets[output])
+    def slack(self, u, output=slice(None)):
+        """``h(u)`` for every output, or for one when ``output`` is an index."""
+        sigma = np.sqrt(self.a[:, output, :] @ u)
+        mean = probability(self.limits[output], sigma, self.side).mean(axis=0)
+        return mean - self.targets[output]
 
     def gradient(self, u) -> np.ndarray:
         """``∂h_o/∂u_i``, ``(6, n)``: dP/dβ · dβ/dσ² · a."""
         beta = self.beta(u)
-        density = (2 if self.two_sided else 1) * norm.pdf(beta)
+        density = (2 if self.side == "two_sided" else 1) * norm.pdf(beta)
         dp_dsigma2 = -density * beta ** 3 / (2 * self.limits ** 2)
         return np.einsum("po,pon->on", dp_dsigma2, self.a) / beta.shape[0]
 
@@ -335,13 +326,8 @@ class _MeanConstraint:
         ``h_o ≥ 0``) to ``u`` (where ``h_o < 0``), found by bisection; there
         ``h_o(u') ≥ 0`` implies ``−∇h_o·u' ≤ −∇h_o·u_b``, and the right-hand side is > 0.
         """
-        low, high = 0.0, 1.0
-        for _ in range(45):  # 2^-45 of the segment: far below the solver's tolerances
-            middle = 0.5 * (low + high)
-            if self.output_slack(lo + middle * (u - lo), output) >= 0:
-                low = middle
-            else:
-                high = middle
-        boundary = lo + low * (u - lo)
+        s = largest_fraction(lambda s: self.slack(lo + s * (u - lo), output) >= 0,
+                             steps=45)  # 2^-45 of the segment: far below the tolerances
+        boundary = lo + s * (u - lo)
         g = self.gradient(boundary)[output]
         return -g / (-g @ boundary)

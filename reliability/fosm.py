@@ -81,6 +81,16 @@ def two_sided_probability(limit, sigma, mean=0.0) -> np.ndarray:
     return upper - lower
 
 
+def probability(limit, sigma, side: str = "two_sided", mean=0.0) -> np.ndarray:
+    """The probability named by ``side``: :func:`one_sided_probability` (the paper's)
+    or :func:`two_sided_probability` (exact)."""
+    if side == "one_sided":
+        return one_sided_probability(limit, sigma, mean)
+    if side == "two_sided":
+        return two_sided_probability(limit, sigma, mean)
+    raise ValueError(f"unknown side {side!r}; use 'one_sided' or 'two_sided'")
+
+
 def required_index(target, side: str = "two_sided") -> np.ndarray:
     """β needed at zero mean for probability ``target``: ``Φ⁻¹(R)`` or ``Φ⁻¹((1 + R)/2)``."""
     target = np.asarray(target, dtype=float)
