@@ -96,13 +96,12 @@ class GridExperiment:
         self.points_per_axis = int(points_per_axis)
         n = len(machine.axis_specs)
         self.n_head = n // 2  # empty head for a one-axis machine
-        self._head_factors, self._head_gaps = self._segment(0, self.n_head)
-        self._tail_factors, self._tail_gaps = self._segment(self.n_head, n)
-        self._head_transports = transports(self._head_factors)
-        self._tail_transports = transports(self._tail_factors)
-        tail = self._product(self._tail_factors, n - self.n_head)
-        self._tail_ideal_inverse = rigid_inverse(tail)
-        self._tail_ideal = tail
+        head_factors, self._head_gaps = self._segment(0, self.n_head)
+        tail_factors, self._tail_gaps = self._segment(self.n_head, n)
+        self._head_transports = transports(head_factors)
+        self._tail_transports = transports(tail_factors)
+        self._tail_ideal = self._product(tail_factors, n - self.n_head)
+        self._tail_ideal_inverse = rigid_inverse(self._tail_ideal)
 
     @property
     def n_poses(self) -> int:

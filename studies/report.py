@@ -171,6 +171,7 @@ def _experiments(study, tables) -> str:
     table8 = tables["table8_experiment.csv"]
     summary = tables["table9_summary.csv"]
     yields = tables["machine_yield.csv"]
+    difference = _table9_difference(study)
     formats = {c: PERCENT for c in ("dx", "dy", "dz", "ex", "ey", "ez", "fraction",
                                     "paper_fraction", "estimate", "lower", "upper")}
     return "\n\n".join([
@@ -183,10 +184,9 @@ def _experiments(study, tables) -> str:
         "Our mean against the paper's, per output, with z = difference / combined standard "
         "error of the two 20-experiment means (each from its own spread between "
         "experiments):",
-        markdown_table(_table9_difference(study), {"ours": PERCENT, "paper": PERCENT,
-                                                    "difference": "{:+.3%}".format,
-                                                    "z": "{:+.2f}".format}),
-        _table9_verdict(_table9_difference(study)),
+        markdown_table(difference, {"ours": PERCENT, "paper": PERCENT,
+                                    "difference": "{:+.3%}".format, "z": "{:+.2f}".format}),
+        _table9_verdict(difference),
         f"Machine-level yield — the share of experiments in which every pose meets every "
         f"limit (Clopper–Pearson 95 %). The paper's Table 9 has {TABLE9_ALL_INSIDE} such "
         f"rows of 20 (rows 6 and 10):",

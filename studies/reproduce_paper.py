@@ -224,8 +224,8 @@ def _yields(study: Study) -> pd.DataFrame:
 
 
 # ----- figures -----------------------------------------------------------------------
-def figures(study: Study) -> dict[str, plt.Figure]:
-    """All figures, by file name."""
+def figures(study: Study, frames: dict[str, pd.DataFrame]) -> dict[str, plt.Figure]:
+    """All figures, by file name; ``frames`` are the :func:`tables` they share data with."""
     machine = study.machine
     n_motion = 6 * len(machine.axes)
     shown = {"initial (Table 4)": study.allocations["initial"],
@@ -252,11 +252,9 @@ def figures(study: Study) -> dict[str, plt.Figure]:
                      f"experiment 1 of {study.repeats})")
         out[name] = fig
     out["fig_convergence.png"] = _convergence_figure(study)
-    out["fig_fosm_vs_mc.png"] = _comparison_figure(study)
+    out["fig_fosm_vs_mc.png"] = _comparison_figure(study, frames["fosm_vs_mc.csv"])
     fig, ax = plt.subplots(figsize=(11, 4.5), layout="constrained")
-    repeats = pd.concat([pd.DataFrame(r.fractions, columns=list(reliability.OUTPUTS))
-                         .assign(allocation=name) for name, r in study.grid.items()])
-    plots.plot_repeats(repeats, by="allocation", ax=ax)
+    plots.plot_repeats(frames["table9_repeats.csv"].reset_index(), by="allocation", ax=ax)
     out["fig_repeats.png"] = fig
     return out
 
@@ -271,12 +269,12 @@ def _convergence_figure(study: Study) -> plt.Figure:
     return fig
 
 
-def _comparison_figure(study: Study) -> plt.Figure:
+def _comparison_figure(study: Study, comparison: pd.DataFrame) -> plt.Figure:
     fig, axes = plt.subplots(1, len(study.grid), figsize=(5 * len(study.grid), 4.5),
                              layout="constrained", sharey=True)
     for ax, (name, result) in zip(axes, study.grid.items()):
-        frame = fosm_versus_monte_carlo(study.fosm[name], result)
-        plots.plot_reliability_comparison(frame, target=0.99, ax=ax)
+        plots.plot_reliability_comparison(comparison.loc[name].reset_index(), target=0.99,
+                                          ax=ax)
         ax.set_title(f"{name} allocation: grid mean FOSM vs\n{result.repeats} grid "
                      f"experiments (95 % t-interval)")
     return fig
@@ -289,7 +287,7 @@ def write_outputs(study: Study, out: Path, log) -> None:
     for name, frame in frames.items():
         frame.to_csv(out / name)
     log("tables written; drawing figures")
-    for name, fig in figures(study).items():
+    for name, fig in figures(study, frames).items():
         fig.savefig(out / name, dpi=110)
         plt.close(fig)
     write_report(study, frames, out / "report.md")
