@@ -182,34 +182,35 @@ class Machine:
 
     def check_positions(self, q) -> np.ndarray:
         """Return ``q`` as a float array of shape ``(..., n_axes)`` or raise ValueError."""
-        q = np.asarray(q, dtype=float)
-        if q.ndim < 1 or q.shape[-1] != len(self.axis_specs):
-            raise ValueError(f"positions must have shape (..., {len(self.axis_specs)}) "
-                             f"for axes {self.axes}; got {q.shape}")
+        q = _with_last_axis(q, len(self.axis_specs), "positions", f" for axes {self.axes}")
         if not np.all(np.isfinite(q)):
             raise ValueError("positions contain non-finite values")
         return q
 
     def check_errors(self, x) -> np.ndarray:
         """Return ``x`` as a float array of shape ``(..., n_errors)`` or raise ValueError."""
-        x = np.asarray(x, dtype=float)
-        if x.ndim < 1 or x.shape[-1] != self.n_errors:
-            raise ValueError(f"errors must have shape (..., {self.n_errors}); got {x.shape}")
+        x = _with_last_axis(x, self.n_errors, "errors")
         if not np.all(np.isfinite(x)):
             raise ValueError("errors contain non-finite values")
         return x
 
     def check_tolerances(self, tolerances) -> np.ndarray:
         """Return tolerances ``(..., n_errors)``, all finite and > 0, or raise ValueError."""
-        t = np.asarray(tolerances, dtype=float)
-        if t.ndim < 1 or t.shape[-1] != self.n_errors:
-            raise ValueError(f"tolerances must have shape (..., {self.n_errors}); got {t.shape}")
+        t = _with_last_axis(tolerances, self.n_errors, "tolerances")
         bad = ~(np.isfinite(t) & (t > 0))
         if np.any(bad):
             first = int(np.argwhere(bad)[0][-1])
             raise ValueError(f"tolerance of {self.error_names[first]!r} must be finite and "
                              f"> 0; got {t[np.nonzero(bad)][0]!r}")
         return t
+
+
+def _with_last_axis(values, size: int, what: str, detail: str = "") -> np.ndarray:
+    """``values`` as floats whose last axis has ``size`` entries, or a ValueError."""
+    array = np.asarray(values, dtype=float)
+    if array.ndim < 1 or array.shape[-1] != size:
+        raise ValueError(f"{what} must have shape (..., {size}){detail}; got {array.shape}")
+    return array
 
 
 def joint_names(axes) -> tuple[str, ...]:
