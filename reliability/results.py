@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from .files import write_csv
 from .machine import OUTPUTS
 from .statistics import between_experiment_interval, machine_yield, proportion
 
@@ -170,12 +171,3 @@ class RandomPoseResult:
         frame["fosm_one_sided"] = self.fosm_one_sided
         frame["fosm_two_sided"] = self.fosm_two_sided
         return frame
-
-
-def write_csv(frame: pd.DataFrame, path, overwrite: bool = False, **kwargs) -> Path:
-    """Write a table, refusing to replace an existing file unless ``overwrite``."""
-    path = Path(path)
-    if path.exists() and not overwrite:
-        raise FileExistsError(f"{path} exists; pass overwrite=True to replace it")
-    frame.to_csv(path, **kwargs)
-    return path

@@ -8,10 +8,18 @@ from importlib import resources
 from pathlib import Path
 
 import pytest
+from threadpoolctl import threadpool_limits
 
 import reliability
 
 MACHINE_DIR = Path(__file__).parent / "machines"
+
+
+@pytest.fixture(scope="session", autouse=True)
+def one_blas_thread():
+    """BLAS pinned to one thread: threads fight on a busy 2-core machine."""
+    with threadpool_limits(limits=1):
+        yield
 
 
 @pytest.fixture(scope="session")
