@@ -25,6 +25,7 @@ import numpy as np
 from .fosm import error_sigma, one_sided_probability, output_sigma, two_sided_probability
 from .kinematics import deviation_from_transports, ideal_motion, offset_transform, transports
 from .poses import grid_axis_points, random_poses
+from .profiles import axis_profiles, draw_motion_errors, travel_factors
 from .results import GridExperimentResult, RandomPoseResult
 from .transforms import read_pose_error, rigid_inverse
 
@@ -88,12 +89,23 @@ class GridExperiment:
     machine : Machine
     points_per_axis : int
         Grid points per axis (5 in the paper).
+    profile : str, profile model or mapping
+        How each axis' motion errors hang together along its travel
+        (:mod:`reliability.profiles`): ``"independent"`` (the paper's, default),
+        ``"constant"``, ``"gp:<length mm>"``, a model, or ``{axis name: model}``.
+    systematic : SystematicErrors, optional
+        Measured mean profiles (:mod:`reliability.measured`) added at every grid point.
     """
 
-    def __init__(self, machine, points_per_axis: int = 5):
+    def __init__(self, machine, points_per_axis: int = 5, profile="independent",
+                 systematic=None):
         self.machine = machine
         self.points = grid_axis_points(machine, points_per_axis)
         self.points_per_axis = int(points_per_axis)
+        self.profiles = axis_profiles(machine, profile)
+        self._travel = travel_factors(machine, self.profiles, self.points)
+        self._independent = all(str(p) == "independent" for p in self.profiles)
+        self._motion_means = None if systematic is None else systematic.at_grid(self.points)
         n = len(machine.axis_specs)
         self.n_head = n // 2  # empty head for a one-axis machine
         head_factors, self._head_gaps = self._segment(0, self.n_head)
@@ -275,8 +287,14 @@ class GridExperiment:
         """One experiment's errors from its own generator: motion errors ``(n_axes, P, 6)``
         (one draw per axis point), then assembly errors ``(n_axes − 1, 6)``."""
         n = len(self.machine.axis_specs)
-        motion_t = np.broadcast_to(t[:6 * n].reshape(n, 1, 6), (n, self.points_per_axis, 6))
-        motion = draw_errors(motion_t, (), k=k, distribution=distribution, rng=rng)
+        if self._independent:
+            motion_t = np.broadcast_to(t[:6 * n].reshape(n, 1, 6), (n, self.points_per_axis, 6))
+            motion = draw_errors(motion_t, (), k=k, distribution=distribution, rng=rng)
+        else:
+            motion = draw_motion_errors(self._travel, t[:6 * n].reshape(n, 6), rng, k,
+                                        distribution)
+        if self._motion_means is not None:
+            motion = motion + self._motion_means
         assembly = draw_errors(t[6 * n:].reshape(n - 1, 6), (), k=k,
                                distribution=distribution, rng=rng)
         return motion, assembly
