@@ -186,9 +186,11 @@ def fosm(machine, tolerances, poses, *, k: float = 3.0, means=None,
     k : float
         Coverage factor of the tolerances (3 in the paper).
     means : array_like, optional
-        ``(n_errors,)`` error means; zero by default. The output mean is the exact model
-        evaluated at the error means (Eq. 20). σ uses the sensitivities at zero error; the
-        paper takes them at the means, which differs only at second order.
+        ``(n_errors,)`` error means, or ``(n_poses, n_errors)`` means that vary with the
+        pose (e.g. measured profiles, :meth:`reliability.measured.SystematicErrors.means`);
+        zero by default. The output mean is the exact model evaluated at the error means
+        (Eq. 20). σ uses the sensitivities at zero error; the paper takes them at the means,
+        which differs only at second order.
     distribution : {'normal', 'truncated'}
         How σ follows from t, see :func:`error_sigma`.
     jacobian : ndarray, optional
