@@ -210,9 +210,18 @@ def axis_profiles(machine, profile="independent") -> tuple:
         if unknown:
             raise InputError(f"profile names unknown axis {unknown[0]!r}; the machine's axes "
                              f"are {machine.axes}")
-        return tuple(profile_model(profile.get(name, "independent")) for name in machine.axes)
+        return tuple(_axis_model(name, profile.get(name, "independent"))
+                     for name in machine.axes)
     model = profile_model(profile)
     return tuple(model for _ in machine.axes)
+
+
+def _axis_model(axis_name, spec):
+    """:func:`profile_model` whose refusal names the axis."""
+    try:
+        return profile_model(spec)
+    except (InputError, InputTypeError) as exc:
+        raise type(exc)(f"axis {axis_name!r}: {exc}") from None
 
 
 def travel_factors(machine, profiles, axis_points) -> np.ndarray:
@@ -228,12 +237,13 @@ def standard_normals(rng, shape) -> np.ndarray:
 
 
 def correlate_along_travel(z, factors) -> np.ndarray:
-    """Stage 2: ``(n_axes, P, 6)`` N(0, 1) values correlated along each axis' travel.
+    """Stage 2: ``(..., n_axes, P, 6)`` N(0, 1) values correlated along each axis' travel.
 
     ``factors`` are :func:`travel_factors`; each has unit-norm rows, so every value stays
-    N(0, 1) and the six errors of a point stay independent of each other.
+    N(0, 1) and the six errors of a point stay independent of each other. Leading axes of
+    ``z`` (several experiments) are kept.
     """
-    return np.einsum("apq,aqc->apc", factors, z)
+    return np.einsum("apq,...aqc->...apc", factors, z)
 
 
 def to_marginal(z, tolerances, k: float = 3.0, distribution: str = "truncated") -> np.ndarray:
