@@ -54,8 +54,8 @@ class MeasuredProfile:
         0–5 for ``dx dy dz ex ey ez``.
     positions, values : ndarray
         Measured axis positions (increasing) and values.
-    periodic : bool
-        True on a full-turn rotary axis (interpolated with period 2π).
+    axis_spec : Axis
+        The axis the profile was checked against.
     outside : {'refuse', 'hold'}
         What happens beyond the measured range.
     """
@@ -65,8 +65,13 @@ class MeasuredProfile:
     component: int
     positions: np.ndarray
     values: np.ndarray
-    periodic: bool = False
+    axis_spec: object
     outside: str = "refuse"
+
+    @property
+    def periodic(self) -> bool:
+        """True on a full-turn rotary axis (interpolated with period 2π)."""
+        return self.axis_spec.full_turn
 
     def __call__(self, position) -> np.ndarray:
         """The interpolated mean at axis positions ``position`` (any shape)."""
@@ -130,7 +135,7 @@ def measured_profile(machine, error: str, positions, values, *, sort: bool = Fal
     elif outside == "refuse":
         _check_coverage(error, spec, x)
     return MeasuredProfile(error=error, axis=axis, component=component, positions=x,
-                           values=y, periodic=spec.full_turn, outside=outside)
+                           values=y, axis_spec=spec, outside=outside)
 
 
 def read_profile_csv(path, machine, error: str, *, sort: bool = False,
@@ -152,6 +157,8 @@ def read_profile_csv(path, machine, error: str, *, sort: bool = False,
     if columns != COLUMNS:
         raise InputError(f"{path}: columns must be exactly {','.join(COLUMNS)}; "
                          f"got {','.join(columns)}")
+    if len(frame) < 2:
+        raise InputError(f"{path}: needs at least 2 rows of position,value; got {len(frame)}")
     for column in COLUMNS:
         if not pd.api.types.is_numeric_dtype(frame[column]):
             raise InputError(f"{path}: column {column!r} must hold numbers only")
@@ -183,7 +190,8 @@ class SystematicErrors:
         if repeated:
             raise InputError(f"error {repeated[0]!r} has more than one measured profile")
         for p in profiles:
-            if self.machine.error_index(p.error) != 6 * p.axis + p.component:
+            if p.axis >= len(self.machine.axis_specs) or \
+                    self.machine.axis_specs[p.axis] != p.axis_spec:
                 raise InputError(f"profile of {p.error!r} was built for another machine")
         object.__setattr__(self, "profiles", profiles)
 
