@@ -84,3 +84,21 @@ def test_section_and_figure(small):
 def test_command_refuses_too_few_repeats(capsys):
     assert main(["--repeats", "1"]) == 2
     assert "--repeats" in capsys.readouterr().err
+
+
+def test_documentation_examples_run(monkeypatch):
+    import re
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    blocks = re.findall(r"```python\n(.*?)```", (root / "docs" / "profiles.md").read_text(),
+                        flags=re.S)
+    assert len(blocks) == 2
+    monkeypatch.chdir(root)
+    namespace = {}
+    for block in blocks:  # the second block continues the first
+        exec(compile(block, "docs/profiles.md", "exec"), namespace)
+    assert namespace["mc"].repeats == 200
+    worst = namespace["with_bow"].worst("two_sided")
+    assert worst[2] < namespace["fosm"](namespace["machine"], namespace["t"],
+                                        namespace["poses"]).worst("two_sided")[2]
