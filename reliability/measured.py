@@ -226,6 +226,17 @@ class SystematicErrors:
         return pd.concat(frames, ignore_index=True)[["error", *COLUMNS]]
 
 
+def grid_means(systematic, machine, axis_points) -> np.ndarray:
+    """``(n_axes, P, 6)`` means of ``systematic`` at a grid of ``machine``, after checking
+    that they were measured on this machine (what the grid experiment adds to its draws)."""
+    if not isinstance(systematic, SystematicErrors):
+        raise InputTypeError(f"systematic must be a SystematicErrors; got {systematic!r}")
+    if systematic.machine.axis_specs != machine.axis_specs:
+        raise InputError("systematic errors were measured on a machine with other axes "
+                         f"({systematic.machine.axes}) than this one ({machine.axes})")
+    return systematic.at_grid(axis_points)
+
+
 def _motion_error(machine, error) -> tuple[int, int]:
     """Axis and component index of a motion-error name, or a named refusal."""
     if not isinstance(error, str):

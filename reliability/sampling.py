@@ -25,7 +25,8 @@ import numpy as np
 from .fosm import error_sigma, one_sided_probability, output_sigma, two_sided_probability
 from .kinematics import deviation_from_transports, ideal_motion, offset_transform, transports
 from .poses import grid_axis_points, random_poses
-from .profiles import axis_profiles, draw_motion_errors, travel_factors
+from .measured import grid_means
+from .profiles import IndependentProfile, axis_profiles, draw_motion_errors, travel_factors
 from .results import GridExperimentResult, RandomPoseResult
 from .transforms import read_pose_error, rigid_inverse
 
@@ -104,8 +105,9 @@ class GridExperiment:
         self.points_per_axis = int(points_per_axis)
         self.profiles = axis_profiles(machine, profile)
         self._travel = travel_factors(machine, self.profiles, self.points)
-        self._independent = all(str(p) == "independent" for p in self.profiles)
-        self._motion_means = None if systematic is None else systematic.at_grid(self.points)
+        self._independent = all(isinstance(p, IndependentProfile) for p in self.profiles)
+        self._motion_means = None if systematic is None else \
+            grid_means(systematic, machine, self.points)
         n = len(machine.axis_specs)
         self.n_head = n // 2  # empty head for a one-axis machine
         head_factors, self._head_gaps = self._segment(0, self.n_head)

@@ -181,3 +181,12 @@ def test_profile_object_is_frozen(mill3):
     assert isinstance(profile, MeasuredProfile)
     with pytest.raises(AttributeError):
         profile.error = "X.dx"
+
+
+def test_grid_experiment_refuses_foreign_or_wrong_systematic(mill3, hobbing):
+    other = SystematicErrors(hobbing, (measured_profile(hobbing, "X.dz", [0.0, 400.0],
+                                                        [0.0, 0.001]),))
+    with pytest.raises(InputError, match="other axes"):
+        GridExperiment(mill3, 3, systematic=other)
+    with pytest.raises(InputTypeError, match="systematic"):
+        GridExperiment(mill3, 3, systematic={"X.dz": 0.001})
