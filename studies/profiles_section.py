@@ -149,5 +149,6 @@ def _systematic_text(effect) -> str:
     return ("A measured straightness profile is a systematic error: its mean shifts the "
             "comprehensive errors pose by pose, and the allocated tolerance remains the random "
             "part around it. Two-sided FOSM reliability on the grid without and with the "
-            "profile, and the grid experiment with the profile added:\n\n"
+            "profile, and the grid experiment with the profile added (limits and output "
+            "means in mm or rad):\n\n"
             + markdown_table(worst))
