@@ -1,0 +1,50 @@
+"""The documentation stands on its own: examples load, tutorial code runs, links resolve."""
+
+import re
+from pathlib import Path
+
+import pytest
+
+import reliability
+
+ROOT = Path(__file__).resolve().parents[1]
+DOCS = ROOT / "docs"
+PAGES = sorted(DOCS.glob("*.md"))
+LINK = re.compile(r"\]\(([^)#\s]+)(?:#[^)]*)?\)")
+
+
+def python_blocks(page: Path) -> list[str]:
+    """The ```python code blocks of a markdown page, in order."""
+    return re.findall(r"```python\n(.*?)```", page.read_text(), flags=re.S)
+
+
+@pytest.mark.parametrize("path", sorted((DOCS / "examples").glob("*.toml")),
+                         ids=lambda p: p.name)
+def test_example_machines_load(path):
+    machine = reliability.load_machine(path)
+    assert machine.n_errors == 6 * (2 * len(machine.axes) - 1)
+
+
+@pytest.mark.parametrize("page", PAGES, ids=lambda p: p.name)
+def test_relative_links_resolve(page):
+    targets = [t for t in LINK.findall(page.read_text()) if "://" not in t]
+    missing = [t for t in targets if not (page.parent / t).exists()]
+    assert not missing, f"{page.name} links to missing files {missing}"
+
+
+@pytest.mark.parametrize("page", PAGES, ids=lambda p: p.name)
+def test_pages_do_not_refer_outside_the_repository(page):
+    text = page.read_text()
+    for word in ("../shared", "DESIGN", "issue"):
+        assert word not in text, f"{page.name} mentions {word!r}"
+
+
+def test_tutorial_python_runs(monkeypatch):
+    monkeypatch.chdir(ROOT)
+    namespace = {}
+    blocks = python_blocks(DOCS / "tutorial.md")
+    assert len(blocks) >= 4
+    for block in blocks:
+        exec(compile(block, "docs/tutorial.md", "exec"), namespace)
+    assert namespace["relative"] < 1.0
+    assert namespace["result"].repeats == 20
