@@ -46,6 +46,7 @@ class PoseSamplingResult:
     Attributes
     ----------
     axes : tuple of str
+        Axis names with units, e.g. ``'X (mm)'``, ``'A (rad)'``.
     poses : ndarray (n_poses, n_axes)
     labels : tuple of str
         One label per pose (``'worst dx'`` … or ``'pose 0'`` …).
@@ -101,7 +102,7 @@ class PoseSamplingResult:
         frame = pd.DataFrame({"pose": np.asarray(self.labels)[pose_index],
                               "event": np.asarray(EVENTS)[event_index]})
         for a, axis in enumerate(self.axes):
-            frame[f"{axis} (mm|rad)"] = self.poses[pose_index, a]
+            frame[axis] = self.poses[pose_index, a]
         frame["samples"] = self.n_samples
         frame["failures"] = self.failures[pose_index, event_index]
         frame["mc_failure"] = np.asarray(est.estimate)[pose_index, event_index]
@@ -121,13 +122,19 @@ class PoseSamplingResult:
         if self.precision is not None:
             head += (f" Relative half-width target {self.precision:g}: "
                      f"{'reached' if self.reached else 'NOT reached (sample cap)'}.")
-        columns = ["pose", "event", *[f"{a} (mm|rad)" for a in self.axes], "failures",
+        columns = ["pose", "event", *self.axes, "failures",
                    "mc_failure", "lower", "upper", "fosm_failure"]
         return head + "\n" + self.to_frame()[columns].to_string(index=False,
                                                                  float_format="{:.4g}".format)
 
     def __str__(self) -> str:
         return self.summary()
+
+
+def axis_labels(machine) -> tuple:
+    """Axis names with their units, ``'X (mm)'`` or ``'A (rad)'``."""
+    return tuple(f"{a.name} ({'mm' if a.kind == 'linear' else 'rad'})"
+                 for a in machine.axis_specs)
 
 
 def worst_poses(machine, tolerances, *, k: float = 3.0, points_per_axis: int = 5
@@ -158,9 +165,8 @@ def linear_failure(machine, tolerances, poses, *, k: float = 3.0,
     for p in range(len(poses)):  # one 6-D rectangle per pose
         correlation = covariance[p] / np.outer(sd[p], sd[p])
         bound = machine.limits / sd[p]
-        inside = multivariate_normal(np.zeros(6), correlation).cdf(
-            bound, lower_limit=-bound, abseps=1e-10, releps=1e-8, maxpts=200_000,
-            rng=np.random.default_rng(0))
+        inside = multivariate_normal(np.zeros(6), correlation, abseps=1e-10, releps=1e-8,
+                                     maxpts=200_000, seed=0).cdf(bound, lower_limit=-bound)
         out[p, 6] = 1.0 - inside
     return out
 
@@ -229,7 +235,7 @@ def sample_at_poses(machine, tolerances, poses=None, *, samples: int = 100_000, 
             if reached:
                 break
     return PoseSamplingResult(
-        axes=machine.axes, poses=poses, labels=labels, tracked=tracked, failures=failures,
+        axes=axis_labels(machine), poses=poses, labels=labels, tracked=tracked, failures=failures,
         n_samples=int(done),
         fosm_failure=linear_failure(machine, t, poses, k=k, distribution=distribution),
         confidence=float(confidence), precision=None if precision is None else float(precision),

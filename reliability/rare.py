@@ -70,7 +70,8 @@ class RareEventResult:
         ``'importance'``, ``'subset'`` or ``'exact-zero'`` (truncated inputs that cannot
         reach the limit).
     distribution : str
-    axes : tuple of str
+    axes : tuple of Axis
+        The machine's axes (names and kinds, for units).
     pose : ndarray (n_axes,)
     probability : float
         Estimated failure probability.
@@ -117,7 +118,8 @@ class RareEventResult:
 
     def to_frame(self) -> pd.DataFrame:
         """One row: the pose as axis positions, the estimate, its CoV and interval."""
-        row = {f"{axis} (mm|rad)": value for axis, value in zip(self.axes, self.pose)}
+        row = {f"{axis.name} ({'mm' if axis.kind == 'linear' else 'rad'})": value
+               for axis, value in zip(self.axes, self.pose)}
         row.update(event=self.event, method=self.method, distribution=self.distribution,
                    probability=self.probability, cov=self.cov, lower=self.interval[0],
                    upper=self.interval[1], n_evaluations=self.n_evaluations,
@@ -126,7 +128,7 @@ class RareEventResult:
 
     def summary(self) -> str:
         """A few readable lines."""
-        pose = ", ".join(f"{a}={v:.4g}" for a, v in zip(self.axes, self.pose))
+        pose = ", ".join(f"{a.name}={v:.4g}" for a, v in zip(self.axes, self.pose))
         level = f"{100 * self.confidence:.0f} %"
         if self.method == "exact-zero":
             body = f"failure probability exactly 0 ({self.note})"
@@ -207,7 +209,7 @@ def failure_probability(machine, tolerances, pose=None, *, event: str = "dx",
                                                                                jacobian)
     counter = _CountingModel(model or (lambda x: machine.comprehensive_error(pose, x)))
     problem = _Problem(t / k, jacobian, machine.limits, _event_outputs(event), counter)
-    common = dict(event=event, distribution=distribution, axes=machine.axes, pose=pose,
+    common = dict(event=event, distribution=distribution, axes=machine.axis_specs, pose=pose,
                   confidence=confidence, target_cov=float(target_cov),
                   fosm_probability=problem.fosm_probability())
     if distribution == "truncated":
