@@ -174,7 +174,8 @@ def linear_failure(machine, tolerances, poses, *, k: float = 3.0,
 def sample_at_poses(machine, tolerances, poses=None, *, samples: int = 100_000, rng=None,
                     k: float = 3.0, distribution: str = "normal", precision=None,
                     max_samples: int = 2_000_000, batch: int = 10_000,
-                    confidence: float = 0.95, progress=None) -> PoseSamplingResult:
+                    confidence: float = 0.95, fosm: bool = True,
+                    progress=None) -> PoseSamplingResult:
     """Monte-Carlo failure probabilities at given poses on the exact model.
 
     Parameters
@@ -200,6 +201,8 @@ def sample_at_poses(machine, tolerances, poses=None, *, samples: int = 100_000, 
         Samples per pose evaluated together (memory ≈ batch × n_poses × n_errors × 8 bytes).
     confidence : float
         Level of the Wilson intervals.
+    fosm : bool
+        Compute the linear-Gaussian comparison (:func:`linear_failure`); NaN when False.
     progress : callable, optional
         ``progress(done, total)`` after each batch.
 
@@ -237,7 +240,8 @@ def sample_at_poses(machine, tolerances, poses=None, *, samples: int = 100_000, 
     return PoseSamplingResult(
         axes=axis_labels(machine), poses=poses, labels=labels, tracked=tracked, failures=failures,
         n_samples=int(done),
-        fosm_failure=linear_failure(machine, t, poses, k=k, distribution=distribution),
+        fosm_failure=linear_failure(machine, t, poses, k=k, distribution=distribution)
+        if fosm else np.full(failures.shape, np.nan),
         confidence=float(confidence), precision=None if precision is None else float(precision),
         reached=reached, distribution=distribution, k=float(k))
 

@@ -405,7 +405,11 @@ def _level_size(problem, target_cov, budget) -> int:
 
 
 def _run_chains(problem, u, r, threshold, length, rng):
-    """Advance all chains ``length − 1`` steps; return states in order (step, chain)."""
+    """Advance all chains ``length − 1`` steps; return states in order (step, chain).
+
+    Conditional sampling: ``u' = ρu + √(1 − ρ²) ξ`` leaves the standard normal invariant,
+    and a candidate is accepted when it stays above the current threshold.
+    """
     rho = CHAIN_CORRELATION
     states_u, states_r = [u], [r]
     for _ in range(length - 1):
