@@ -11,7 +11,8 @@ event, some output failing (the complement of "all six inside").
 
 By default the poses are each output's worst pose on the 5-point workspace grid (FOSM,
 largest σ); output ``o`` is then tracked at its own worst pose and the system event at all
-of them. With explicit poses every event is tracked at every pose.
+of them. With explicit poses every event is tracked at every pose; ``events`` narrows the
+selection.
 
 Adaptive stopping (``precision`` given): samples are drawn in batches until every tracked
 event's interval has a relative half-width ``(upper − lower)/(2 p̂)`` on the failure
@@ -174,7 +175,7 @@ def linear_failure(machine, tolerances, poses, *, k: float = 3.0,
 def sample_at_poses(machine, tolerances, poses=None, *, samples: int = 100_000, rng=None,
                     k: float = 3.0, distribution: str = "normal", precision=None,
                     max_samples: int = 2_000_000, batch: int = 10_000,
-                    confidence: float = 0.95, fosm: bool = True,
+                    confidence: float = 0.95, events=None, fosm: bool = True,
                     progress=None) -> PoseSamplingResult:
     """Monte-Carlo failure probabilities at given poses on the exact model.
 
@@ -201,6 +202,10 @@ def sample_at_poses(machine, tolerances, poses=None, *, samples: int = 100_000, 
         Samples per pose evaluated together (memory ≈ batch × n_poses × n_errors × 8 bytes).
     confidence : float
         Level of the Wilson intervals.
+    events : sequence of str, optional
+        Events to report and to drive adaptive stopping (names from ``dx … ez``,
+        ``'system'``). Default: all of them (with default poses, each output at its own
+        worst pose and the system event at every pose).
     fosm : bool
         Compute the linear-Gaussian comparison (:func:`linear_failure`); NaN when False.
     progress : callable, optional
@@ -220,6 +225,8 @@ def sample_at_poses(machine, tolerances, poses=None, *, samples: int = 100_000, 
         poses = _check_poses(machine, poses)
         labels = tuple(f"pose {i}" for i in range(len(poses)))
         tracked = np.ones((len(poses), len(EVENTS)), bool)
+    if events is not None:
+        tracked = tracked & _event_mask(events)
     rng = np.random.default_rng(rng)
     total = samples if precision is None else max_samples
     failures = np.zeros((len(poses), len(EVENTS)), dtype=np.int64)
@@ -254,6 +261,15 @@ def _precise_enough(failures, n, tracked, precision, confidence) -> bool:
     est = proportion(counts, n, confidence, INTERVAL)
     half = (np.asarray(est.upper) - np.asarray(est.lower)) / 2
     return bool(np.all(half <= precision * np.asarray(est.estimate)))
+
+
+def _event_mask(events) -> np.ndarray:
+    events = (events,) if isinstance(events, str) else tuple(events)
+    unknown = [e for e in events if e not in EVENTS]
+    if unknown or not events:
+        raise InputError(f"events must be a non-empty selection of {EVENTS}; "
+                         f"got {unknown[0] if unknown else 'none'!r}")
+    return np.isin(np.asarray(EVENTS), events)
 
 
 def _check_poses(machine, poses) -> np.ndarray:
