@@ -37,7 +37,7 @@ standard normal space of the errors, ``x_i = σ_i u_i`` with ``σ_i = t_i/k``.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import pandas as pd
@@ -99,7 +99,7 @@ class RareEventResult:
     event: str
     method: str
     distribution: str
-    axes: tuple
+    axes: tuple = field(repr=False)
     pose: np.ndarray
     probability: float
     cov: float

@@ -84,7 +84,7 @@ def test_adaptive_stopping_coverage_and_sample_count(hobbing, setup):
     seeds = np.random.SeedSequence(32).spawn(runs)
     hits, used = 0, []
     for s in seeds:
-        result = sample_at_poses(hobbing, t, pose[None], precision=precision, batch=100,
+        result = sample_at_poses(hobbing, t, pose[None], precision=precision, batch=250,
                                  max_samples=20_000, rng=np.random.default_rng(s),
                                  events=("dx", "system"), fosm=False)
         est = result.estimate

@@ -135,30 +135,27 @@ def test_gamma_closed_forms():
 
 
 def test_exact_model_agrees_with_crude_monte_carlo(hobbing):
-    """On the exact model, importance and subset estimates agree with crude MC at 1e−2
-    (dx and the system) and 2.75e−3 (ez); z = 3 on the combined standard error."""
+    """On the exact model, importance and subset estimates agree with crude MC at 2e−2 (δx
+    and the system, at δx's worst pose) and 2.75e−3 (εz at its worst pose); z = 3 on the
+    combined standard error."""
     t = hobbing.initial_allocation
     rng = np.random.default_rng(21)
-    checks = [("dx", worst_grid_pose(hobbing, t, "dx")),
-              ("system", worst_grid_pose(hobbing, t, "system")),
-              ("ez", worst_grid_pose(hobbing, t, "ez"))]
-    n = 300_000
-    for event, pose in checks:
-        outside = np.zeros(7, dtype=np.int64)
-        for _ in range(n // 50_000):
-            y = hobbing.comprehensive_error(pose, draw_errors(t, (50_000,),
-                                                              distribution="normal", rng=rng))
-            fails = np.abs(y) >= hobbing.limits
-            outside[:6] += fails.sum(axis=0)
-            outside[6] += fails.any(axis=1).sum()
-        column = 6 if event == "system" else ["dx", "dy", "dz", "ex", "ey", "ez"].index(event)
-        crude = outside[column] / n
-        crude_se = np.sqrt(crude * (1 - crude) / n)
-        for method in ("importance", "subset"):
-            result = failure_probability(hobbing, t, pose, event=event, method=method,
-                                         target_cov=0.04, max_evaluations=40_000, rng=rng)
-            se = np.hypot(crude_se, result.probability * result.cov)
-            assert abs(result.probability - crude) < Z * se, (event, method)
+    n = 150_000
+    for events, pose in ((("dx", "system"), worst_grid_pose(hobbing, t, "dx")),
+                         (("ez",), worst_grid_pose(hobbing, t, "ez"))):
+        y = hobbing.comprehensive_error(pose, draw_errors(t, (n,), distribution="normal",
+                                                          rng=rng))
+        fails = np.abs(y) >= hobbing.limits
+        for event in events:
+            column = fails.any(axis=1) if event == "system" else \
+                fails[:, ["dx", "dy", "dz", "ex", "ey", "ez"].index(event)]
+            crude = column.mean()
+            crude_se = np.sqrt(crude * (1 - crude) / n)
+            for method in ("importance", "subset"):
+                result = failure_probability(hobbing, t, pose, event=event, method=method,
+                                             target_cov=0.05, rng=rng)
+                se = np.hypot(crude_se, result.probability * result.cov)
+                assert abs(result.probability - crude) < Z * se, (event, method)
 
 
 def test_truncated_exact_zero_inside_worst_case(hobbing):
