@@ -4,7 +4,8 @@ The allocation promises a reliability at every pose; this module checks the prom
 it is tightest. At each pose, independent error vectors are drawn (normal with σ = t/k, or
 truncated at ±t as in Sec. 5.3) and the exact comprehensive error (Eq. 18) is evaluated.
 Every draw is an independent Bernoulli trial of each event, so the failure counts are
-binomial and the Wilson score interval applies (:func:`reliability.statistics.proportion`).
+binomial and a binomial interval applies (:func:`reliability.statistics.proportion`): the
+Wilson score interval by default, Clopper–Pearson on request.
 
 Events: each output failing, ``|y_o| ≥ I_o`` (the complement of Eq. 19), and the system
 event, some output failing (the complement of "all six inside").
@@ -37,12 +38,13 @@ from .sampling import draw_errors
 from .statistics import proportion
 
 EVENTS = OUTPUTS + ("system",)
-INTERVAL = "wilson"
+_INTERVAL_NAMES = {"wilson": "Wilson", "clopper-pearson": "Clopper–Pearson"}
+INTERVALS = ("wilson", "clopper-pearson")
 
 
 @dataclass(frozen=True)
 class PoseSamplingResult:
-    """Failure counts at a set of poses, with Wilson intervals and the FOSM answer.
+    """Failure counts at a set of poses, with binomial intervals and the FOSM answer.
 
     Attributes
     ----------
@@ -68,6 +70,8 @@ class PoseSamplingResult:
         Whether every tracked event reached ``precision`` (None without one).
     distribution : str
     k : float
+    interval : {'wilson', 'clopper-pearson'}
+        The binomial interval used.
     """
 
     axes: tuple
@@ -82,11 +86,12 @@ class PoseSamplingResult:
     reached: bool | None
     distribution: str
     k: float
+    interval: str = "wilson"
 
     @property
     def estimate(self):
-        """Failure-probability estimates with Wilson intervals, ``(n_poses, 7)``."""
-        return proportion(self.failures, self.n_samples, self.confidence, INTERVAL)
+        """Failure-probability estimates with the chosen binomial intervals, ``(n_poses, 7)``."""
+        return proportion(self.failures, self.n_samples, self.confidence, self.interval)
 
     def relative_half_width(self) -> np.ndarray:
         """``(upper − lower)/(2 p̂)`` per (pose, event); inf where no failure was seen."""
@@ -119,7 +124,8 @@ class PoseSamplingResult:
         """A readable table with the stopping outcome."""
         head = (f"Monte-Carlo at {len(self.poses)} poses, {self.n_samples} exact-model samples "
                 f"per pose, {self.distribution} errors (t = ±{self.k:g}σ); "
-                f"{100 * self.confidence:.0f} % Wilson intervals on the failure probability.")
+                f"{100 * self.confidence:.0f} % {_INTERVAL_NAMES[self.interval]} intervals on the "
+                f"failure probability.")
         if self.precision is not None:
             head += (f" Relative half-width target {self.precision:g}: "
                      f"{'reached' if self.reached else 'NOT reached (sample cap)'}.")
@@ -175,7 +181,8 @@ def linear_failure(machine, tolerances, poses, *, k: float = 3.0,
 def sample_at_poses(machine, tolerances, poses=None, *, samples: int = 100_000, rng=None,
                     k: float = 3.0, distribution: str = "normal", precision=None,
                     max_samples: int = 2_000_000, batch: int = 10_000,
-                    confidence: float = 0.95, events=None, fosm: bool = True,
+                    confidence: float = 0.95, interval: str = "wilson", events=None,
+                    fosm: bool = True,
                     progress=None) -> PoseSamplingResult:
     """Monte-Carlo failure probabilities at given poses on the exact model.
 
@@ -201,7 +208,10 @@ def sample_at_poses(machine, tolerances, poses=None, *, samples: int = 100_000, 
     batch : int
         Samples per pose evaluated together (memory ≈ batch × n_poses × n_errors × 8 bytes).
     confidence : float
-        Level of the Wilson intervals.
+        Level of the intervals.
+    interval : {'wilson', 'clopper-pearson'}
+        Wilson score (coverage close to nominal on average) or Clopper–Pearson (never below
+        nominal, conservative).
     events : sequence of str, optional
         Events to report and to drive adaptive stopping (names from ``dx … ez``,
         ``'system'``). Default: all of them (with default poses, each output at its own
@@ -217,6 +227,8 @@ def sample_at_poses(machine, tolerances, poses=None, *, samples: int = 100_000, 
     """
     t = machine.check_tolerances(tolerances)
     _check_options(t, samples, precision, max_samples, batch, confidence, distribution, k)
+    if interval not in INTERVALS:
+        raise InputError(f"interval must be one of {INTERVALS}; got {interval!r}")
     if poses is None:
         poses = worst_poses(machine, t, k=k)
         labels = tuple(f"worst {o}" for o in OUTPUTS)
@@ -241,7 +253,8 @@ def sample_at_poses(machine, tolerances, poses=None, *, samples: int = 100_000, 
         if progress is not None:
             progress(done, total)
         if precision is not None:
-            reached = _precise_enough(failures, done, tracked, precision, confidence)
+            reached = _precise_enough(failures, done, tracked, precision, confidence,
+                                      interval)
             if reached:
                 break
     return PoseSamplingResult(
@@ -250,15 +263,15 @@ def sample_at_poses(machine, tolerances, poses=None, *, samples: int = 100_000, 
         fosm_failure=linear_failure(machine, t, poses, k=k, distribution=distribution)
         if fosm else np.full(failures.shape, np.nan),
         confidence=float(confidence), precision=None if precision is None else float(precision),
-        reached=reached, distribution=distribution, k=float(k))
+        reached=reached, distribution=distribution, k=float(k), interval=interval)
 
 
-def _precise_enough(failures, n, tracked, precision, confidence) -> bool:
-    """Whether every tracked event's Wilson interval is within ``precision`` of p̂."""
+def _precise_enough(failures, n, tracked, precision, confidence, interval) -> bool:
+    """Whether every tracked event's interval is within ``precision`` of p̂."""
     counts = failures[tracked]
     if np.any(counts == 0):
         return False
-    est = proportion(counts, n, confidence, INTERVAL)
+    est = proportion(counts, n, confidence, interval)
     half = (np.asarray(est.upper) - np.asarray(est.lower)) / 2
     return bool(np.all(half <= precision * np.asarray(est.estimate)))
 

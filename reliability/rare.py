@@ -485,14 +485,23 @@ def worst_grid_pose(machine, tolerances, event: str = "dx", *, k: float = 3.0,
     For an output, the pose of largest σ (FOSM's worst pose); for ``'system'``, the pose of
     largest Σ_o two-sided failure probability (the union bound).
     """
-    if event not in EVENTS:
-        raise InputError(f"event must be one of {EVENTS}; got {event!r}")
+    return worst_grid_poses(machine, tolerances, (event,), k=k,
+                            points_per_axis=points_per_axis)[0]
+
+
+def worst_grid_poses(machine, tolerances, events=EVENTS, *, k: float = 3.0,
+                     points_per_axis: int = 5) -> np.ndarray:
+    """:func:`worst_grid_pose` of several events at once, ``(n_events, n_axes)``."""
+    events = tuple(events)
+    unknown = [e for e in events if e not in EVENTS]
+    if unknown:
+        raise InputError(f"event must be one of {EVENTS}; got {unknown[0]!r}")
     t = machine.check_tolerances(tolerances)
     grid = workspace_grid(machine, points_per_axis)
     sigma = np.sqrt(np.square(machine.jacobian(grid)) @ np.square(t / k))  # Eq. (20)
     failure = 1.0 - two_sided_probability(machine.limits, sigma)
-    score = failure.sum(axis=1) if event == "system" else failure[:, OUTPUTS.index(event)]
-    return grid[int(np.argmax(score))]
+    scores = np.column_stack([failure, failure.sum(axis=1)])
+    return grid[np.argmax(scores[:, [EVENTS.index(e) for e in events]], axis=0)]
 
 
 # ----- input checks -----------------------------------------------------------------------

@@ -6,9 +6,9 @@ probability of δx is 1e−4, 1e−6 and 1e−9. For each level and each method
 (importance sampling, subset simulation), ``--repeats`` independent runs on the exact model
 (Eq. 18) give: the exact-model evaluations used, the CoV reached, an estimate and its 95 %
 interval, the mean estimate over the exact linear answer ``2Φ(−β)`` and the share of
-intervals containing it (the model's non-linearity is below 1e−4 of the output spread, so the linear
-answer is the reference), and the evaluations crude Monte-Carlo would need for the same CoV,
-``(1 − p)/(p · CoV²)``, with the ratio. Nothing is asserted; the numbers are the result.
+intervals containing it (the model's non-linearity is below 2e−4 of the output spread, so
+the linear answer is the reference), and the evaluations crude Monte-Carlo would need for
+the same CoV, ``(1 − p)/(p · CoV²)``, with the ratio. Nothing is asserted; the numbers are the result.
 """
 
 from __future__ import annotations

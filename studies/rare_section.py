@@ -16,7 +16,7 @@ import numpy as np
 import pandas as pd
 
 from reliability.pose_sampling import EVENTS, sample_at_poses
-from reliability.rare import failure_probability, worst_grid_pose
+from reliability.rare import failure_probability, worst_grid_poses
 from studies.report import markdown_table
 from studies.section import Section
 
@@ -45,10 +45,11 @@ def rare_event_table(machine, tolerances, *, events=EVENTS, method: str = "impor
     exact-model evaluations, whether the target CoV was reached and the linear FOSM answer
     (:class:`reliability.rare.RareEventResult`).
     """
+    events = tuple(events)
     streams = np.random.default_rng(rng).spawn(len(events))
+    poses = worst_grid_poses(machine, tolerances, events, k=k)
     frames = []
-    for event, stream in zip(events, streams):
-        pose = worst_grid_pose(machine, tolerances, event, k=k)
+    for event, stream, pose in zip(events, streams, poses):
         result = failure_probability(machine, tolerances, pose, event=event, method=method,
                                      target_cov=target_cov, max_evaluations=max_evaluations,
                                      k=k, distribution=distribution, rng=stream)

@@ -134,3 +134,16 @@ def test_bad_input_is_refused(hobbing, kwargs, match):
 def test_bad_input_names_the_argument(hobbing):
     with pytest.raises(InputError, match="max_samples"):
         sample_at_poses(hobbing, hobbing.initial_allocation, precision=0.1, max_samples=-1)
+
+
+def test_clopper_pearson_interval_is_wider_and_named(hobbing, setup):
+    t, pose, _ = setup
+    wilson = sample_at_poses(hobbing, t, pose[None], samples=2000, rng=4, fosm=False)
+    exact = sample_at_poses(hobbing, t, pose[None], samples=2000, rng=4, fosm=False,
+                            interval="clopper-pearson")
+    np.testing.assert_array_equal(wilson.failures, exact.failures)
+    assert np.all(np.asarray(exact.estimate.upper) - np.asarray(exact.estimate.lower)
+                  >= np.asarray(wilson.estimate.upper) - np.asarray(wilson.estimate.lower))
+    assert "Clopper–Pearson" in exact.summary()
+    with pytest.raises(InputError, match="interval"):
+        sample_at_poses(hobbing, t, pose[None], samples=10, interval="agresti")
