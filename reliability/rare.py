@@ -182,7 +182,8 @@ def failure_probability(machine, tolerances, pose=None, *, event: str = "dx",
     k : float
         Coverage factor: σ = t/k.
     distribution : {'normal', 'truncated'}
-        Untruncated normal errors, or normal truncated at ±t (importance sampling only).
+        Untruncated normal errors, or normal truncated at ±t (importance sampling only; the
+        exact-zero check bounds the machine's own chain, see :func:`worst_case_bound`).
     rng : None, int or numpy.random.Generator
     confidence : float
         Level of the reported interval.
@@ -222,9 +223,6 @@ def failure_probability(machine, tolerances, pose=None, *, event: str = "dx",
                                    interval=(0.0, 0.0), n_evaluations=0, reached=True,
                                    note=note, **common)
         problem.drop_outputs(stack < machine.limits)
-        if method != "importance":
-            raise InputError("method: subset simulation is offered for distribution="
-                             "'normal'; use method='importance' for truncated inputs")
         p, cov = _importance(problem, rng, target_cov, max_evaluations, batch, k)
     elif method == "importance":
         p, cov = _importance(problem, rng, target_cov, max_evaluations, batch, None)
@@ -525,6 +523,9 @@ def _check_options(event, method, target_cov, max_evaluations, k, distribution, 
         raise InputError(f"method must be one of {METHODS}; got {method!r}")
     if distribution not in DISTRIBUTIONS:
         raise InputError(f"distribution must be one of {DISTRIBUTIONS}; got {distribution!r}")
+    if distribution == "truncated" and method != "importance":
+        raise InputError("method: subset simulation is offered for distribution='normal'; "
+                         "use method='importance' for truncated inputs")
     for name, value in (("target_cov", target_cov), ("k", k)):
         if isinstance(value, bool) or not isinstance(value, (int, float, np.floating)):
             raise InputTypeError(f"{name} must be a number; got {value!r}")
