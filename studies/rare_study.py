@@ -22,7 +22,7 @@ import numpy as np
 
 import allocation
 import reliability
-from reliability.pose_sampling import sample_at_poses
+from reliability.pose_sampling import EVENTS, linear_failure, sample_at_poses
 from studies.rare_section import rare_event_table
 
 PPM_TARGET = 1 - 1e-6
@@ -39,6 +39,14 @@ def ppm_allocation(machine, target: float = PPM_TARGET, lower: float = 0.05):
     problem = allocation.AllocationProblem.build(strict, side="two_sided",
                                                  bounds=(lower, 1.5))
     return strict, problem.solve_exact()
+
+
+def linear_answers(machine, tolerances, table):
+    """The linear-Gaussian failure probability of each row's event at its pose."""
+    poses = table[[c for c in table.columns if c.split(" ")[0] in machine.axes]].to_numpy()
+    linear = linear_failure(machine, tolerances, poses)
+    columns = [EVENTS.index(event) for event in table.index]
+    return linear[np.arange(len(poses)), columns]
 
 
 def main(argv=None):
@@ -66,12 +74,13 @@ def main(argv=None):
           f"{1 - ppm.problem.probability(ppm.tolerances).min():.3e}.")
     table = rare_event_table(strict, ppm.tolerances, target_cov=args.target_cov,
                              rng=rare_stream)
-    table["target_in_interval"] = (table["lower"] <= 1 - PPM_TARGET) & \
-        (1 - PPM_TARGET <= table["upper"])
+    table["linear"] = linear_answers(strict, ppm.tolerances, table)
+    table["linear_in_interval"] = (table["lower"] <= table["linear"]) & \
+        (table["linear"] <= table["upper"])
     print("Importance sampling on the exact model at each event's worst grid pose "
-          "(normal errors, σ = t/3); each output's allowed failure probability is 1e−6, "
-          "and the allocation uses it fully, so the check is whether 1e−6 lies in the "
-          "interval:")
+          "(normal errors, σ = t/3). Each output's allowed failure probability is 1e−6 and "
+          "the allocation uses it fully at its worst pose, so the check is whether the "
+          "linear answer (1e−6; for the system the normal rectangle) lies in the interval:")
     print(table.drop(columns=["distribution"]).to_string(float_format="{:.4g}".format))
     truncated = rare_event_table(strict, ppm.tolerances, events=("system",),
                                  target_cov=args.target_cov, distribution="truncated",
