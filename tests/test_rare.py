@@ -48,7 +48,7 @@ def test_importance_interval_covers_two_sided_closed_form(hobbing, probability):
     t, pose, jacobian = dx_setup(hobbing, probability)
     runs = 300
     share, results = coverage(hobbing, t, pose, probability, runs, 11, event="dx",
-                              model=linear_model(jacobian))
+                              model=linear_model(jacobian), jacobian=jacobian)
     low, high = coverage_band(runs)
     assert low <= share <= high
     assert all(r.reached for r in results)
@@ -96,7 +96,7 @@ def test_importance_system_on_machine_linearisation_matches_rectangle(hobbing):
     assert 1e-4 < exact < 1e-2
     runs = 200
     share, _ = coverage(hobbing, t, pose, exact, runs, 13, event="system",
-                        model=linear_model(jacobian))
+                        model=linear_model(jacobian), jacobian=jacobian)
     low, high = coverage_band(runs)
     assert low <= share <= high
 
@@ -105,7 +105,8 @@ def test_subset_interval_covers_closed_form_at_1e3(hobbing):
     t, pose, jacobian = dx_setup(hobbing, 1e-3)
     runs = 150
     share, results = coverage(hobbing, t, pose, 1e-3, runs, 14, event="dx", method="subset",
-                              max_evaluations=4000, model=linear_model(jacobian))
+                              max_evaluations=4000, model=linear_model(jacobian),
+                              jacobian=jacobian)
     low, high = coverage_band(runs)
     assert low <= share <= high
     assert max(r.n_evaluations for r in results) <= 4000
@@ -118,7 +119,7 @@ def test_subset_coverage_at_1e6_is_below_nominal_as_documented(hobbing):
     t, pose, jacobian = dx_setup(hobbing, 1e-6)
     runs = 150
     share, _ = coverage(hobbing, t, pose, 1e-6, runs, 15, event="dx", method="subset",
-                        max_evaluations=4000, model=linear_model(jacobian))
+                        max_evaluations=4000, model=linear_model(jacobian), jacobian=jacobian)
     half = Z * np.sqrt(0.88 * 0.12 / runs)
     assert 0.88 - half <= share <= 0.88 + half
 
