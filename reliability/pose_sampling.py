@@ -182,8 +182,7 @@ def sample_at_poses(machine, tolerances, poses=None, *, samples: int = 100_000, 
                     k: float = 3.0, distribution: str = "normal", precision=None,
                     max_samples: int = 2_000_000, batch: int = 10_000,
                     confidence: float = 0.95, interval: str = "wilson", events=None,
-                    fosm: bool = True,
-                    progress=None) -> PoseSamplingResult:
+                    fosm: bool = True, progress=None) -> PoseSamplingResult:
     """Monte-Carlo failure probabilities at given poses on the exact model.
 
     Parameters
@@ -229,6 +228,7 @@ def sample_at_poses(machine, tolerances, poses=None, *, samples: int = 100_000, 
     _check_options(t, samples, precision, max_samples, batch, confidence, distribution, k)
     if interval not in INTERVALS:
         raise InputError(f"interval must be one of {INTERVALS}; got {interval!r}")
+    selected = np.ones(len(EVENTS), bool) if events is None else _event_mask(events)
     if poses is None:
         poses = worst_poses(machine, t, k=k)
         labels = tuple(f"worst {o}" for o in OUTPUTS)
@@ -237,8 +237,7 @@ def sample_at_poses(machine, tolerances, poses=None, *, samples: int = 100_000, 
         poses = _check_poses(machine, poses)
         labels = tuple(f"pose {i}" for i in range(len(poses)))
         tracked = np.ones((len(poses), len(EVENTS)), bool)
-    if events is not None:
-        tracked = tracked & _event_mask(events)
+    tracked = tracked & selected
     rng = np.random.default_rng(rng)
     total = samples if precision is None else max_samples
     failures = np.zeros((len(poses), len(EVENTS)), dtype=np.int64)

@@ -147,3 +147,12 @@ def test_clopper_pearson_interval_is_wider_and_named(hobbing, setup):
     assert "Clopper–Pearson" in exact.summary()
     with pytest.raises(InputError, match="interval"):
         sample_at_poses(hobbing, t, pose[None], samples=10, interval="agresti")
+
+
+def test_events_select_rows_and_unknown_event_is_refused(hobbing):
+    t = hobbing.initial_allocation
+    result = sample_at_poses(hobbing, t, samples=500, rng=5, fosm=False, events=("ez",))
+    frame = result.to_frame()
+    assert list(frame["event"]) == ["ez"] and list(frame["pose"]) == ["worst ez"]
+    with pytest.raises(InputError, match="events"):
+        sample_at_poses(hobbing, t, samples=500, events=("dq",))
