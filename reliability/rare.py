@@ -310,8 +310,11 @@ def _box_design_points(a, limits, k, steps: int = 80) -> np.ndarray:
     high = np.full(len(a), 1.0)
     reach = lambda lam: np.sum(a * np.clip(lam[:, None] * a, -k, k), axis=1)  # noqa: E731
     corner = k * np.sum(np.abs(a), axis=1)
-    while np.any((reach(high) < limits) & (corner >= limits)):
-        high = np.where(reach(high) < limits, 2 * high, high)
+    for _ in range(1100):  # doubling until the plane is reached (λ below 2^1100)
+        short = (reach(high) < limits) & (corner >= limits)
+        if not np.any(short):
+            break
+        high = np.where(short, 2 * high, high)
     for _ in range(steps):
         middle = 0.5 * (low + high)
         below = reach(middle) < limits
