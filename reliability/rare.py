@@ -310,7 +310,7 @@ def _box_design_points(a, limits, k, steps: int = 80) -> np.ndarray:
     high = np.full(len(a), 1.0)
     reach = lambda lam: np.sum(a * np.clip(lam[:, None] * a, -k, k), axis=1)  # noqa: E731
     corner = k * np.sum(np.abs(a), axis=1)
-    for _ in range(1100):  # doubling until the plane is reached (λ below 2^1100)
+    for _ in range(200):  # doubling until the plane is reached (λ up to 2^200)
         short = (reach(high) < limits) & (corner >= limits)
         if not np.any(short):
             break
