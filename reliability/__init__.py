@@ -3,13 +3,17 @@
 The machine model (:mod:`reliability.machine`, :mod:`reliability.kinematics`), FOSM
 reliability (:mod:`reliability.fosm`), pose sets (:mod:`reliability.poses`), the
 Monte-Carlo sampling engine (:mod:`reliability.sampling`) with its results and
-statistics, and the continuous worst-pose search (:mod:`reliability.worst_case`).
+statistics, the continuous worst-pose search (:mod:`reliability.worst_case`), Monte-Carlo
+at given poses (:mod:`reliability.pose_sampling`) and rare-event estimates
+(:mod:`reliability.rare`).
 """
 
 from .fosm import FosmResult, fosm
 from .machine import (COMPONENTS, OUTPUTS, Axis, CostCoefficients, Machine,
                       MachineDescriptionError, hobbing_machine, load_machine,
                       machine_from_dict)
+from . import rare
+from .pose_sampling import PoseSamplingResult, sample_at_poses
 from .poses import random_poses, workspace_grid
 from .results import GridExperimentResult, RandomPoseResult
 from .sampling import GridExperiment, sample_random_poses
@@ -17,4 +21,5 @@ from .sampling import GridExperiment, sample_random_poses
 __all__ = ["COMPONENTS", "OUTPUTS", "Axis", "CostCoefficients", "FosmResult",
            "GridExperiment", "GridExperimentResult", "Machine", "MachineDescriptionError",
            "RandomPoseResult", "fosm", "hobbing_machine", "load_machine",
-           "machine_from_dict", "random_poses", "sample_random_poses", "workspace_grid"]
+           "machine_from_dict", "random_poses", "sample_random_poses", "workspace_grid",
+           "PoseSamplingResult", "rare", "sample_at_poses"]
