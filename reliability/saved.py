@@ -204,23 +204,22 @@ class PayloadReader:
 
     def _check_values(self, key, array, low, high, positive, dtype):
         bad = ~np.isfinite(array)
-        what = "finite"
+        what = ["finite"]
         if dtype is not float:
             bad |= array != np.round(array)
-            what = "finite whole numbers"
+            what.append("whole numbers")
         if positive:
             bad |= ~(array > 0)
-            what += " > 0"
-        if low is not None:
-            bad |= array < low
-            what += f" >= {low}"
-        if high is not None:
-            bad |= array > high
-            what += f" <= {high}"
+            what.append("> 0")
+        if low is not None or high is not None:
+            bad |= (array < (-np.inf if low is None else low)) | \
+                (array > (np.inf if high is None else high))
+            what.append(f"in [{'-inf' if low is None else low}, "
+                        f"{'inf' if high is None else high}]")
         if bad.any():
             first = tuple(int(i) for i in np.argwhere(bad)[0])
-            raise self.error(key, f"entries must be {what}; entry {list(first)} is "
-                                  f"{array[first]!r}")
+            raise self.error(key, f"entries must be {', '.join(what)}; entry {list(first)} "
+                                  f"is {float(array[first])!r}")
 
     def frame(self, key: str, columns=None, index=None) -> pd.DataFrame | None:
         """A table saved by :func:`encode_frame` (None when saved as null), with at least
