@@ -27,7 +27,7 @@ def fosm_summary(result: FosmResult, top: int = 3) -> str:
              f"{verdict}", "", _verdict_table(result).to_string(), "",
              "Worst pose of each output (axis positions)",
              _worst_pose_table(result).to_string(), "",
-             f"Largest contributors to σ² at the worst pose [% of σ²]"]
+             "Largest contributors to σ² at the worst pose [% of σ²]"]
     for output in OUTPUTS:
         share = result.contributions[output].nlargest(top)
         lines.append(f"  {output}: " + ", ".join(f"{e} {p:.1f}" for e, p in share.items()))
