@@ -4,8 +4,8 @@ A machine is an ordered chain of axes from the workpiece to the tool. Each axis 
 or rotary about/along x, y or z, with a stroke and a size (guide length or rotation
 diameter, used by the cost model of Eqs. 25–26). Between consecutive axes sits a joint
 carrying six assembly errors (Eq. 14). The description also holds the design limits and
-reliability targets of the six comprehensive errors (Table 2), the initial tolerance
-allocation (Table 4) and the cost coefficients (Table 5).
+reliability targets of the six comprehensive errors (Table 2), the initial (reference)
+tolerance allocation (Table 4 for the paper's machine) and the cost coefficients (Table 5).
 
 The error vector has ``6 * n_axes`` motion errors (axis by axis in chain order) followed by
 ``6 * (n_axes - 1)`` assembly errors (joint by joint), each in the component order
