@@ -26,6 +26,7 @@ KIND = "precrel.allocation_result"
 METHODS = ("exact", "gwo")
 COST_RTOL = 1e-9  # the saved cost must be Σ w/t² of the saved tolerances
 CSV_COLUMNS = ("error", "reference", "allocated")
+READINGS = {"worst": "every target at every pose", "mean": "targets on the workspace mean"}
 
 
 @dataclass(frozen=True, eq=False)
@@ -90,8 +91,8 @@ def allocation_summary(result, top: int = 5) -> str:
     reference_cost = context.cost.total(context.reference)
     lines = [] if result.feasible else [_not_feasible_line(result)]
     lines += [f"Allocation by {_method_text(result)} for {context.machine_name}: "
-              f"{context.workspace} case over {context.n_poses} poses, {context.side} "
-              f"reading, tolerances ±{context.k:g}σ",
+              f"{READINGS[context.workspace]} over {context.n_poses} poses, "
+              f"{context.side.replace('_', '-')} probability, tolerances ±{context.k:g}σ",
               f"Cost {result.cost / reference_cost:.4f} × the reference allocation "
               f"(F = {result.cost:.4g} against {reference_cost:.4g})",
               _status_line(result), ""]
