@@ -18,7 +18,9 @@ import pandas as pd
 from reliability.display import axis_units, pose_columns
 from reliability.files import write_csv
 from reliability.machine import OUTPUTS
-from reliability.saved import encode_frame, load_payload, save_payload
+from reliability.errors import InputTypeError
+from reliability.saved import check_count, check_destination, encode_frame, load_payload, \
+    save_payload
 
 from .cost import GROUPS, CostModel
 
@@ -87,6 +89,7 @@ def _context(problem) -> SavedProblem | object:
 def allocation_summary(result, top: int = 5) -> str:
     """Feasibility (loudly when missing), cost relative to the reference, what binds and
     the largest changes from the reference."""
+    top = check_count(top, "top")
     context = _context(result.problem)
     reference_cost = context.cost.total(context.reference)
     lines = [] if result.feasible else [_not_feasible_line(result)]
@@ -159,6 +162,7 @@ def _changes(result, top: int) -> pd.DataFrame:
 # ----- files ---------------------------------------------------------------------------
 def allocation_to_csv(result, path, overwrite: bool = False):
     """Columns ``error, reference, allocated``, one row per error."""
+    check_destination(path, overwrite)
     context = _context(result.problem)
     frame = pd.DataFrame({"error": context.names, "reference": context.reference,
                           "allocated": result.tolerances}, columns=list(CSV_COLUMNS))
@@ -185,6 +189,10 @@ def save_allocation(result, path, overwrite: bool = False):
 def load_allocation(cls, path, problem=None):
     """Reload a file written by :func:`save_allocation` as ``cls``, verifying every
     field; with ``problem``, check that it is the saved one and attach it."""
+    if problem is not None and not all(hasattr(problem, a) for a in
+                                       ("names", "reference", "lower", "upper", "side")):
+        raise InputTypeError(f"problem must be an AllocationProblem; got "
+                             f"{type(problem).__name__}")
     data = load_payload(path, KIND)
     saved = _saved_problem(data)
     tolerances = data.array("tolerances", (len(saved.names),), positive=True)

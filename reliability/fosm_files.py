@@ -9,7 +9,7 @@ from .display import OUTPUT_UNITS, output_limits_text, pose_columns
 from .fosm import SIDES, FosmResult, one_sided_probability, reliability_index, \
     two_sided_probability
 from .machine import OUTPUTS
-from .saved import encode_frame, load_payload, save_payload
+from .saved import check_count, encode_frame, load_payload, save_payload
 
 KIND = "precrel.fosm_result"
 CONSISTENCY_RTOL = 1e-9  # saved β and probabilities must follow from limits, μ and σ
@@ -17,6 +17,7 @@ CONSISTENCY_RTOL = 1e-9  # saved β and probabilities must follow from limits, �
 
 def fosm_summary(result: FosmResult, top: int = 3) -> str:
     """The verdict per output, the worst poses as axis positions, the top contributors."""
+    top = check_count(top, "top")
     meets = result.meets_targets("two_sided")
     short = [o for o, ok in zip(OUTPUTS, meets) if not ok]
     verdict = "every target met" if not short else f"short: {', '.join(short)}"

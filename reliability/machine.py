@@ -447,9 +447,9 @@ def _parse_initial(table, names: tuple[str, ...], source: str) -> np.ndarray:
 # ----- writing -----------------------------------------------------------------------
 def machine_to_dict(machine: Machine) -> dict:
     """The machine-file layout of ``machine`` (what :func:`machine_from_dict` reads)."""
-    return {
+    table = {
         "name": machine.name,
-        "tool_offset": list(machine.tool_offset),
+        "tool_offset": [float(v) for v in machine.tool_offset],
         "axes": [_axis_to_dict(axis) for axis in machine.axis_specs],
         "requirements": {output: {"limit": float(limit), "target": float(target)}
                          for output, limit, target in zip(OUTPUTS, machine.limits,
@@ -457,6 +457,9 @@ def machine_to_dict(machine: Machine) -> dict:
         "initial_allocation": _initial_to_dict(machine),
         "cost": _cost_to_dict(machine.cost_coefficients),
     }
+    if not any(machine.tool_offset):
+        del table["tool_offset"]
+    return table
 
 
 def _axis_to_dict(axis: Axis) -> dict:
@@ -466,7 +469,8 @@ def _axis_to_dict(axis: Axis) -> dict:
     else:
         entry["stroke"] = [float(v) for v in axis.stroke]
     entry["size"] = float(axis.size)
-    entry["offset"] = [float(v) for v in axis.offset]
+    if any(axis.offset):
+        entry["offset"] = [float(v) for v in axis.offset]
     return entry
 
 

@@ -18,7 +18,8 @@ import numpy as np
 import pandas as pd
 
 from .display import OUTPUT_UNITS, output_limits_text
-from .machine import OUTPUTS
+from .errors import InputTypeError
+from .machine import OUTPUTS, Machine
 
 LARGEST_SIZE_M = 20.0  # a guide length or rotation diameter beyond this is taken for mm
 SMALLEST_LINEAR_STROKE_MM = 1.0  # a linear stroke shorter than this is taken for metres
@@ -41,6 +42,7 @@ def likely_mistakes(machine) -> list[str]:
         One sentence per finding, naming the axis or output and the value; empty when
         nothing looks wrong.
     """
+    _check_machine(machine)
     warnings = []
     for check in (_first_offset, _rotary_strokes, _sizes, _linear_strokes,
                   _parallel_linear_axes, _limits, _initial_allocation):
@@ -141,6 +143,12 @@ def _initial_allocation(machine) -> list[str]:
     return warnings
 
 
+def _check_machine(machine) -> None:
+    if not isinstance(machine, Machine):
+        raise InputTypeError(f"machine must be a Machine (see reliability.load_machine); "
+                             f"got {type(machine).__name__}")
+
+
 def _width(axis) -> float:
     return axis.stroke[1] - axis.stroke[0]
 
@@ -157,6 +165,7 @@ def describe(machine) -> str:
     -------
     str
     """
+    _check_machine(machine)
     n_axes = len(machine.axis_specs)
     lines = [f"Machine: {machine.name}",
              f"Chain, workpiece to tool: {' '.join(machine.axes)} ({n_axes} axes); "

@@ -17,13 +17,14 @@ from __future__ import annotations
 
 import json
 import math
+import os
 from importlib import metadata
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
-from .errors import SavedResultError
+from .errors import InputError, InputTypeError, SavedResultError
 from .files import atomic_write_text
 
 FORMAT_VERSION = 1
@@ -51,6 +52,7 @@ def save_payload(path, kind: str, payload: dict, overwrite: bool = False) -> Pat
     overwrite : bool
         Replace an existing file; otherwise an existing file raises FileExistsError.
     """
+    check_destination(path, overwrite)
     document = {"format": kind, "format_version": FORMAT_VERSION,
                 "toolkit_version": toolkit_version(), "payload": payload}
     text = json.dumps(document, indent=1, default=_plain)
@@ -65,7 +67,7 @@ def load_payload(path, kind: str) -> "PayloadReader":
     SavedResultError
         The file is missing, not JSON, of another format or version; names the file.
     """
-    path = Path(path)
+    path = Path(_check_path(path))
     try:
         text = path.read_text(encoding="utf-8")
     except FileNotFoundError:
@@ -86,6 +88,31 @@ def load_payload(path, kind: str) -> "PayloadReader":
                                f"by this toolkit (reads {FORMAT_VERSION})")
     top.text("toolkit_version")
     return top.table("payload")
+
+
+def check_destination(path, overwrite) -> None:
+    """Refuse a ``path`` that is not a file name and an ``overwrite`` that is not a bool."""
+    _check_path(path)
+    if not isinstance(overwrite, bool):
+        raise InputTypeError(f"overwrite must be True or False; got {overwrite!r}")
+
+
+def check_count(value, name: str) -> int:
+    """A whole number >= 1 (e.g. how many rows a summary lists)."""
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+        raise InputTypeError(f"{name} must be a whole number; got {value!r}")
+    if value < 1:
+        raise InputError(f"{name} must be >= 1; got {value}")
+    return int(value)
+
+
+def _check_path(path):
+    if not isinstance(path, (str, os.PathLike)):
+        raise InputTypeError(f"path must be a file name (str or Path); got "
+                             f"{type(path).__name__}")
+    if str(path) == "":
+        raise InputError("path must not be empty")
+    return path
 
 
 # ----- encoding ----------------------------------------------------------------------

@@ -113,3 +113,11 @@ def test_every_warning_is_one_sentence_naming_an_item(request, name):
     machine = request.getfixturevalue(name)
     for warning in likely_mistakes(machine):
         assert "\n" not in warning and "'" in warning
+
+
+def test_checks_refuse_what_is_not_a_machine(hobbing_dict):
+    from reliability.errors import InputTypeError
+
+    for call in (likely_mistakes, describe):
+        with pytest.raises(InputTypeError, match="machine must be a Machine.*dict"):
+            call(hobbing_dict)

@@ -318,3 +318,29 @@ def test_infeasible_allocation_says_so_on_its_first_line(allocation_results, mil
     assert first.startswith("NOT FEASIBLE") and "0.25" in first
     assert repr(dataclasses.replace(gwo, tolerances=tight)).splitlines()[0] \
         .startswith("Allocation by the Grey Wolf")
+
+
+# ----- bad arguments ---------------------------------------------------------------------
+from reliability.errors import InputError, InputTypeError  # noqa: E402
+
+
+def test_bad_arguments_to_save_load_and_summary_are_refused(fosm_trunnion, allocation_results,
+                                                            tmp_path):
+    exact = allocation_results[0]
+    cases = [
+        (lambda: fosm_trunnion.save(3.5), InputTypeError, "path must be a file name"),
+        (lambda: fosm_trunnion.save(tmp_path / "a.json", overwrite="yes"), InputTypeError,
+         "overwrite must be True or False"),
+        (lambda: exact.save("", overwrite=True), InputError, "path must not be empty"),
+        (lambda: exact.to_csv(tmp_path / "a.csv", overwrite=1), InputTypeError, "overwrite"),
+        (lambda: FosmResult.load(None), InputTypeError, "path must be a file name"),
+        (lambda: fosm_trunnion.summary(top=0), InputError, "top must be >= 1"),
+        (lambda: exact.summary(top="5"), InputTypeError, "top must be a whole number"),
+    ]
+    for call, kind, match in cases:
+        with pytest.raises(kind, match=match):
+            call()
+    path = exact.save(tmp_path / "exact.json")
+    with pytest.raises(InputTypeError, match="problem must be an AllocationProblem"):
+        AllocationResult.load(path, problem="mill3")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["exact.json"]
