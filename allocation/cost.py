@@ -260,9 +260,11 @@ def _cost_items(machine):
 
 
 def _axis_coefficients(axis, coefficients):
-    if axis.kind == "linear":
-        return "linear", coefficients["a"], coefficients["b"] * axis.size
-    return "rotary", coefficients["c"], coefficients["d"] * axis.size
+    main, other = ("a", "b") if axis.kind == "linear" else ("c", "d")
+    for field in (main, other):
+        if coefficients[field] is None:
+            raise ValueError(f"{axis.kind} axis {axis.name!r} needs cost coefficient {field}")
+    return axis.kind, coefficients[main], coefficients[other] * axis.size
 
 
 def _check_axis(axis):
@@ -284,8 +286,9 @@ def _check_axis(axis):
 def _check_coefficients(cost_coefficients, joints):
     coefficients = {}
     for field in ("a", "b", "c", "d"):
-        coefficients[field] = _nonnegative(
-            getattr(cost_coefficients, field), f"cost coefficient {field}"
+        value = getattr(cost_coefficients, field)
+        coefficients[field] = None if value is None else _nonnegative(
+            value, f"cost coefficient {field}"
         )
     assembly = dict(cost_coefficients.assembly)
     missing = [joint for joint in joints if joint not in assembly]

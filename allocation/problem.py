@@ -73,7 +73,8 @@ class AllocationProblem:
     lower, upper : ndarray (n_errors,)
         Tolerance bounds; equal bounds lock an item.
     reference : ndarray (n_errors,)
-        Allocation the bounds and optimisation rates refer to (Table 4 by default).
+        Allocation the bounds and optimisation rates refer to (the machine's initial
+        allocation by default).
     cost : CostModel
     rows : ScreenedRows or None
         The linear rows of the worst-case reading (None for the mean reading).
@@ -101,7 +102,8 @@ class AllocationProblem:
         ----------
         machine : Machine
         poses : array_like, optional
-            ``(n_poses, n_axes)``; default the 5-point workspace grid (5^6 poses).
+            ``(n_poses, n_axes)``; default the 5-point workspace grid (5^n poses for n
+            axes).
         side : {'one_sided', 'two_sided'}
             The paper's Φ(β) or the exact two-sided probability.
         workspace : {'worst', 'mean'}
@@ -114,7 +116,7 @@ class AllocationProblem:
         locked : str or iterable of str
             Error names held at their reference value.
         reference : array_like or mapping, optional
-            Reference allocation, default ``machine.initial_allocation`` (Table 4).
+            Reference allocation, default ``machine.initial_allocation``.
         k : float
             Coverage factor of the tolerances.
         cost_factors : (k1, k2, k3)

@@ -111,6 +111,11 @@ class AllocationResult:
         Exact solver: per output, the number of binding rows, the summed multiplier and
         the elasticity ``2Σλ/F``: relaxing that output's limit I by 1 % saves about
         ``elasticity`` % of the cost (the rows scale as 1/I²).
+
+    ``summary()`` (and ``repr``) prints the cost relative to the reference allocation and
+    what binds, opening with "NOT FEASIBLE" when the allocation misses a target;
+    ``save(path)`` / ``AllocationResult.load(path)`` keep it as JSON and ``to_csv(path)``
+    writes the columns ``error, reference, allocated``.
     """
 
     problem: object = field(repr=False)
@@ -139,6 +144,36 @@ class AllocationResult:
     def breakdown(self) -> pd.DataFrame:
         """Where the cost goes, item by item (:meth:`CostModel.breakdown`)."""
         return self.problem.cost.breakdown(self.tolerances)
+
+    def summary(self, top: int = 5) -> str:
+        """Feasibility, cost relative to the reference, what binds, the largest changes."""
+        from .result_files import allocation_summary
+
+        return allocation_summary(self, top)
+
+    def __repr__(self) -> str:
+        return self.summary()
+
+    def to_csv(self, path, overwrite: bool = False):
+        """Write the columns ``error, reference, allocated``, one row per error."""
+        from .result_files import allocation_to_csv
+
+        return allocation_to_csv(self, path, overwrite)
+
+    def save(self, path, overwrite: bool = False):
+        """Save as JSON with its metadata (:mod:`reliability.saved`); returns the path."""
+        from .result_files import save_allocation
+
+        return save_allocation(self, path, overwrite)
+
+    @classmethod
+    def load(cls, path, problem=None) -> "AllocationResult":
+        """Reload a result written by :meth:`save`, verifying every field. Without
+        ``problem`` the result carries a :class:`~allocation.result_files.SavedProblem`;
+        a given problem is checked to be the saved one."""
+        from .result_files import load_allocation
+
+        return load_allocation(cls, path, problem)
 
 
 def solve_exact(problem, *, gap_tol: float = 1e-6) -> AllocationResult:

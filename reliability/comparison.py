@@ -1,4 +1,4 @@
-"""FOSM prediction beside Monte-Carlo reliability (issue: FOSM versus Monte-Carlo).
+"""FOSM prediction beside Monte-Carlo reliability.
 
 What FOSM predicts for a grid experiment. The share of the grid's poses within the limit
 in one experiment has, by linearity of expectation, the mean over the poses of each pose's
@@ -31,15 +31,18 @@ def fosm_versus_monte_carlo(fosm_result, grid_result, confidence: float = 0.95
     grid_result : GridExperimentResult
         Repeated grid experiments of the same allocation.
     confidence : float
-        Level of the between-experiment interval.
+        Level of the Monte-Carlo interval.
 
     Returns
     -------
     pandas.DataFrame
         Columns ``output, limit, fosm_worst_one_sided, fosm_worst_two_sided,
         fosm_one_sided, fosm_two_sided`` (grid means), ``mc_estimate, mc_lower, mc_upper``
-        (mean over experiments and its Student-t interval), ``mc_min, mc_max`` and
-        ``two_sided_within`` (the grid-mean two-sided FOSM lies in the interval).
+        (mean over experiments and its Wilson score interval on Kish's effective sample
+        size, :meth:`GridExperimentResult.reliability`; always inside [0, 1], and of
+        non-zero width even when every experiment is entirely in tolerance),
+        ``mc_min, mc_max`` and ``two_sided_within`` (the grid-mean two-sided FOSM lies in
+        the interval). ``frame.attrs["mc_interval"]`` names the interval.
     """
     if len(fosm_result.poses) != grid_result.n_poses:
         raise ValueError(f"FOSM was computed on {len(fosm_result.poses)} poses but the grid "
@@ -63,4 +66,6 @@ def fosm_versus_monte_carlo(fosm_result, grid_result, confidence: float = 0.95
     })
     frame["two_sided_within"] = frame["fosm_two_sided"].between(frame["mc_lower"],
                                                                  frame["mc_upper"])
+    frame.attrs["mc_interval"] = (f"{confidence:.0%} Wilson score interval on Kish's "
+                                  f"effective sample size")
     return frame

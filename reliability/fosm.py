@@ -25,6 +25,7 @@ import numpy as np
 import pandas as pd
 from scipy.stats import norm
 
+from .display import axis_units
 from .machine import OUTPUTS
 
 SIDES = ("one_sided", "two_sided")
@@ -119,6 +120,17 @@ class FosmResult:
         Per output, the pose of lowest two-sided probability.
     contributions : DataFrame (n_errors × 6)
         Percent of σ² contributed by each error at each output's worst pose.
+    axes, units : tuple of str
+        Axis names and their units (``'mm'`` or ``'rad'``), for printing poses.
+    machine : str
+        Name of the machine.
+    k : float
+        Coverage factor the tolerances were read with (±kσ).
+    distribution : str
+        How σ followed from the tolerances (:func:`error_sigma`).
+
+    ``summary()`` (and ``repr``) prints the verdicts with worst poses as axis positions;
+    ``save(path)`` / ``FosmResult.load(path)`` keep the result as JSON.
     """
 
     poses: np.ndarray
@@ -131,6 +143,33 @@ class FosmResult:
     two_sided: np.ndarray
     worst_pose: np.ndarray
     contributions: pd.DataFrame
+    axes: tuple[str, ...] = ()
+    units: tuple[str, ...] = ()
+    machine: str = ""
+    k: float = 3.0
+    distribution: str = "normal"
+
+    def summary(self, top: int = 3) -> str:
+        """Readable verdicts, worst poses as axis positions and the ``top`` contributors."""
+        from .fosm_files import fosm_summary
+
+        return fosm_summary(self, top)
+
+    def __repr__(self) -> str:
+        return self.summary()
+
+    def save(self, path, overwrite: bool = False):
+        """Save as JSON with its metadata (:mod:`reliability.saved`); returns the path."""
+        from .fosm_files import save_fosm
+
+        return save_fosm(self, path, overwrite)
+
+    @classmethod
+    def load(cls, path) -> "FosmResult":
+        """Reload a result written by :meth:`save`, verifying every field."""
+        from .fosm_files import load_fosm
+
+        return load_fosm(path)
 
     def worst(self, side: str = "two_sided") -> np.ndarray:
         """Lowest probability over the poses, per output (the workspace constraint)."""
@@ -225,6 +264,8 @@ def fosm(machine, tolerances, poses, *, k: float = 3.0, means=None,
         one_sided=one_sided_probability(machine.limits, sigma, mean), two_sided=two,
         worst_pose=worst,
         contributions=_contributions(machine, jacobian, sigma_x, worst),
+        axes=machine.axes, units=axis_units(machine), machine=machine.name, k=float(k),
+        distribution=distribution,
     )
 
 

@@ -4,8 +4,8 @@ A machine is an ordered chain of axes from the workpiece to the tool. Each axis 
 or rotary about/along x, y or z, with a stroke and a size (guide length or rotation
 diameter, used by the cost model of Eqs. 25–26). Between consecutive axes sits a joint
 carrying six assembly errors (Eq. 14). The description also holds the design limits and
-reliability targets of the six comprehensive errors (Table 2), the initial tolerance
-allocation (Table 4) and the cost coefficients (Table 5).
+reliability targets of the six comprehensive errors (Table 2), the initial (reference)
+tolerance allocation (Table 4 for the paper's machine) and the cost coefficients (Table 5).
 
 The error vector has ``6 * n_axes`` motion errors (axis by axis in chain order) followed by
 ``6 * (n_axes - 1)`` assembly errors (joint by joint), each in the component order
@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import math
 import tomllib
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from importlib import resources
 from pathlib import Path
 from types import MappingProxyType
@@ -73,14 +73,21 @@ class CostCoefficients:
 
     ``a``: linear positioning along the axis; ``b``: other linear-axis items, per m of
     guide; ``c``: rotation about the axis; ``d``: other rotary-axis items, per m of
-    diameter; ``assembly``: ``m_ij`` per joint name.
+    diameter; ``assembly``: ``m_ij`` per joint name. ``a`` and ``b`` are None on a machine
+    without linear axes, ``c`` and ``d`` on one without rotary axes.
     """
 
-    a: float
-    b: float
-    c: float
-    d: float
+    a: float | None
+    b: float | None
+    c: float | None
+    d: float | None
     assembly: Mapping[str, float]
+
+    def __post_init__(self):
+        object.__setattr__(self, "assembly", MappingProxyType(dict(self.assembly)))
+
+    def __reduce__(self):
+        return (CostCoefficients, (self.a, self.b, self.c, self.d, dict(self.assembly)))
 
 
 @dataclass(frozen=True)
@@ -108,6 +115,25 @@ class Machine:
             object.__setattr__(self, name, value)
         index = {n: i for i, n in enumerate(self.error_names)}
         object.__setattr__(self, "_index", MappingProxyType(index))
+
+    def __reduce__(self):
+        """Pickle and copy through the constructor (the name index is rebuilt)."""
+        state = {f.name: getattr(self, f.name) for f in fields(self) if f.init}
+        return (_rebuild, (type(self), state))
+
+    def __eq__(self, other) -> bool:
+        """Equal when every described field is equal (arrays element by element)."""
+        if type(other) is not type(self):
+            return NotImplemented
+        return all(_same(getattr(self, f.name), getattr(other, f.name))
+                   for f in fields(self) if f.compare)
+
+    def to_toml(self) -> str:
+        """The description as machine-file TOML text; :func:`machine_from_dict` of its
+        parsed text gives an equal machine."""
+        import tomli_w
+
+        return tomli_w.dumps(machine_to_dict(self))
 
     # ----- names -------------------------------------------------------------------
     @property
@@ -205,6 +231,16 @@ class Machine:
         return t
 
 
+def _rebuild(cls, state):
+    return cls(**state)
+
+
+def _same(a, b) -> bool:
+    if isinstance(a, np.ndarray) or isinstance(b, np.ndarray):
+        return np.shape(a) == np.shape(b) and bool(np.array_equal(a, b))
+    return a == b
+
+
 def _with_last_axis(values, size: int, what: str, detail: str = "") -> np.ndarray:
     """``values`` as floats whose last axis has ``size`` entries, or a ValueError."""
     array = np.asarray(values, dtype=float)
@@ -245,7 +281,10 @@ def load_machine(path) -> Machine:
     """
     path = Path(path)
     try:
-        data = tomllib.loads(path.read_text())
+        data = tomllib.loads(path.read_text(encoding="utf-8"))
+    except UnicodeDecodeError as exc:
+        raise MachineDescriptionError(f"{path}: not a text file (UTF-8 TOML expected): "
+                                      f"{exc.reason} at byte {exc.start}") from None
     except tomllib.TOMLDecodeError as exc:
         raise MachineDescriptionError(f"{path}: not valid TOML: {exc}") from None
     return machine_from_dict(data, source=str(path))
@@ -266,7 +305,7 @@ def machine_from_dict(data: Mapping, source: str = "machine") -> Machine:
         initial_allocation=_parse_initial(_require(data, "initial_allocation", source),
                                           error_names(names), source),
         cost_coefficients=_parse_cost(_require(data, "cost", source), joint_names(names),
-                                      source),
+                                      {a.kind for a in axes}, source),
         tool_offset=_vector3(data.get("tool_offset", (0, 0, 0)), f"{source}: tool_offset"),
     )
 
@@ -372,11 +411,17 @@ def _parse_requirements(table, source: str) -> tuple[np.ndarray, np.ndarray]:
     return np.array(limits), np.array(targets)
 
 
-def _parse_cost(table, joints: tuple[str, ...], source: str) -> CostCoefficients:
+COST_KEYS = {"linear": "ab", "rotary": "cd"}  # coefficients each kind of axis needs
+
+
+def _parse_cost(table, joints: tuple[str, ...], kinds: set[str],
+                source: str) -> CostCoefficients:
+    """Cost coefficients; those of a kind of axis the machine lacks may be omitted."""
     where = f"{source}: cost"
     _only_keys(table, {"a", "b", "c", "d", "assembly"}, where)
+    needed = "".join(COST_KEYS[kind] for kind in sorted(kinds))
     coefficients = {k: _number(_require(table, k, where), f"{where}.{k}", positive=True)
-                    for k in "abcd"}
+                    if k in needed or k in table else None for k in "abcd"}
     assembly = _require(table, "assembly", where) if joints else table.get("assembly", {})
     _only_keys(assembly, set(joints), f"{where}.assembly")
     m = {j: _number(_require(assembly, j, f"{where}.assembly"), f"{where}.assembly.{j}",
@@ -397,3 +442,58 @@ def _parse_initial(table, names: tuple[str, ...], source: str) -> np.ndarray:
     for name, value in items.items():
         initial[names.index(name)] = _number(value, f"{where}.items.{name}", positive=True)
     return initial
+
+
+# ----- writing -----------------------------------------------------------------------
+def machine_to_dict(machine: Machine) -> dict:
+    """The machine-file layout of ``machine`` (what :func:`machine_from_dict` reads)."""
+    table = {
+        "name": machine.name,
+        "tool_offset": [float(v) for v in machine.tool_offset],
+        "axes": [_axis_to_dict(axis) for axis in machine.axis_specs],
+        "requirements": {output: {"limit": float(limit), "target": float(target)}
+                         for output, limit, target in zip(OUTPUTS, machine.limits,
+                                                          machine.targets)},
+        "initial_allocation": _initial_to_dict(machine),
+        "cost": _cost_to_dict(machine.cost_coefficients),
+    }
+    if not any(machine.tool_offset):
+        del table["tool_offset"]
+    return table
+
+
+def _axis_to_dict(axis: Axis) -> dict:
+    entry = {"name": axis.name, "kind": axis.kind, "direction": axis.direction}
+    if axis.full_turn:
+        entry["full_turn"] = True
+    else:
+        entry["stroke"] = [float(v) for v in axis.stroke]
+    entry["size"] = float(axis.size)
+    if any(axis.offset):
+        entry["offset"] = [float(v) for v in axis.offset]
+    return entry
+
+
+def _initial_to_dict(machine: Machine) -> dict:
+    """Most common translational and angular value as defaults, the rest as items."""
+    names = machine.error_names
+    values = machine.initial_allocation
+    angular = np.array([n.split(".")[1].startswith("e") for n in names])
+    table = {"translation": _most_common(values[~angular]),
+             "rotation": _most_common(values[angular])}
+    default = np.where(angular, table["rotation"], table["translation"])
+    items = {names[i]: float(values[i]) for i in np.flatnonzero(values != default)}
+    if items:
+        table["items"] = items
+    return table
+
+
+def _most_common(values: np.ndarray) -> float:
+    unique, counts = np.unique(values, return_counts=True)
+    return float(unique[np.argmax(counts)])
+
+
+def _cost_to_dict(cost: CostCoefficients) -> dict:
+    table = {k: float(getattr(cost, k)) for k in "abcd" if getattr(cost, k) is not None}
+    table["assembly"] = {joint: float(m) for joint, m in cost.assembly.items()}
+    return table

@@ -116,7 +116,7 @@ def plot_allocation_comparison(
     names,
     ax=None,
     title=None,
-    labels=("initial (Table 4)", "optimised"),
+    labels=("reference", "optimised"),
 ):
     """Grouped bars comparing tolerance allocations item by item (Figs. 8 and 9).
 
@@ -223,7 +223,7 @@ def plot_comprehensive_error_scatter(
     Parameters
     ----------
     values : array_like, shape (n_poses,)
-        The comprehensive error at each pose (e.g. 15 625 for a 5^6 grid).
+        The comprehensive error at each pose (e.g. 15 625 for 5 points on six axes).
     limit : float
         Design limit ``I`` of this error, > 0 (e.g. 0.02 mm, 4.8e-5 rad; Eq. 35).
     output_label : str

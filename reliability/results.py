@@ -76,12 +76,15 @@ class GridExperimentResult:
         return pd.concat([body, summary])
 
     def reliability(self, confidence: float = 0.95):
-        """Mean share in tolerance with a between-experiment Student-t interval.
+        """Mean share in tolerance with a Wilson score interval on Kish's effective sample
+        size (always inside [0, 1]).
 
-        The poses of one experiment share its errors, so the experiment is the unit of
-        replication (see :func:`reliability.statistics.between_experiment_interval`).
+        The poses of one experiment share its errors, so the spread between experiments
+        sets the effective sample size (see
+        :func:`reliability.statistics.between_experiment_interval`).
         """
-        return between_experiment_interval(self.fractions, confidence, names=OUTPUTS)
+        return between_experiment_interval(self.fractions, confidence, names=OUTPUTS,
+                                           poses=self.n_poses)
 
     def machine_yield(self, confidence: float = 0.95):
         """Share of experiments (simulated machines) entirely within every limit."""

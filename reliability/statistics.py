@@ -8,7 +8,8 @@ independent sample:
 * :func:`binomial_interval` and :func:`proportion` -- for *independent* Bernoulli trials
   (Wilson score or Clopper-Pearson exact interval).
 * :func:`between_experiment_interval` -- for per-experiment fractions whose poses share
-  their random errors; the experiment is the unit of replication (Student-t interval).
+  their random errors; the spread between experiments gives the design effect, and a
+  Wilson score interval on Kish's effective sample size keeps the bounds inside [0, 1].
 * :func:`machine_yield` -- the share of simulated machines (experiments) in which every pose
   meets every limit; experiments are independent, so a binomial interval applies.
 
@@ -119,12 +120,17 @@ def _frozen(x, dtype=float):
 # --------------------------------------------------------------------------- intervals
 def _wilson(k, n, z):
     """Wilson score interval (no continuity correction)."""
-    p = k / n
+    return _wilson_share(k / n, n, z)
+
+
+def _wilson_share(p, n, z):
+    """Wilson score interval for a share ``p`` observed on ``n`` (possibly effective,
+    non-integral) trials; always inside [0, 1]."""
     denom = 1.0 + z**2 / n
     centre = (p + z**2 / (2 * n)) / denom
     half = z / denom * np.sqrt(p * (1 - p) / n + z**2 / (4 * n**2))
-    # At k = 0 and k = n the bounds are exactly 0 and 1; rounding would leave +-1e-17.
-    return np.where(k == 0, 0.0, centre - half), np.where(k == n, 1.0, centre + half)
+    # At p = 0 and p = 1 the bounds are exactly 0 and 1; rounding would leave +-1e-17.
+    return np.where(p == 0, 0.0, centre - half), np.where(p == 1, 1.0, centre + half)
 
 
 def _clopper_pearson(k, n, alpha):
@@ -247,21 +253,22 @@ class ProportionEstimate(_FrameMixin):
 
 @dataclass(frozen=True, eq=False)
 class ReplicateEstimate(_FrameMixin):
-    """A mean over independent experiments, with a Student-t interval.
+    """A mean over independent experiments, with a Wilson score interval on Kish's
+    effective sample size.
 
     Attributes
     ----------
     estimate : float or ndarray
         Mean of the per-experiment fractions.
     lower, upper : float or ndarray
-        ``estimate -+ t_{(1+c)/2, n-1} * standard_error``. Not clipped to [0, 1]: an upper
-        bound above 1 says the normal approximation is strained, and is shown as such.
+        Wilson score bounds for ``estimate`` observed on ``effective_n`` trials; always
+        inside [0, 1].
     standard_error : float or ndarray
-        ``std / sqrt(n)``.
+        ``std / sqrt(n)``, from the spread between experiments.
     n : int
         Number of experiments.
     method : str
-        Always ``"student-t"``.
+        Always ``"wilson-kish"``.
     confidence : float
         Two-sided confidence level.
     std : float or ndarray
@@ -270,6 +277,9 @@ class ReplicateEstimate(_FrameMixin):
         Smallest and largest per-experiment fraction (Table 9's "Min" and "Max" rows).
     names : tuple of str or None
         Output names, used as the index of :meth:`to_frame`.
+    effective_n : float or ndarray or None
+        Kish's effective sample size ``p (1 − p) / standard_error²``, at most the number
+        of poses evaluated when it is known.
     """
 
     estimate: float | np.ndarray
@@ -283,6 +293,7 @@ class ReplicateEstimate(_FrameMixin):
     minimum: float | np.ndarray
     maximum: float | np.ndarray
     names: tuple[str, ...] | None = None
+    effective_n: float | np.ndarray | None = None
 
 
 # --------------------------------------------------------------------------- estimators
@@ -333,12 +344,13 @@ def _check_fractions(fractions):
     return f
 
 
-def between_experiment_interval(fractions, confidence=0.95, *, names=None):
-    """Mean in-tolerance fraction over repeated experiments, with a Student-t interval.
+def between_experiment_interval(fractions, confidence=0.95, *, names=None, poses=None):
+    """Mean in-tolerance fraction over repeated experiments, with a Wilson score interval
+    on Kish's effective sample size.
 
-    One grid experiment (Sec. 5.3) evaluates 5^6 = 15 625 poses, but draws the 30 assembly
-    errors once and each axis' six motion errors only at its five grid points, so every
-    pose shares its assembly errors with all others and its motion errors with thousands
+    One grid experiment (Sec. 5.3) of the paper's machine evaluates 15 625 poses, but
+    draws the 30 assembly errors once and each axis' six motion errors only at its five
+    grid points, so every pose shares its assembly errors with all others and its motion errors with thousands
     of others. Out-of-tolerance poses therefore come in clusters: one unlucky draw pushes
     hundreds of poses out at once (Table 9, experiment 8, εz: 99.14 %). The poses are not
     independent trials, and the unit of replication is the experiment.
@@ -348,7 +360,11 @@ def between_experiment_interval(fractions, confidence=0.95, *, names=None):
     standard error is 7.4e-5, while the spread between experiments gives 5.9e-4: a design
     effect of about 60, so the pooled interval is about 8 times too narrow and would
     claim a precision the 20 experiments do not have. This function uses the experiments'
-    own spread instead.
+    own spread instead: the design effect ``deff = se² / (p (1 − p) / N)`` turns the ``N``
+    pooled poses into Kish's effective sample size ``n_eff = N / deff = p (1 − p) / se²``,
+    and the Wilson score interval for ``p`` on ``n_eff`` trials is the interval. Unlike a
+    Student-t interval it never leaves [0, 1], and it keeps a width when every experiment
+    gives the same fraction (then ``n_eff`` is the number of poses, ``N``).
 
     Parameters
     ----------
@@ -359,12 +375,15 @@ def between_experiment_interval(fractions, confidence=0.95, *, names=None):
         Two-sided confidence level in (0, 1).
     names : sequence of str, optional
         One name per output for :meth:`ReplicateEstimate.to_frame`.
+    poses : int, optional
+        Poses per experiment. ``n_eff`` never exceeds the ``n * poses`` poses evaluated;
+        without it, experiments that all agree give ``n_eff = n``.
 
     Returns
     -------
     ReplicateEstimate
-        Mean, ``std(ddof=1) / sqrt(n)`` standard error, Student-t interval with
-        ``n - 1`` degrees of freedom, minimum and maximum, per output.
+        Mean, ``std(ddof=1) / sqrt(n)`` standard error, Wilson score interval on the
+        effective sample size, minimum and maximum, per output.
 
     Raises
     ------
@@ -374,10 +393,10 @@ def between_experiment_interval(fractions, confidence=0.95, *, names=None):
 
     Notes
     -----
-    The t-interval is exact for normally distributed fractions. Fractions near 1 are
-    skewed (many experiments at exactly 1, a few well below), so with 20 experiments its
-    coverage is only approximate, and if every experiment is at 1 the interval collapses
-    to a point. :func:`machine_yield` answers the complementary question "how often is a
+    The interval is approximate: the effective sample size is itself estimated from the
+    experiments, and fractions near 1 are skewed (many experiments at exactly 1, a few
+    well below), so with 20 experiments the coverage is only near nominal.
+    :func:`machine_yield` answers the complementary question "how often is a
     machine entirely within its limits" with an exact binomial interval.
 
     Examples
@@ -395,20 +414,35 @@ def between_experiment_interval(fractions, confidence=0.95, *, names=None):
     mean = f.mean(axis=0)
     std = f.std(axis=0, ddof=1)
     se = std / np.sqrt(n)
-    half = stats.t.ppf(0.5 + confidence / 2, n - 1) * se
+    n_eff = _kish_effective_size(mean, se, n, poses)
+    lower, upper = _wilson_share(mean, n_eff, stats.norm.ppf(0.5 + confidence / 2))
     return ReplicateEstimate(
         estimate=_frozen(mean),
-        lower=_frozen(mean - half),
-        upper=_frozen(mean + half),
+        lower=_frozen(lower),
+        upper=_frozen(upper),
         standard_error=_frozen(se),
         n=n,
-        method="student-t",
+        method="wilson-kish",
         confidence=confidence,
         std=_frozen(std),
         minimum=_frozen(f.min(axis=0)),
         maximum=_frozen(f.max(axis=0)),
         names=_check_names(names, mean.shape),
+        effective_n=_frozen(n_eff),
     )
+
+
+def _kish_effective_size(mean, se, n, poses):
+    """``p (1 − p) / se²`` (Kish: pooled size over design effect), capped at the poses
+    evaluated; where the experiments all agree (se = 0), the poses evaluated (or ``n``)."""
+    if poses is not None:
+        poses = _integer_array("poses", poses)
+        if np.any(poses < 1):
+            raise ValueError(f"poses must be >= 1; got {poses!r}")
+    cap = float(n) if poses is None else float(n) * poses
+    with np.errstate(divide="ignore", invalid="ignore"):
+        n_eff = np.where(se > 0, mean * (1.0 - mean) / np.square(se), cap)
+    return n_eff if poses is None else np.minimum(n_eff, cap)
 
 
 def machine_yield(all_within, confidence=0.95, method="clopper-pearson", *, trials=None):

@@ -27,7 +27,7 @@ def continuous_worst(machine, tolerances, grid, *, k: float = 3.0, starts: int =
     tolerances : array_like
         ``(n_errors,)`` allocation, read as ±kσ.
     grid : array_like
-        ``(n_poses, n_axes)`` poses to start from (e.g. the 5^6 workspace grid).
+        ``(n_poses, n_axes)`` poses to start from (e.g. the workspace grid).
     k : float
         Coverage factor.
     starts : int

@@ -226,8 +226,9 @@ def _comparison(tables) -> str:
         "## FOSM versus Monte-Carlo",
         "Grid experiments: the expected share of the grid in tolerance is the FOSM "
         "probability averaged over the grid poses (`fosm_one_sided`, `fosm_two_sided`); "
-        "the Monte-Carlo mean over experiments carries a Student-t interval from the "
-        "spread between experiments (the poses of one experiment share its errors). "
+        "the Monte-Carlo mean over experiments carries a 95 % Wilson score interval on "
+        "the effective sample size that the spread between experiments implies (the "
+        "poses of one experiment share its errors). "
         "The errors are drawn truncated at ±t as in the paper, which makes the "
         "Monte-Carlo slightly more reliable than the untruncated FOSM.",
         markdown_table(frame, percent, index=False),

@@ -59,17 +59,42 @@ def test_confidence_widens_the_interval(setting):
 
 
 def test_within_flag_on_a_hand_built_result(setting):
-    """Two experiments with fractions 0.9 and 1.0: t-interval 0.95 ± 12.706·0.05."""
+    """Two experiments with fractions 0.9 and 1.0: p = 0.95, se = 0.05, n_eff = 19."""
     m, f, _ = setting
     inside = np.vstack([np.full(6, 0.9 * 729), np.full(6, 729)]).round().astype(int)
     grid = GridExperimentResult(limits=m.limits, inside=inside, n_poses=729)
     frame = fosm_versus_monte_carlo(f, grid)
     fraction = inside / 729
-    mean, se = fraction.mean(axis=0), fraction.std(axis=0, ddof=1) / np.sqrt(2)
-    np.testing.assert_allclose(frame["mc_lower"], mean - 12.706204736174705 * se, rtol=1e-12)
+    p = fraction.mean(axis=0)
+    n_eff = p * (1 - p) / (fraction.std(axis=0, ddof=1) / np.sqrt(2)) ** 2
+    np.testing.assert_allclose(n_eff, 19.0, rtol=2e-3)  # 0.9 * 729 rounds to 656
+    z = 1.959963984540054
+    centre = (p + z**2 / (2 * n_eff)) / (1 + z**2 / n_eff)
+    half = z / (1 + z**2 / n_eff) * np.sqrt(p * (1 - p) / n_eff + z**2 / (4 * n_eff**2))
+    np.testing.assert_allclose(frame["mc_lower"], centre - half, rtol=1e-12)
+    np.testing.assert_allclose(frame["mc_upper"], centre + half, rtol=1e-12)
     assert frame["two_sided_within"].all()
+    assert "Wilson" in frame.attrs["mc_interval"]
     tight = GridExperimentResult(limits=m.limits, inside=np.full((2, 6), 729), n_poses=729)
     assert not fosm_versus_monte_carlo(f, tight)["two_sided_within"].any()
+
+
+@pytest.mark.parametrize("scale", [0.5, 0.7])
+def test_fosm_and_monte_carlo_both_at_one_agree(setting, scale):
+    """Every pose inside in every experiment, FOSM at 1 − 1e-9: within, not 'not within'.
+
+    The interval keeps the width of the 2 × 729 poses evaluated, [N / (N + z²), 1]."""
+    m, _, _ = setting
+    f = fosm(m, scale * m.initial_allocation, GridExperiment(m, 3).poses,
+             distribution="truncated")
+    assert np.all(f.workspace_mean("two_sided") > 1 - 1e-4)
+    everything = GridExperimentResult(limits=m.limits, inside=np.full((2, 6), 729),
+                                      n_poses=729)
+    frame = fosm_versus_monte_carlo(f, everything)
+    assert frame["two_sided_within"].all()
+    np.testing.assert_allclose(frame["mc_lower"], 1458 / (1458 + 1.959963984540054**2),
+                               rtol=1e-12)
+    np.testing.assert_array_equal(frame["mc_upper"], 1.0)
 
 
 def test_pose_count_mismatch_is_refused(setting):

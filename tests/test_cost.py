@@ -252,3 +252,16 @@ def test_bad_group_factors_are_refused():
         CostModel.from_machine(tiny_machine(), k2=-1.0)
     with pytest.raises(ValueError, match=r"k must hold \(k1, k2, k3\), got 2 values"):
         cost_weights(tiny_machine(), k=(1.0, 1.0))
+
+
+def test_linear_machine_without_rotary_coefficients_costs_the_same(mill3):
+    import dataclasses
+
+    lean = dataclasses.replace(mill3, cost_coefficients=dataclasses.replace(
+        mill3.cost_coefficients, c=None, d=None))
+    np.testing.assert_array_equal(CostModel.from_machine(lean).weights,
+                                  CostModel.from_machine(mill3).weights)
+    no_linear = dataclasses.replace(mill3, cost_coefficients=dataclasses.replace(
+        mill3.cost_coefficients, b=None))
+    with pytest.raises(ValueError, match="linear axis 'Y' needs cost coefficient b"):
+        CostModel.from_machine(no_linear)

@@ -233,3 +233,61 @@ def test_non_broadcastable_positions_and_errors_refused_clearly(hobbing):
     # "remapped shapes (4,6,6)->... (3,6)->..." instead.
     with pytest.raises(ValueError, match=r"\(4, 6\).*\(3, 66\)"):
         hobbing.comprehensive_error(np.zeros((4, 6)), np.zeros((3, 66)))
+
+
+# ----- cost coefficients a machine does not need, and files that are not text ---------------
+MILL3 = Path(__file__).parent / "machines" / "mill3.toml"
+
+
+def _mill3_dict():
+    import tomllib
+
+    return tomllib.loads(MILL3.read_text())
+
+
+def test_linear_machine_may_omit_rotary_cost_coefficients():
+    data = _mill3_dict()
+    del data["cost"]["c"], data["cost"]["d"]
+    machine = machine_from_dict(data)
+    assert machine.cost_coefficients.c is None and machine.cost_coefficients.d is None
+    assert machine.cost_coefficients.a == 2.0
+    assert "c =" not in machine.to_toml()
+    assert machine_from_dict(_mill3_dict()).cost_coefficients.c == 1.8
+
+
+def test_rotary_machine_may_omit_linear_cost_coefficients(hobbing_dict):
+    hobbing_dict["axes"] = [a for a in hobbing_dict["axes"] if a["kind"] == "rotary"]
+    hobbing_dict["cost"]["assembly"] = {"C-A": 1.0, "A-M": 1.2}
+    del hobbing_dict["cost"]["a"], hobbing_dict["cost"]["b"]
+    machine = machine_from_dict(hobbing_dict)
+    assert (machine.cost_coefficients.a, machine.cost_coefficients.b) == (None, None)
+
+
+@pytest.mark.parametrize("key", ["a", "b", "c", "d"])
+def test_needed_cost_coefficient_still_required(hobbing_dict, key):
+    del hobbing_dict["cost"][key]
+    with pytest.raises(MachineDescriptionError, match=rf"cost: missing key '{key}'"):
+        machine_from_dict(hobbing_dict)
+
+
+def test_linear_machine_still_requires_linear_coefficients():
+    data = _mill3_dict()
+    del data["cost"]["c"], data["cost"]["b"]
+    with pytest.raises(MachineDescriptionError, match=r"cost: missing key 'b'"):
+        machine_from_dict(data)
+
+
+def test_unneeded_coefficient_given_is_still_checked():
+    data = _mill3_dict()
+    data["cost"]["c"] = -1.0
+    with pytest.raises(MachineDescriptionError, match=r"cost\.c: must be > 0"):
+        machine_from_dict(data)
+
+
+@pytest.mark.parametrize("content", [b"\x89PNG\r\n\x1a\n\x00\x00\xff\xfe",
+                                     "name = 'caf\u00e9'".encode("latin-1")])
+def test_binary_machine_file_names_the_file(tmp_path, content):
+    path = tmp_path / "picture.toml"
+    path.write_bytes(content)
+    with pytest.raises(MachineDescriptionError, match=r"picture\.toml: not a text file"):
+        load_machine(path)

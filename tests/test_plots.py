@@ -56,7 +56,7 @@ def test_allocation_bars_are_ratios_drawn_from_one():
     assert 1.0 in _horizontal_lines(ax)
     assert [t.get_text() for t in ax.get_xticklabels()] == NAMES
     legend = [t.get_text() for t in ax.get_legend().get_texts()]
-    assert legend == ["initial (Table 4) = 1", "optimised"]
+    assert legend == ["reference = 1", "optimised"]
     assert ax.get_title() and ax.get_ylabel()
 
 
@@ -82,7 +82,7 @@ def test_allocation_draws_on_given_axes():
         (INITIAL, np.r_[OPTIMISED[:2], 0.0, OPTIMISED[3:]], {}, ValueError,
          r"'optimised': tolerance of 'X.ez' is 0.0"),
         (np.r_[np.nan, INITIAL[1:]], OPTIMISED, {}, ValueError,
-         r"'initial \(Table 4\)': tolerance of 'X.dx' is nan"),
+         r"'reference': tolerance of 'X.dx' is nan"),
         (INITIAL, None, {}, TypeError, "after is required"),
         ({"a": INITIAL, "b": OPTIMISED}, OPTIMISED, {}, TypeError, "either a mapping"),
         ({"a": INITIAL}, None, {}, ValueError, "at least 2 allocations"),

@@ -81,18 +81,23 @@ def test_machine_yield_is_clopper_pearson_over_experiments(result):
     assert narrower.lower > estimate.lower and narrower.upper < estimate.upper
 
 
-def test_reliability_is_a_between_experiment_t_interval(result):
+def test_reliability_is_wilson_on_the_kish_effective_size(result):
     estimate = result.reliability()
-    assert estimate.n == 4 and estimate.method == "student-t" and estimate.names == OUTPUTS
+    assert estimate.n == 4 and estimate.method == "wilson-kish" and estimate.names == OUTPUTS
+    z = stats.norm.ppf(0.975)
     for j in range(6):
         column = INSIDE[:, j] / 100
         mean, se = column.mean(), statistics.stdev(column.tolist()) / 2.0
-        low, high = stats.t.interval(0.95, df=3, loc=mean, scale=se)
+        n_eff = min(mean * (1 - mean) / se**2, 4 * N_POSES) if se > 0 else 4 * N_POSES
         assert estimate.estimate[j] == pytest.approx(mean, rel=1e-14)
         assert estimate.standard_error[j] == pytest.approx(se, rel=1e-12)
-        assert estimate.lower[j] == pytest.approx(low, rel=1e-12)
-        assert estimate.upper[j] == pytest.approx(high, rel=1e-12)
+        assert estimate.effective_n[j] == pytest.approx(n_eff, rel=1e-12)
+        for bound in (estimate.lower[j], estimate.upper[j]):
+            if bound < 1.0:
+                assert (mean - bound) ** 2 == pytest.approx(
+                    z**2 * bound * (1 - bound) / n_eff, rel=1e-9)
         assert estimate.minimum[j] == column.min() and estimate.maximum[j] == column.max()
+    assert np.all((0 <= estimate.lower) & (estimate.upper <= 1))
     wide = result.reliability(0.99)
     assert np.all(wide.upper - wide.lower > estimate.upper - estimate.lower)
 

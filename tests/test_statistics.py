@@ -96,22 +96,50 @@ def test_results_are_frozen():
 
 
 # --------------------------------------------------------------------------- between experiments
-def test_between_experiment_interval_matches_scipy_t_interval():
+def test_between_experiment_interval_is_wilson_on_kish_effective_size():
     f = np.random.default_rng(1).uniform(0.99, 1.0, size=(20, 6))
     est = between_experiment_interval(f, confidence=0.9, names=list("abcdef"))
-    se = f.std(axis=0, ddof=1) / np.sqrt(20)
-    lo, hi = stats.t.interval(0.9, df=19, loc=f.mean(axis=0), scale=se)
-    np.testing.assert_allclose(est.lower, lo, rtol=1e-12)
-    np.testing.assert_allclose(est.upper, hi, rtol=1e-12)
+    p, se = f.mean(axis=0), f.std(axis=0, ddof=1) / np.sqrt(20)
+    n_eff = p * (1 - p) / se**2  # Kish: pooled size over the design effect
+    np.testing.assert_allclose(est.effective_n, n_eff, rtol=1e-12)
+    # Wilson bounds are the roots pi of (p - pi)^2 = z^2 pi (1 - pi) / n_eff.
+    z = stats.norm.ppf(0.95)
+    for bound in (est.lower, est.upper):
+        np.testing.assert_allclose((p - bound) ** 2, z**2 * bound * (1 - bound) / n_eff,
+                                   rtol=1e-9)
+    assert np.all(est.lower < p) and np.all(p < est.upper)
     np.testing.assert_allclose(est.standard_error, se)
     np.testing.assert_array_equal(est.minimum, f.min(axis=0))
     np.testing.assert_array_equal(est.maximum, f.max(axis=0))
-    assert est.n == 20 and est.method == "student-t"
+    assert est.n == 20 and est.method == "wilson-kish"
     assert list(est.to_frame().index) == list("abcdef")
 
 
+def test_between_experiment_interval_stays_inside_zero_one():
+    """Where a Student-t interval reaches above 1 (0.995 + 12.7 * 0.005), Wilson does not."""
+    est = between_experiment_interval([[1.0, 0.0], [0.99, 0.01]])
+    assert 0.0 <= est.lower[0] and est.upper[0] <= 1.0
+    assert 0.0 <= est.lower[1] and est.upper[1] <= 1.0
+    assert est.upper[0] < 1.0 and est.lower[1] > 0.0
+
+
+def test_agreeing_experiments_keep_an_interval_of_the_poses_evaluated():
+    """All experiments at 1: n_eff = n * poses and the Wilson lower bound N / (N + z^2)."""
+    est = between_experiment_interval(np.ones((4, 2)), poses=100)
+    z = stats.norm.ppf(0.975)
+    np.testing.assert_allclose(est.lower, 400 / (400 + z**2), rtol=1e-12)
+    np.testing.assert_array_equal(est.upper, 1.0)
+    np.testing.assert_array_equal(est.effective_n, 400.0)
+    capped = between_experiment_interval([[0.5], [0.6]], poses=3)
+    assert capped.effective_n[0] == 6.0  # p(1-p)/se^2 = 99 exceeds the 6 poses
+    without = between_experiment_interval(np.ones((4, 2)))
+    np.testing.assert_allclose(without.lower, 4 / (4 + z**2), rtol=1e-12)
+    with pytest.raises(ValueError, match="poses"):
+        between_experiment_interval(np.ones((4, 2)), poses=0)
+
+
 def test_between_experiment_interval_coverage_for_normal_fractions():
-    """The t-interval is exact for normal data: 2000 replications, z = 3."""
+    """Near-nominal coverage for normal fractions: 2000 replications, z = 3."""
     reps, mean, sd = 2000, 0.995, 0.001
     f = np.random.default_rng(7).normal(mean, sd, size=(20, reps))
     est = between_experiment_interval(f)

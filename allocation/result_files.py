@@ -1,0 +1,289 @@
+"""An allocation result printed for reading, saved as JSON or CSV and reloaded verified.
+
+The JSON file holds the allocation, its cost, feasibility, certificate, binding
+constraints, GWO history and per-requirement elasticities, and what is needed to read them
+without the machine: the error names, the reference allocation and the bounds, the cost
+weights (so the cost is re-checked on reload), the reading (side, workspace, k) and the
+machine's name, axes and units. A reloaded result carries a :class:`SavedProblem` in
+place of the :class:`~allocation.problem.AllocationProblem` unless the problem is given.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+
+from reliability.display import axis_units, pose_columns
+from reliability.files import write_csv
+from reliability.machine import OUTPUTS
+from reliability.errors import InputTypeError
+from reliability.saved import check_count, check_destination, encode_frame, load_payload, \
+    save_payload
+
+from .cost import GROUPS, CostModel
+
+KIND = "precrel.allocation_result"
+METHODS = ("exact", "gwo")
+COST_RTOL = 1e-9  # the saved cost must be Σ w/t² of the saved tolerances
+CSV_COLUMNS = ("error", "reference", "allocated")
+READINGS = {"worst": "every target at every pose", "mean": "targets on the workspace mean"}
+
+
+@dataclass(frozen=True, eq=False)
+class SavedProblem:
+    """What a reloaded :class:`AllocationResult` knows of its problem.
+
+    Attributes
+    ----------
+    machine_name : str
+    axes, units : tuple of str
+        Axis names and units (``'mm'``/``'rad'``) of the poses in ``result.active``.
+    names : tuple of str
+        Error names.
+    reference, lower, upper : ndarray (n_errors,)
+        Reference allocation and tolerance bounds.
+    side, workspace : str
+        The reliability reading of the problem.
+    k : float
+        Tolerances are ±kσ.
+    n_poses : int
+        Poses the constraints were held at.
+    cost : CostModel
+        The cost weights, so :meth:`AllocationResult.breakdown` still works.
+    """
+
+    machine_name: str
+    axes: tuple
+    units: tuple
+    names: tuple
+    reference: np.ndarray
+    lower: np.ndarray
+    upper: np.ndarray
+    side: str
+    workspace: str
+    k: float
+    n_poses: int
+    cost: CostModel
+
+    @property
+    def locked(self) -> np.ndarray:
+        """Boolean mask of items held fixed (lower == upper)."""
+        return self.lower == self.upper
+
+
+def _context(problem) -> SavedProblem | object:
+    """The problem's description in the form of :class:`SavedProblem`."""
+    if isinstance(problem, SavedProblem):
+        return problem
+    machine = problem.machine
+    return SavedProblem(machine_name=machine.name, axes=machine.axes,
+                        units=axis_units(machine), names=tuple(problem.names),
+                        reference=problem.reference, lower=problem.lower,
+                        upper=problem.upper, side=problem.side, workspace=problem.workspace,
+                        k=problem.k, n_poses=len(problem.poses), cost=problem.cost)
+
+
+# ----- printing ------------------------------------------------------------------------
+def allocation_summary(result, top: int = 5) -> str:
+    """Feasibility (loudly when missing), cost relative to the reference, what binds and
+    the largest changes from the reference."""
+    top = check_count(top, "top")
+    context = _context(result.problem)
+    reference_cost = context.cost.total(context.reference)
+    lines = [] if result.feasible else [_not_feasible_line(result)]
+    lines += [f"Allocation by {_method_text(result)} for {context.machine_name}: "
+              f"{READINGS[context.workspace]} over {context.n_poses} poses, "
+              f"{context.side.replace('_', '-')} probability, tolerances ±{context.k:g}σ",
+              f"Cost {result.cost / reference_cost:.4f} × the reference allocation "
+              f"(F = {result.cost:.4g} against {reference_cost:.4g})",
+              _status_line(result), ""]
+    lines += _binding_lines(result, context)
+    lines += ["", "Largest changes from the reference (tolerance in mm or rad)",
+              _changes(result, top).to_string(float_format=lambda v: f"{v:.4g}")]
+    return "\n".join(lines)
+
+
+def _not_feasible_line(result) -> str:
+    violation = result.certificate.get("violation")
+    amount = "" if violation is None else f" (total violation {violation:.3g})"
+    return (f"NOT FEASIBLE: this {result.method} allocation misses at least one "
+            f"reliability target{amount}; do not use it")
+
+
+def _method_text(result) -> str:
+    if result.method == "gwo":
+        return "the Grey Wolf Optimiser (no optimality certificate)"
+    certified = result.certificate.get("certified", False)
+    gap = result.certificate.get("relative_gap")
+    gap_text = "" if gap is None else f", relative gap {gap:.2g}"
+    return f"the exact solver ({'certified' if certified else 'NOT certified'}{gap_text})"
+
+
+def _status_line(result) -> str:
+    status = result.to_frame()["status"].value_counts()
+    parts = [f"{int(status.get(s, 0))} {label}" for s, label in
+             (("lower", "at the lower bound"), ("upper", "at the upper bound"),
+              ("free", "inside the bounds"), ("locked", "locked"))]
+    return "Items: " + ", ".join(parts)
+
+
+def _binding_lines(result, context) -> list[str]:
+    if result.requirements is not None:
+        binding = result.requirements[result.requirements["binding_rows"] > 0]
+        table = binding[["binding_rows", "elasticity"]].rename(
+            columns={"elasticity": "elasticity [% cost per % limit]"})
+        head = ["What binds: requirements with binding rows (relaxing a limit by 1 % saves "
+                "about 'elasticity' % of the cost)", table.to_string()]
+    else:
+        outputs = sorted(set(result.active["output"])) if len(result.active) else []
+        head = [f"What binds: {', '.join(outputs) if outputs else 'no reliability target'}"]
+    if len(result.active) and "pose" in result.active:
+        rows = result.active.head(6)
+        poses = pose_columns(rows[list(context.axes)].to_numpy(), context.axes,
+                             context.units)
+        poses.insert(0, "pose #", rows["pose"].to_numpy())
+        poses.insert(0, "output", rows["output"].to_numpy())
+        more = len(result.active) - len(rows)
+        head += ["", "Binding constraints (output at pose, axis positions)"
+                 + (f"; first {len(rows)} of {len(result.active)}" if more else ""),
+                 poses.to_string(index=False)]
+    return head
+
+
+def _changes(result, top: int) -> pd.DataFrame:
+    frame = result.to_frame()
+    frame["change [%]"] = 100.0 * frame.pop("rate")
+    order = frame["change [%]"].abs().sort_values(ascending=False, kind="stable").index
+    return frame.loc[order[:top]]
+
+
+# ----- files ---------------------------------------------------------------------------
+def allocation_to_csv(result, path, overwrite: bool = False):
+    """Columns ``error, reference, allocated``, one row per error."""
+    check_destination(path, overwrite)
+    context = _context(result.problem)
+    frame = pd.DataFrame({"error": context.names, "reference": context.reference,
+                          "allocated": result.tolerances}, columns=list(CSV_COLUMNS))
+    return write_csv(frame, path, overwrite, index=False)
+
+
+def save_allocation(result, path, overwrite: bool = False):
+    """Write ``result`` as JSON (see :mod:`reliability.saved`)."""
+    context = _context(result.problem)
+    payload = {
+        "machine": context.machine_name, "axes": context.axes, "units": context.units,
+        "names": context.names, "reference": context.reference, "lower": context.lower,
+        "upper": context.upper, "side": context.side, "workspace": context.workspace,
+        "k": context.k, "n_poses": context.n_poses,
+        "cost_weights": context.cost.weights, "cost_groups": context.cost.groups,
+        "cost_owners": context.cost.owners, "cost_k": context.cost.k,
+        "method": result.method, "tolerances": result.tolerances, "cost": result.cost,
+        "feasible": result.feasible, "certificate": result.certificate,
+        "active": encode_frame(result.active), "history": encode_frame(result.history),
+        "requirements": encode_frame(result.requirements)}
+    return save_payload(path, KIND, payload, overwrite)
+
+
+def load_allocation(cls, path, problem=None):
+    """Reload a file written by :func:`save_allocation` as ``cls``, verifying every
+    field; with ``problem``, check that it is the saved one and attach it."""
+    if problem is not None and not all(hasattr(problem, a) for a in
+                                       ("names", "reference", "lower", "upper", "side")):
+        raise InputTypeError(f"problem must be an AllocationProblem; got "
+                             f"{type(problem).__name__}")
+    data = load_payload(path, KIND)
+    saved = _saved_problem(data)
+    tolerances = data.array("tolerances", (len(saved.names),), positive=True)
+    cost = data.number("cost", positive=True)
+    if not np.isclose(cost, saved.cost.total(tolerances), rtol=COST_RTOL, atol=0):
+        raise data.error("cost", f"{cost!r} is not the cost of the saved tolerances "
+                                 f"({saved.cost.total(tolerances)!r})")
+    outside = np.flatnonzero((tolerances < saved.lower * (1 - 1e-12))
+                             | (tolerances > saved.upper * (1 + 1e-12)))
+    if len(outside):
+        raise data.error("tolerances", f"{saved.names[outside[0]]!r} lies outside its "
+                                       f"bounds")
+    certificate = data.table("certificate").data
+    method = data.text("method", METHODS)
+    _check_certificate(data, certificate, method)
+    if problem is not None:
+        _check_same_problem(data, saved, problem)
+    return cls(problem=saved if problem is None else problem, method=method,
+               tolerances=tolerances, cost=cost, feasible=data.boolean("feasible"),
+               certificate=certificate, active=_active(data, saved),
+               history=data.frame("history", columns=("cost",)),
+               requirements=data.frame("requirements",
+                                       columns=("binding_rows", "multiplier", "elasticity"),
+                                       index=OUTPUTS))
+
+
+def _saved_problem(data) -> SavedProblem:
+    axes = data.texts("axes", unique=True)
+    names = data.texts("names", unique=True)
+    n = len(names)
+    if n == 0:
+        raise data.error("names", "expected at least one error name")
+    lower = data.array("lower", (n,), positive=True)
+    upper = data.array("upper", (n,), positive=True)
+    bad = np.flatnonzero(lower > upper)
+    if len(bad):
+        raise data.error("lower", f"exceeds 'upper' for {names[bad[0]]!r}")
+    groups = data.texts("cost_groups", size=n)
+    if any(g not in GROUPS for g in groups):
+        raise data.error("cost_groups", f"entries must be one of {GROUPS}")
+    cost = CostModel(names=names, weights=data.array("cost_weights", (n,), low=0.0),
+                     groups=groups, owners=data.texts("cost_owners", size=n),
+                     k=tuple(data.array("cost_k", (3,), low=0.0)))
+    return SavedProblem(
+        machine_name=data.text("machine"), axes=axes,
+        units=data.texts("units", size=len(axes)), names=names,
+        reference=data.array("reference", (n,), positive=True), lower=lower, upper=upper,
+        side=data.text("side", ("one_sided", "two_sided")),
+        workspace=data.text("workspace", ("worst", "mean")),
+        k=data.number("k", positive=True), n_poses=data.integer("n_poses", low=1), cost=cost)
+
+
+def _check_certificate(data, certificate: dict, method: str) -> None:
+    needed = {"exact": ("certified", "relative_gap"), "gwo": ("violation",)}[method]
+    part = data.table("certificate")
+    for key in needed:
+        if key == "certified":
+            part.boolean(key)
+        else:
+            part.number(key)
+
+
+def _active(data, saved: SavedProblem) -> pd.DataFrame:
+    frame = data.frame("active")
+    if len(frame.columns) == 0:
+        return pd.DataFrame()
+    frame = frame.reset_index(drop=True)  # the rows of 'active' are only numbered
+    if len(frame) == 0:
+        return frame
+    if "output" not in frame or not frame["output"].isin(OUTPUTS).all():
+        raise data.error("active", f"column 'output' must hold output names {OUTPUTS}")
+    if "pose" in frame:
+        pose = frame["pose"].to_numpy()
+        if not (np.issubdtype(pose.dtype, np.integer) and ((pose >= 0)
+                                                          & (pose < saved.n_poses)).all()):
+            raise data.error("active", f"column 'pose' must hold pose numbers in "
+                                       f"[0, {saved.n_poses})")
+        missing = [a for a in saved.axes if a not in frame]
+        if missing:
+            raise data.error("active", f"lacks the position column of axis {missing[0]!r}")
+    return frame
+
+
+def _check_same_problem(data, saved: SavedProblem, problem) -> None:
+    given = _context(problem)
+    if tuple(given.names) != saved.names:
+        raise data.error("names", "the given problem has other error names")
+    for key in ("reference", "lower", "upper"):
+        if not np.array_equal(getattr(given, key), getattr(saved, key)):
+            raise data.error(key, f"differs from the given problem's {key}")
+    for key in ("side", "workspace"):
+        if getattr(given, key) != getattr(saved, key):
+            raise data.error(key, f"{getattr(saved, key)!r} differs from the given "
+                                  f"problem's {getattr(given, key)!r}")

@@ -1,0 +1,131 @@
+"""A FOSM result printed for reading, saved as JSON and reloaded with every field verified."""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+
+from .display import OUTPUT_UNITS, output_limits_text, pose_columns
+from .fosm import SIDES, FosmResult, one_sided_probability, reliability_index, \
+    two_sided_probability
+from .machine import OUTPUTS
+from .saved import check_count, encode_frame, load_payload, save_payload
+
+KIND = "precrel.fosm_result"
+CONSISTENCY_RTOL = 1e-9  # saved β and probabilities must follow from limits, μ and σ
+
+
+def fosm_summary(result: FosmResult, top: int = 3) -> str:
+    """The verdict per output, the worst poses as axis positions, the top contributors."""
+    top = check_count(top, "top")
+    meets = result.meets_targets("two_sided")
+    short = [o for o, ok in zip(OUTPUTS, meets) if not ok]
+    verdict = "every target met" if not short else f"short: {', '.join(short)}"
+    name = f" of {result.machine}" if result.machine else ""
+    lines = [f"FOSM reliability{name}: {len(result.poses)} poses, tolerances read as "
+             f"±{result.k:g}σ ({result.distribution})",
+             f"Worst pose, two-sided: {int(meets.sum())} of {len(OUTPUTS)} targets met; "
+             f"{verdict}", "", _verdict_table(result).to_string(), "",
+             "Worst pose of each output (axis positions)",
+             _worst_pose_table(result).to_string(), "",
+             "Largest contributors to σ² at the worst pose [% of σ²]"]
+    for output in OUTPUTS:
+        share = result.contributions[output].nlargest(top)
+        lines.append(f"  {output}: " + ", ".join(f"{e} {p:.1f}" for e, p in share.items()))
+    return "\n".join(lines)
+
+
+def _verdict_table(result: FosmResult) -> pd.DataFrame:
+    rows = np.arange(len(OUTPUTS))
+    worst = result.worst_pose
+    sigma = [f"{s:.4g} {u}" for s, u in zip(result.sigma[worst, rows], OUTPUT_UNITS)]
+    return pd.DataFrame({
+        "limit": output_limits_text(result.limits),
+        "target": result.targets,
+        "P worst 2-sided": result.worst("two_sided").round(6),
+        "P worst 1-sided": result.worst("one_sided").round(6),
+        "P mean 2-sided": result.workspace_mean("two_sided").round(6),
+        "β at worst": result.beta[worst, rows].round(3),
+        "σ at worst": sigma,
+        "meets (2-sided)": np.where(result.meets_targets("two_sided"), "yes", "NO"),
+    }, index=pd.Index(OUTPUTS, name="output"))
+
+
+def _worst_pose_table(result: FosmResult) -> pd.DataFrame:
+    axes = result.axes or tuple(f"q{i}" for i in range(result.poses.shape[1]))
+    units = result.units or ("",) * len(axes)
+    table = pose_columns(result.poses[result.worst_pose], axes, units)
+    table.insert(0, "pose #", result.worst_pose)
+    table.index = pd.Index(OUTPUTS, name="output")
+    return table
+
+
+def save_fosm(result: FosmResult, path, overwrite: bool = False):
+    """Write ``result`` as JSON (see :mod:`reliability.saved`)."""
+    payload = {"machine": result.machine, "axes": result.axes, "units": result.units,
+               "k": result.k, "distribution": result.distribution, "poses": result.poses,
+               "limits": result.limits, "targets": result.targets, "mean": result.mean,
+               "sigma": result.sigma, "beta": result.beta, "one_sided": result.one_sided,
+               "two_sided": result.two_sided, "worst_pose": result.worst_pose,
+               "contributions": encode_frame(result.contributions)}
+    return save_payload(path, KIND, payload, overwrite)
+
+
+def load_fosm(path) -> FosmResult:
+    """Reload a file written by :func:`save_fosm`; a damaged or inconsistent field raises
+    :class:`~reliability.errors.SavedResultError` naming the file and the field."""
+    data = load_payload(path, KIND)
+    axes = data.texts("axes", unique=True)
+    units = data.texts("units", size=len(axes))
+    for position, unit in enumerate(units):
+        if unit not in ("mm", "rad"):
+            raise data.error("units", f"entry {position} is {unit!r}; expected 'mm' or 'rad'")
+    poses = data.array("poses", (None, len(axes)))
+    n = len(poses)
+    if n < 1:
+        raise data.error("poses", "expected at least one pose")
+    limits = data.array("limits", (6,), positive=True)
+    targets = data.array("targets", (6,), low=0.0, high=1.0)
+    mean = data.array("mean", (n, 6))
+    sigma = data.array("sigma", (n, 6), positive=True)
+    fields = {"beta": data.array("beta", (n, 6)),
+              "one_sided": data.array("one_sided", (n, 6), low=0.0, high=1.0),
+              "two_sided": data.array("two_sided", (n, 6), low=0.0, high=1.0)}
+    _check_consistent(data, fields, limits, sigma, mean)
+    worst = data.array("worst_pose", (6,), dtype=np.int64, low=0, high=n - 1)
+    if not np.array_equal(worst, np.argmin(fields["two_sided"], axis=0)):
+        raise data.error("worst_pose", "is not the pose of lowest two-sided probability")
+    contributions = data.frame("contributions", columns=OUTPUTS)
+    _check_contributions(data, contributions)
+    return FosmResult(poses=poses, limits=limits, targets=targets, mean=mean, sigma=sigma,
+                      worst_pose=worst, contributions=contributions, axes=axes, units=units,
+                      machine=data.text("machine"), k=data.number("k", positive=True),
+                      distribution=data.text("distribution", ("normal", "truncated")),
+                      **fields)
+
+
+def _check_consistent(data, fields, limits, sigma, mean) -> None:
+    """β and both probabilities must be what limits, μ and σ give (Eqs. 21–22)."""
+    expected = {"beta": reliability_index(limits, sigma, mean),
+                "one_sided": one_sided_probability(limits, sigma, mean),
+                "two_sided": two_sided_probability(limits, sigma, mean)}
+    for key in ("beta",) + SIDES:
+        if not np.allclose(fields[key], expected[key], rtol=CONSISTENCY_RTOL, atol=0):
+            first = np.argwhere(~np.isclose(fields[key], expected[key],
+                                            rtol=CONSISTENCY_RTOL, atol=0))[0]
+            raise data.error(key, f"entry {first.tolist()} does not follow from the saved "
+                                  f"limits, mean and sigma")
+
+
+def _check_contributions(data, frame: pd.DataFrame) -> None:
+    values = frame[list(OUTPUTS)]
+    try:
+        numbers = values.to_numpy(dtype=float)
+    except (TypeError, ValueError):
+        raise data.error("contributions", "expected numbers") from None
+    if not (np.isfinite(numbers).all() and (numbers >= 0).all()
+            and np.allclose(numbers.sum(axis=0), 100.0, rtol=1e-9)):
+        raise data.error("contributions", "each output's column must be shares "
+                                          "(>= 0) summing to 100 %")
+    if len(set(frame.index)) != len(frame.index):
+        raise data.error("contributions", "error names repeat")
