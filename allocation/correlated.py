@@ -42,7 +42,9 @@ from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
+from scipy import sparse
 from scipy.optimize import minimize, nnls
+from threadpoolctl import threadpool_limits
 
 from reliability.correlation import check_correlation_matrix
 from reliability.errors import InputError
@@ -159,7 +161,8 @@ def solve_correlated(machine, poses=None, *, correlation=None, side: str = "two_
     forms = problem.jacobian / (k * problem.allowed_sigma[:, None])  # a_r, (P, 6, n)
     rows = _QuadraticRows.screen(forms, R, problem.upper)
     w, lo, hi = problem.cost.weights, problem.lower, problem.upper
-    t, message = _solve_primal(w, rows, lo, hi, max_iter)
+    with threadpool_limits(limits=1, user_api="blas"):  # small matrices: one thread is fastest
+        t, message = _solve_primal(w, rows, lo, hi, max_iter)
     t = _restore_feasibility(rows, t, lo, hi)
     load = rows.load(t)
     if load.max(initial=0.0) > 1.0 + ROW_ADD_TOLERANCE:
@@ -192,7 +195,7 @@ class _QuadraticRows:
     """Constraint rows ``h_r(t) = (a_r∘t)ᵀ R (a_r∘t) − 1 ≤ 0`` with their origin."""
 
     forms: np.ndarray  # (m, n) a_r
-    R: np.ndarray
+    off_diagonal: sparse.csr_array  # R − I, a few pairs
     pose: np.ndarray
     output: np.ndarray
     counts: dict
@@ -216,17 +219,22 @@ class _QuadraticRows:
         _, keep = np.unique(key, axis=0, return_index=True)
         keep = np.sort(keep)
         counts["duplicates"] = len(keep)
-        return cls(flat[keep], R, pose[keep], output[keep], counts)
+        off_diagonal = sparse.csr_array(R - np.eye(len(R)))
+        return cls(flat[keep], off_diagonal, pose[keep], output[keep], counts)
+
+    def _times_R(self, a) -> np.ndarray:
+        """``a R`` row by row, as ``a + a (R − I)`` with the sparse off-diagonal part."""
+        return a + (self.off_diagonal @ a.T).T  # R is symmetric
 
     def load(self, t, rows=slice(None)) -> np.ndarray:
         """``(a_r∘t)ᵀ R (a_r∘t)`` of the chosen rows."""
         a = self.forms[rows] * t
-        return np.einsum("ri,ri->r", a @ self.R, a)
+        return np.einsum("ri,ri->r", self._times_R(a), a)
 
     def gradient(self, t, rows) -> np.ndarray:
         """``∂ load_r / ∂t_i = 2 a_ri (R (a_r∘t))_i``, ``(len(rows), n)``."""
         a = self.forms[rows] * t
-        return 2.0 * self.forms[rows] * (a @ self.R)
+        return 2.0 * self.forms[rows] * self._times_R(a)
 
 
 def _solve_primal(w, rows, lo, hi, max_iter):
