@@ -99,7 +99,7 @@ class Machine:
     initial_allocation: np.ndarray
     cost_coefficients: CostCoefficients
     tool_offset: tuple[float, float, float] = (0.0, 0.0, 0.0)
-    correlation: np.ndarray | None = field(default=None, repr=False, compare=False)
+    correlation: np.ndarray | None = field(default=None, repr=False)
     _index: Mapping[str, int] = field(init=False, repr=False, compare=False)
 
     def __post_init__(self):
