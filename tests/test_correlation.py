@@ -283,3 +283,20 @@ def test_cost_derivative_matches_finite_difference(mill3, mill_sweep):
     slope = (results[0.5 + h].cost - results[0.5 - h].cost) / (2 * h)
     assert slope != 0
     assert results[0.5].sensitivity(a, b) == pytest.approx(slope, rel=1e-3)
+
+
+# ----- study and report section ------------------------------------------------------------
+def test_sweep_and_section_on_the_test_mill(mill3, mill_sweep):
+    from studies.correlation_section import correlation_section
+    from studies.correlation_study import correlation_sweep
+
+    results, _ = mill_sweep
+    sweep = correlation_sweep(mill3, ("EXX", "EBX"), [-0.5, 0.0, 0.5])
+    assert sweep.loc[0.0, "cost_vs_rho0"] == pytest.approx(1.0, rel=1e-9)
+    assert sweep.loc[0.5, "cost"] == pytest.approx(results[0.5].cost, rel=1e-9)
+    assert sweep["certified"].all()
+    section = correlation_section(mill3, ("EXX", "EBX"), sweep=sweep)
+    assert "EXX" in section.text and "| rho |" in section.text
+    assert set(section.figures) == {"correlation_cost.png"}
+    assert section.tables["correlation_cost.csv"].shape[0] == 3
+    assert section.summary["correlation_pair"] == ["EXX", "EBX"]
