@@ -254,7 +254,7 @@ def _solve_primal(w, rows, lo, hi, max_iter):
     def objective(v):
         terms = w * full(v) ** -2.0
         total = terms.sum()
-        return np.log(total), (2.0 * terms / total)[free] * -1.0
+        return np.log(total), -2.0 * terms[free] / total
 
     def constraint(v, working):
         return -np.log(rows.load(full(v), working))
@@ -266,8 +266,8 @@ def _solve_primal(w, rows, lo, hi, max_iter):
     per_round = ROWS_PER_ROUND * int(free.sum())
     working = np.sort(np.argsort(rows.load(hi))[::-1][:per_round])
     v_lo, v_hi = np.log(lo[free]), np.log(hi[free])
-    s = largest_fraction(lambda s: rows.load(np.exp(np.log(lo) + s * (np.log(hi) - np.log(lo))))
-                         .max() <= 1.0)
+    s = largest_fraction(  # furthest feasible point on the segment log lo -> log hi
+        lambda s: rows.load(lo * (hi / lo) ** s).max() <= 1.0)
     v = v_lo + s * (v_hi - v_lo)
     for round_ in itertools.count(1):
         result = minimize(objective, v, jac=True, method="SLSQP",

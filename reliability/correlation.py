@@ -272,7 +272,8 @@ def normal_to_marginal(z, k: float = 3.0, distribution: str = "truncated") -> np
     if distribution == "normal":
         return z
     if distribution != "truncated":
-        raise InputError(f"distribution: unknown {distribution!r}; use 'truncated' or 'normal'")
+        raise InputError(f"distribution: unknown {distribution!r}; "
+                         f"use 'truncated' or 'normal'")
     low = ndtr(-k)
     lower_tail = ndtri(low + ndtr(-np.abs(z)) * (1.0 - 2.0 * low))
     return np.where(z > 0, -lower_tail, lower_tail)

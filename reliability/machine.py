@@ -150,12 +150,14 @@ class Machine:
         return 6 * (2 * len(self.axis_specs) - 1)
 
     def error_index(self, name: str) -> int:
-        """Position of an error, by paper name or ISO 230-1 symbol; unknown names raise KeyError."""
+        """Position of an error by paper name or ISO 230-1 symbol; unknown names raise
+        KeyError."""
         try:
             return self._index[name]
         except KeyError:
             raise KeyError(f"unknown error name {name!r}; known names look like "
-                           f"{self.error_names[0]!r} or {self.error_names[-1]!r}") from None
+                           f"{self.error_names[0]!r} or {self.error_names[-1]!r} (or ISO "
+                           f"230-1 symbols like {self.iso_names[0]!r})") from None
 
     def error_vector(self, values, default: float | None = 0.0) -> np.ndarray:
         """Build an error (or tolerance) vector from ``{name: value}`` or a pandas Series.
@@ -163,7 +165,8 @@ class Machine:
         Parameters
         ----------
         values : Mapping[str, float] or pandas.Series
-            Values by error name; unknown names are refused.
+            Values by error name (paper name or ISO 230-1 symbol); unknown names and one
+            error named twice are refused.
         default : float or None
             Value of the errors not named. ``None`` requires every error to be named.
 
@@ -188,7 +191,8 @@ class Machine:
         return out
 
     def with_correlation(self, pairs) -> "Machine":
-        """This machine with correlated errors; see :func:`reliability.correlation.with_correlation`."""
+        """This machine with correlated errors; see
+        :func:`reliability.correlation.with_correlation`."""
         from .correlation import with_correlation
 
         return with_correlation(self, pairs)
