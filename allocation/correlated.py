@@ -50,6 +50,7 @@ from threadpoolctl import threadpool_limits
 
 from reliability.correlation import check_correlation_matrix
 from reliability.errors import InputError
+from reliability.iso import iso_names
 from reliability.machine import OUTPUTS
 
 from .convex import ROW_ADD_TOLERANCE, ROWS_PER_ROUND, largest_fraction
@@ -109,8 +110,8 @@ class CorrelatedAllocation:
         return float(np.sum(lam * 2.0 * a[:, index_a] * a[:, index_b]))
 
     def to_frame(self) -> pd.DataFrame:
-        """One row per error: tolerance (mm or rad)."""
-        return pd.DataFrame({"tolerance": self.tolerances},
+        """One row per error: its ISO 230-1 symbol and tolerance (mm or rad)."""
+        return pd.DataFrame({"iso": iso_names(self.names), "tolerance": self.tolerances},
                             index=pd.Index(self.names, name="error"))
 
     def summary(self) -> str:

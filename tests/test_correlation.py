@@ -157,6 +157,11 @@ def test_monte_carlo_output_variance_matches_the_quadratic_form(hobbing):
     predicted = _explicit_sigma(machine.jacobian(pose), t, machine.correlation) ** 2
     se = predicted * np.sqrt(2.0 / (n - 1))  # normal variance estimator
     assert np.all(np.abs(y.var(axis=0, ddof=1) - predicted) <= Z * se)
+    # the whole output covariance: SE of a covariance estimate is √((σ_a²σ_b² + c²)/n)
+    cov = output_covariance(machine.jacobian(pose), t, machine.correlation)
+    se_cov = np.sqrt((np.outer(np.diag(cov), np.diag(cov)) + cov ** 2) / n)
+    assert np.all(np.abs(np.cov(y.T) - cov) <= Z * se_cov)
+    assert np.any(np.abs(cov - np.diag(np.diag(cov))) > Z * se_cov)  # cross terms seen
 
 
 def test_random_pose_sampling_agrees_with_correlated_fosm(hobbing):
@@ -300,3 +305,12 @@ def test_sweep_and_section_on_the_test_mill(mill3, mill_sweep):
     assert set(section.figures) == {"correlation_cost.png"}
     assert section.tables["correlation_cost.csv"].shape[0] == 3
     assert section.summary["correlation_pair"] == ["EXX", "EBX"]
+
+
+def test_result_table_names_errors_both_ways(mill3, mill_sweep):
+    results, _ = mill_sweep
+    frame = results[0.5].to_frame()
+    assert list(frame.index) == list(mill3.error_names)
+    assert list(frame["iso"]) == list(mill3.iso_names)
+    assert np.array_equal(frame["tolerance"], results[0.5].tolerances)
+    assert "certified" in results[0.5].summary()
