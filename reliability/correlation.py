@@ -24,7 +24,8 @@ Monte-Carlo. Correlated standard normals ``z = L ζ`` (``L Lᵀ = R``, a Cholesk
 are mapped to each error's own distribution by its quantile function (a Gaussian copula):
 for the untruncated normal ``x = σ z``; for the normal truncated at ``±t`` (Sec. 5.3)
 ``x = σ Φ⁻¹(Φ(−k) + Φ(z)(2Φ(k) − 1))``, which keeps the marginal exactly truncated. The
-correlation of the truncated draws differs from ``ρ`` by less than 0.01 at k = 3.
+correlation of the truncated draws differs from ``ρ`` by 10⁻³ or less at k = 3, which FOSM
+neglects.
 
 In the grid experiment every axis draws its motion errors at each of its points and the
 assembly errors once per experiment, so only correlations *within one axis' motion errors*
