@@ -17,7 +17,7 @@ FOSM. With ``σ_i = t_i/k`` and ``D = diag(σ)`` the error covariance is ``Σ = 
 the output variance ``σ_y² = jᵀ Σ j`` (Eq. 20 with the cross terms the paper drops;
 ``R = I`` gives Eq. 20 back). The share of error ``i`` in ``σ_y²`` is its Euler
 allocation ``a_i (R a)_i / σ_y²`` with ``a = D j``: the shares add up to 100 %, reduce to
-Eq. 20's terms without correlation, and one of them is negative when an error partly
+Eq. 20's terms without correlation, and one of them can be negative when an error partly
 cancels a correlated partner.
 
 Monte-Carlo. Correlated standard normals ``z = L ζ`` (``L Lᵀ = R``, a Cholesky factor)
