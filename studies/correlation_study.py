@@ -65,19 +65,23 @@ def correlation_sweep(machine=None, pair=PAIR, values=VALUES, *, side: str = "tw
     values = [float(v) for v in values]
     poses = workspace_grid(machine)
     jacobian = machine.jacobian(poses)
-    baseline = solve_correlated(machine.with_correlation({tuple(pair): 0.0}), poses, side=side)
-    rows = []
+    results = {}
     for done, rho in enumerate(values, 1):
-        correlated = machine.with_correlation({tuple(pair): rho})
-        result = solve_correlated(correlated, poses, side=side)
-        check = fosm(correlated, baseline.tolerances, poses, jacobian=jacobian)
+        results[rho] = solve_correlated(machine.with_correlation({tuple(pair): rho}), poses,
+                                        side=side)
+        if progress is not None:
+            progress(done, len(values))
+    baseline = results[0.0] if 0.0 in results else solve_correlated(
+        machine.with_correlation({tuple(pair): 0.0}), poses, side=side)
+    rows = []
+    for rho, result in results.items():
+        check = fosm(machine.with_correlation({tuple(pair): rho}), baseline.tolerances, poses,
+                     jacobian=jacobian)
         rows.append({"rho": rho, "cost": result.cost,
                      "cost_vs_rho0": result.cost / baseline.cost,
                      "dual_bound": result.dual_bound, "relative_gap": result.relative_gap,
                      "certified": result.certified,
                      "rho0_optimum_worst_P": float(check.worst(side).min())})
-        if progress is not None:
-            progress(done, len(values))
     return pd.DataFrame(rows).set_index("rho")
 
 
