@@ -8,7 +8,6 @@ import numpy as np
 import pytest
 from scipy.stats import norm
 
-import reliability
 from allocation import AllocationProblem
 from allocation.correlated import solve_correlated
 from reliability.correlation import (check_correlation_matrix, correlate_items,
