@@ -42,12 +42,13 @@ def correlation_section(machine=None, pair=PAIR, values=VALUES, *, side: str = "
     machine = hobbing_machine() if machine is None else machine
     if sweep is None:
         sweep = correlation_sweep(machine, pair, values, side=side)
-    iso = [machine.iso_names[machine.error_index(n)] for n in pair]
+    index = [machine.error_index(n) for n in pair]
+    names = [f"{machine.error_names[i]} ({machine.iso_names[i]})" for i in index]
     ax = plot_cost_against_correlation(sweep, pair)
     low, high = sweep.index.min(), sweep.index.max()
     worst_ignored = sweep["rho0_optimum_worst_P"].min()
     text = (
-        f"Errors {pair[0]} ({iso[0]}) and {pair[1]} ({iso[1]}) are given a correlation ρ "
+        f"Errors {names[0]} and {names[1]} are given a correlation ρ "
         f"from {low:g} to {high:g}; for each value the worst-case allocation problem "
         f"({side.replace('_', '-')} reading, workspace grid) is solved to a certified "
         f"optimum (largest relative duality gap {sweep['relative_gap'].max():.1e}). The "

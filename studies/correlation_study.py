@@ -94,10 +94,10 @@ def main(argv=None) -> int:
                         help="correlation coefficients (default −0.8 … 0.8 by 0.2)")
     args = parser.parse_args(argv)
     machine = hobbing_machine()
-    iso = [machine.iso_names[machine.error_index(n)] for n in args.pair]
+    index = [machine.error_index(n) for n in args.pair]
+    a, b = (f"{machine.error_names[i]} ({machine.iso_names[i]})" for i in index)
     print(f"{machine.name}: certified optimal cost ({args.side}, 5-point grid) against the "
-          f"correlation of {args.pair[0]} ({iso[0]}) and {args.pair[1]} ({iso[1]})",
-          flush=True)
+          f"correlation of {a} and {b}", flush=True)
     frame = correlation_sweep(machine, args.pair, args.values, side=args.side,
                               progress=lambda d, n: print(f"  solved {d}/{n}",
                                                           file=sys.stderr, flush=True))
