@@ -313,3 +313,24 @@ def test_result_table_names_errors_both_ways(mill3, mill_sweep):
     assert list(frame["iso"]) == list(mill3.iso_names)
     assert np.array_equal(frame["tolerance"], results[0.5].tolerances)
     assert "certified" in results[0.5].summary()
+
+
+def test_same_seed_same_correlated_draws(hobbing):
+    machine = hobbing.with_correlation({("X.ey", "X.dz"): 0.7})
+    t = machine.initial_allocation
+    one = draw_grid_errors(machine, t, 5, rng=42)
+    two = draw_grid_errors(machine, t, 5, rng=42)
+    assert all(np.array_equal(a, b) for a, b in zip(one, two))
+    first = GridExperiment(machine, 3).run(t, repeats=3, rng=9, batch=1)
+    again = GridExperiment(machine, 3).run(t, repeats=3, rng=9, batch=3)
+    assert np.array_equal(first.inside, again.inside)
+
+
+def test_with_correlation_takes_a_full_matrix(hobbing):
+    R = np.eye(hobbing.n_errors)
+    i, j = hobbing.error_index("EBX"), hobbing.error_index("EZX")
+    R[i, j] = R[j, i] = -0.4
+    assert np.array_equal(hobbing.with_correlation(R).correlation, R)
+    R[i, j] = 0.5  # no longer symmetric
+    with pytest.raises(MachineDescriptionError, match="'X.dz' and 'X.ey'|'X.ey' and 'X.dz'"):
+        hobbing.with_correlation(R)
