@@ -26,6 +26,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 import pandas as pd
 
+from reliability.errors import InputError
 from reliability.fosm import error_sigma, fosm, probability, required_index
 from reliability.machine import OUTPUTS
 from reliability.poses import workspace_grid
@@ -124,6 +125,10 @@ class AllocationProblem:
         """
         _check_choice(side, SIDES, "side")
         _check_choice(workspace, WORKSPACES, "workspace")
+        if getattr(machine, "correlation", None) is not None:
+            raise InputError("machine: its errors are correlated (machine.correlation) but "
+                             "these constraint rows assume independent errors; use "
+                             "allocation.correlated.solve_correlated")
         poses = workspace_grid(machine) if poses is None else np.atleast_2d(
             machine.check_positions(poses))
         reference = _reference(machine, reference)

@@ -55,13 +55,23 @@ def error_sigma(tolerances, k: float = 3.0, distribution: str = "normal") -> np.
     raise ValueError(f"unknown distribution {distribution!r}; use 'normal' or 'truncated'")
 
 
-def output_variance_terms(jacobian, sigma) -> np.ndarray:
-    """Per-error terms ``(∂y/∂x_i)² σ_i²`` of Eq. (20), ``(..., 6, n_errors)``."""
+def output_variance_terms(jacobian, sigma, correlation=None) -> np.ndarray:
+    """Per-error terms ``(∂y/∂x_i)² σ_i²`` of Eq. (20), ``(..., 6, n_errors)``; with a
+    correlation matrix, each error's Euler share (:func:`reliability.correlation.euler_terms`)."""
+    if correlation is not None:
+        from .correlation import euler_terms
+
+        return euler_terms(jacobian, sigma, correlation)
     return np.square(jacobian) * np.square(sigma)[..., None, :]
 
 
-def output_sigma(jacobian, sigma) -> np.ndarray:
-    """σ of each comprehensive error, Eq. (20): ``(..., 6, n) , (n,) -> (..., 6)``."""
+def output_sigma(jacobian, sigma, correlation=None) -> np.ndarray:
+    """σ of each comprehensive error, Eq. (20): ``(..., 6, n) , (n,) -> (..., 6)``; with a
+    correlation matrix ``R``, ``sqrt(jᵀ D R D j)`` (:mod:`reliability.correlation`)."""
+    if correlation is not None:
+        from .correlation import correlated_sigma
+
+        return correlated_sigma(jacobian, sigma, correlation)
     return np.sqrt(np.square(jacobian) @ np.square(sigma))  # Eq. (20)
 
 
@@ -119,7 +129,10 @@ class FosmResult:
     worst_pose : ndarray (6,) of int
         Per output, the pose of lowest two-sided probability.
     contributions : DataFrame (n_errors × 6)
-        Percent of σ² contributed by each error at each output's worst pose.
+        Percent of σ² contributed by each error at each output's worst pose. With
+        correlated errors (``machine.correlation``) each error's Euler share
+        ``a_i (R a)_i / σ²`` (``a = D j``), which may be negative for an error that partly
+        cancels a correlated partner; the shares still add up to 100 %.
     axes, units : tuple of str
         Axis names and their units (``'mm'`` or ``'rad'``), for printing poses.
     machine : str
@@ -253,7 +266,7 @@ def fosm(machine, tolerances, poses, *, k: float = 3.0, means=None,
         raise ValueError(f"jacobian must have shape {poses.shape[:-1] + (6, machine.n_errors)}; "
                          f"got {jacobian.shape}")
     sigma_x = error_sigma(t, k, distribution)
-    sigma = output_sigma(jacobian, sigma_x)
+    sigma = output_sigma(jacobian, sigma_x, machine.correlation)
     mean = np.zeros_like(sigma) if means is None else \
         machine.comprehensive_error(poses, machine.check_errors(means))  # Eq. (20)
     two = two_sided_probability(machine.limits, sigma, mean)
@@ -272,7 +285,8 @@ def fosm(machine, tolerances, poses, *, k: float = 3.0, means=None,
 def _contributions(machine, jacobian, sigma_x, worst) -> pd.DataFrame:
     """Percent of σ² from each error at each output's worst pose (Eq. 20's terms)."""
     rows = np.arange(len(OUTPUTS))
-    terms = output_variance_terms(jacobian[worst, rows], sigma_x)  # (6, n_errors)
+    terms = output_variance_terms(jacobian[worst, rows], sigma_x,
+                                  machine.correlation)  # (6, n_errors)
     percent = 100.0 * terms / terms.sum(axis=-1, keepdims=True)
     return pd.DataFrame(percent.T, index=pd.Index(machine.error_names, name="error"),
                         columns=pd.Index(OUTPUTS, name="output"))

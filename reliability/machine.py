@@ -106,6 +106,7 @@ class Machine:
     initial_allocation: np.ndarray
     cost_coefficients: CostCoefficients
     tool_offset: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    correlation: np.ndarray | None = field(default=None, repr=False)
     _index: Mapping[str, int] = field(init=False, repr=False, compare=False)
 
     def __post_init__(self):
@@ -114,7 +115,13 @@ class Machine:
             value.setflags(write=False)
             object.__setattr__(self, name, value)
         index = {n: i for i, n in enumerate(self.error_names)}
+        index.update({n: i for i, n in enumerate(self.iso_names)})
         object.__setattr__(self, "_index", MappingProxyType(index))
+        if self.correlation is not None:
+            from .correlation import check_correlation_matrix
+
+            object.__setattr__(self, "correlation",
+                               check_correlation_matrix(self.correlation, self.error_names))
 
     def __reduce__(self):
         """Pickle and copy through the constructor (the name index is rebuilt)."""
@@ -157,17 +164,26 @@ class Machine:
         return error_names(self.axes)
 
     @property
+    def iso_names(self) -> tuple[str, ...]:
+        """ISO 230-1 symbols aligned with :attr:`error_names` (:mod:`reliability.iso`)."""
+        from .iso import iso_names
+
+        return iso_names(self.error_names)
+
+    @property
     def n_errors(self) -> int:
         """Number of geometric errors, ``12 n_axes − 6`` (66 for six axes)."""
         return 6 * (2 * len(self.axis_specs) - 1)
 
     def error_index(self, name: str) -> int:
-        """Position of an error name in the error vector; unknown names raise KeyError."""
+        """Position of an error by paper name or ISO 230-1 symbol; unknown names raise
+        KeyError."""
         try:
             return self._index[name]
         except KeyError:
             raise KeyError(f"unknown error name {name!r}; known names look like "
-                           f"{self.error_names[0]!r} or {self.error_names[-1]!r}") from None
+                           f"{self.error_names[0]!r} or {self.error_names[-1]!r} (or ISO "
+                           f"230-1 symbols like {self.iso_names[0]!r})") from None
 
     def error_vector(self, values, default: float | None = 0.0) -> np.ndarray:
         """Build an error (or tolerance) vector from ``{name: value}`` or a pandas Series.
@@ -175,7 +191,8 @@ class Machine:
         Parameters
         ----------
         values : Mapping[str, float] or pandas.Series
-            Values by error name; unknown names are refused.
+            Values by error name (paper name or ISO 230-1 symbol); unknown names and one
+            error named twice are refused.
         default : float or None
             Value of the errors not named. ``None`` requires every error to be named.
 
@@ -185,13 +202,26 @@ class Machine:
             ``(n_errors,)`` in the order of :attr:`error_names`.
         """
         items = dict(values.items())
-        missing = [n for n in self.error_names if n not in items]
+        named = {}
+        for name in items:
+            index = self.error_index(name)
+            if index in named:
+                raise KeyError(f"{named[index]!r} and {name!r} name the same error")
+            named[index] = name
+        missing = [n for i, n in enumerate(self.error_names) if i not in named]
         if default is None and missing:
             raise KeyError(f"values missing for {len(missing)} errors, first {missing[0]!r}")
         out = np.full(self.n_errors, np.nan if default is None else float(default))
-        for name, value in items.items():
-            out[self.error_index(name)] = float(value)
+        for index, name in named.items():
+            out[index] = float(items[name])
         return out
+
+    def with_correlation(self, pairs) -> "Machine":
+        """This machine with correlated errors; see
+        :func:`reliability.correlation.with_correlation`."""
+        from .correlation import with_correlation
+
+        return with_correlation(self, pairs)
 
     # ----- model -------------------------------------------------------------------
     def comprehensive_error(self, q, x) -> np.ndarray:
@@ -293,11 +323,11 @@ def load_machine(path) -> Machine:
 def machine_from_dict(data: Mapping, source: str = "machine") -> Machine:
     """Validate a parsed description (the TOML layout) and build a :class:`Machine`."""
     _only_keys(data, {"name", "axes", "requirements", "initial_allocation", "cost",
-                      "tool_offset"}, source)
+                      "tool_offset", "correlation"}, source)
     axes = _parse_axes(_require(data, "axes", source), source)
     names = tuple(a.name for a in axes)
     limits, targets = _parse_requirements(_require(data, "requirements", source), source)
-    return Machine(
+    machine = Machine(
         name=str(data.get("name", source)),
         axis_specs=tuple(axes),
         limits=limits,
@@ -308,6 +338,11 @@ def machine_from_dict(data: Mapping, source: str = "machine") -> Machine:
                                       {a.kind for a in axes}, source),
         tool_offset=_vector3(data.get("tool_offset", (0, 0, 0)), f"{source}: tool_offset"),
     )
+    if "correlation" in data:
+        from .correlation import parse_correlation
+
+        machine = parse_correlation(machine, data["correlation"], source)
+    return machine
 
 
 def _require(table: Mapping, key: str, where: str):
@@ -438,9 +473,18 @@ def _parse_initial(table, names: tuple[str, ...], source: str) -> np.ndarray:
     angular = np.array([n.split(".")[1].startswith("e") for n in names])
     initial = np.where(angular, rotation, translation)
     items = table.get("items", {})
-    _only_keys(items, set(names), f"{where}.items")
+    from .iso import iso_names
+
+    index = {n: i for i, n in enumerate(names)}
+    index.update({n: i for i, n in enumerate(iso_names(names))})
+    _only_keys(items, set(index), f"{where}.items")
+    given = {}
     for name, value in items.items():
-        initial[names.index(name)] = _number(value, f"{where}.items.{name}", positive=True)
+        if index[name] in given:
+            raise MachineDescriptionError(f"{where}.items: {given[index[name]]!r} and "
+                                          f"{name!r} name the same error")
+        given[index[name]] = name
+        initial[index[name]] = _number(value, f"{where}.items.{name}", positive=True)
     return initial
 
 

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .correlation import correlation_factor, draw_correlated, draw_grid_errors
 from .fosm import error_sigma, one_sided_probability, output_sigma, two_sided_probability
 from .kinematics import deviation_from_transports, ideal_motion, offset_transform, transports
 from .poses import grid_axis_points, random_poses
@@ -289,17 +290,25 @@ class GridExperiment:
         """One experiment's errors from its own generator: motion errors ``(n_axes, P, 6)``
         (one draw per axis point), then assembly errors ``(n_axes − 1, 6)``."""
         n = len(self.machine.axis_specs)
-        if self._independent:
-            motion_t = np.broadcast_to(t[:6 * n].reshape(n, 1, 6), (n, self.points_per_axis, 6))
-            motion = draw_errors(motion_t, (), k=k, distribution=distribution, rng=rng)
+        if self.machine.correlation is not None:
+            motion, assembly = draw_grid_errors(
+                self.machine, t, self.points_per_axis, k=k, distribution=distribution,
+                rng=rng, travel=None if self._independent else self._travel)
         else:
-            motion = draw_motion_errors(self._travel, t[:6 * n].reshape(n, 6), rng, k,
-                                        distribution)
+            motion = self._draw_motion(t[:6 * n].reshape(n, 6), rng, k, distribution)
+            assembly = draw_errors(t[6 * n:].reshape(n - 1, 6), (), k=k,
+                                   distribution=distribution, rng=rng)
         if self._motion_means is not None:
             motion = motion + self._motion_means
-        assembly = draw_errors(t[6 * n:].reshape(n - 1, 6), (), k=k,
-                               distribution=distribution, rng=rng)
         return motion, assembly
+
+    def _draw_motion(self, motion_t, rng, k, distribution):
+        """Uncorrelated items: each axis' motion errors at its P points, per its profile."""
+        if self._independent:
+            shape = (motion_t.shape[0], self.points_per_axis, 6)
+            return draw_errors(np.broadcast_to(motion_t[:, None, :], shape), (), k=k,
+                               distribution=distribution, rng=rng)
+        return draw_motion_errors(self._travel, motion_t, rng, k, distribution)
 
 
 def _check_run_options(repeats, keep_values, batch, distribution, k,
@@ -356,15 +365,18 @@ def sample_random_poses(machine, tolerances, n_samples: int, *, rng=None, k: flo
     _check_run_options(n_samples, "none", chunk, distribution, k, ("n_samples", "chunk"))
     rng = np.random.default_rng(rng)
     sigma_x = error_sigma(t, k, distribution)  # the spread actually drawn
+    factor = None if machine.correlation is None else correlation_factor(machine.correlation)
     inside = np.zeros(6, dtype=np.int64)
     one_sided, two_sided = np.zeros(6), np.zeros(6)
     for start in range(0, n_samples, chunk):
         size = min(chunk, n_samples - start)
         poses = random_poses(machine, size, rng)
-        errors = draw_errors(t, (size,), k=k, distribution=distribution, rng=rng)
+        errors = draw_errors(t, (size,), k=k, distribution=distribution, rng=rng) \
+            if factor is None else draw_correlated(t, (size,), factor, k=k,
+                                                   distribution=distribution, rng=rng)
         inside += np.sum(np.abs(machine.comprehensive_error(poses, errors)) < machine.limits,
                          axis=0)  # Eq. (19)
-        sigma = output_sigma(machine.jacobian(poses), sigma_x)  # Eq. (20)
+        sigma = output_sigma(machine.jacobian(poses), sigma_x, machine.correlation)  # Eq. (20)
         one_sided += one_sided_probability(machine.limits, sigma).sum(axis=0)
         two_sided += two_sided_probability(machine.limits, sigma).sum(axis=0)
         if progress is not None:
