@@ -503,6 +503,10 @@ def machine_to_dict(machine: Machine) -> dict:
     }
     if not any(machine.tool_offset):
         del table["tool_offset"]
+    if machine.correlation is not None:
+        from .correlation import correlation_to_toml
+
+        table["correlation"] = correlation_to_toml(machine)
     return table
 
 
