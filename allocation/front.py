@@ -17,6 +17,8 @@ only the speed depends on it), so after the screening a target costs millisecond
 
 from __future__ import annotations
 
+import time
+
 import numpy as np
 import pandas as pd
 
@@ -59,7 +61,8 @@ def cost_reliability_front(machine, targets, *, side: str = "two_sided", stack: 
         where the box cannot hold the target; cost is then NaN) and ``binding`` (the
         outputs with a binding row, comma-separated). ``frame.attrs`` holds
         ``reference_cost``, ``side``, ``tolerances`` (n_targets, n_errors; NaN rows
-        where infeasible) and ``stack``: a dict with the stack allocation's ``cost``,
+        where infeasible), ``seconds`` (wall time of the build with its row screening,
+        and of all the solves) and ``stack``: a dict with the stack allocation's ``cost``,
         ``relative_cost``, ``relative_gap``, ``certified``, ``binding`` and
         ``tolerances`` — the limiting point of the front (every error anywhere in its
         tolerance) — or ``{'error': message}`` when the box cannot hold it.
@@ -72,6 +75,7 @@ def cost_reliability_front(machine, targets, *, side: str = "two_sided", stack: 
             raise InputError(f"{name!r} is set by cost_reliability_front; do not pass it")
     order = np.argsort(targets, kind="stable")
     highest = float(targets[order[-1]])
+    started = time.perf_counter()
     problem = AllocationProblem.build(machine, side=side, workspace="worst",
                                       targets=dict.fromkeys(OUTPUTS, highest),
                                       **build_options)
@@ -80,6 +84,7 @@ def cost_reliability_front(machine, targets, *, side: str = "two_sided", stack: 
     records = [None] * len(targets)
     tolerances = np.full((len(targets), problem.machine.n_errors), np.nan)
     start, previous_z = None, None
+    built = time.perf_counter()
     for i in order:
         scale = (z[i] / z[order[-1]]) ** 2  # rows ∝ z² (Eq. 20 with σ ≤ I/z)
         if start is not None:
@@ -95,10 +100,12 @@ def cost_reliability_front(machine, targets, *, side: str = "two_sided", stack: 
         start, previous_z = np.array(solution.multipliers), z[i]
         tolerances[i] = solution.t
         records[i] = _record(problem, solution, output, targets[i], z[i])
+    solved = time.perf_counter()
     frame = pd.DataFrame.from_records(records)
     frame.index.name = "point"
     frame.attrs.update(reference_cost=_reference_cost(problem), side=side,
                        tolerances=tolerances,
+                       seconds={"build": built - started, "solve": solved - built},
                        stack=_stack(machine, build_options, gap_tol) if stack else None)
     return frame
 
