@@ -2,12 +2,15 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import matplotlib
 
 matplotlib.use("Agg")
 
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
+import pandas as pd  # noqa: E402
 import pytest  # noqa: E402
 
 from allocation import AllocationProblem, allocation_point, cost_reliability_front  # noqa: E402
@@ -102,3 +105,44 @@ def test_figure(hobbing, grid, front):
     assert any("stack" in label for label in labels)
     assert any("Table 6" in label for label in labels)
     plt.close(ax.figure)
+
+
+# ----- precrel front ---------------------------------------------------------------------
+def _parse(argv):
+    import argparse
+
+    from studies.commands import front as command
+
+    parser = argparse.ArgumentParser()
+    command.add_parser(parser.add_subparsers(dest="command"))
+    return command, parser.parse_args(["front", *argv])
+
+
+MILL = str(Path(__file__).parent / "machines" / "mill3.toml")
+
+
+def test_command_prints_and_writes_the_front(tmp_path, capsys):
+    out = tmp_path / "front.csv"
+    command, args = _parse([MILL, "--targets", "0.9", "0.999", "--bounds", "0.001", "1.5",
+                            "--grid", "3", "--out", str(out)])
+    assert command.run(args) == 0
+    printed = capsys.readouterr().out
+    assert "worst-case stack: cost" in printed and f"written: {out}" in printed
+    table = pd.read_csv(out, index_col=0)
+    assert table["target"].tolist() == [0.9, 0.999]
+    assert table["certified"].all()
+    assert table["relative_cost"].is_monotonic_increasing
+    # the file is not replaced without --overwrite
+    with pytest.raises(InputError, match="exists"):
+        command.run(args)
+
+
+@pytest.mark.parametrize("argv, match", [
+    (["--points", "1"], "--points"),
+    (["--grid", "1"], "--grid"),
+    (["--targets", "1.5"], r"targets\[0\]"),
+])
+def test_command_refuses_bad_options(argv, match):
+    command, args = _parse([MILL, "--grid", "2", *argv])
+    with pytest.raises(InputError, match=match):
+        command.run(args)
