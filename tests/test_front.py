@@ -146,3 +146,16 @@ def test_command_refuses_bad_options(argv, match):
     command, args = _parse([MILL, "--grid", "2", *argv])
     with pytest.raises(InputError, match=match):
         command.run(args)
+
+
+def test_front_section(mill3):
+    from studies.tradeoff_section import front_section
+
+    section = front_section(mill3, targets=[0.9, 0.999], poses=workspace_grid(mill3, 3))
+    summary = section.summary
+    assert summary["front_points"] == 3  # 0.99 is added for the comparison
+    assert summary["stack_over_target_cost"] == pytest.approx(
+        summary["stack_relative_cost"] / summary["relative_cost_at_0.99"])
+    assert "times** as expensive" in section.text
+    assert set(section.figures) == {"front.png"} and set(section.tables) == {"front.csv"}
+    plt.close(section.figures["front.png"])

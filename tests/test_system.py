@@ -151,3 +151,17 @@ def test_system_allocation_refuses_bad_target(hobbing, grid):
         system_allocation(hobbing, 1.0, poses=grid)
     with pytest.raises(InputError, match="targets"):
         system_allocation(hobbing, 0.9, poses=grid, targets={"dx": 0.9})
+
+
+def test_system_section(mill3):
+    from studies.tradeoff_section import system_section
+
+    poses = workspace_grid(mill3, 3)
+    section = system_section(mill3, {"initial": mill3.initial_allocation}, poses=poses,
+                             rng=9)
+    table = section.tables["system_reliability.csv"]
+    row = table.loc["initial"]
+    assert row["bonferroni"] <= row["product"] <= row["system"] + Z * row["error"]
+    assert row["system"] <= row["least_output"] + Z * row["error"]
+    assert section.summary["system_worst_initial"] == row["system"]
+    assert "| initial |" in section.text
