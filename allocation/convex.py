@@ -57,6 +57,9 @@ __all__ = [
 ROW_ADD_TOLERANCE = 1e-9
 #: Rows added to the working set per round of constraint generation, per free item.
 ROWS_PER_ROUND = 2
+#: Loads are brought to at most 1 minus this, so that constraints evaluated from
+#: ``t = sqrt(u)`` or in another summation order cannot exceed 1 by rounding.
+FEASIBILITY_MARGIN = 1e-13
 #: L-BFGS-B memory for the dual; more than the default 10 pairs lets working sets of
 #: hundreds of rows reach a 1e-6 duality gap without the slower primal fallback.
 DUAL_MEMORY = 30
@@ -95,8 +98,8 @@ class KktResiduals:
     ----------
     stationarity : float
         Largest relative violation of ``p w_i / u_i**(p+1) = (G^T lam)_i`` over the items:
-        ``|(G^T lam)_i u_i**(p+1) / (p w_i) - 1|`` for free items, and only the wrong-signed part
-        for items at a bound (locked items are exempt).
+        ``|(G^T lam)_i u_i**(p+1) / (p w_i) - 1|`` for free items, and only the
+        wrong-signed part for items at a bound (locked items are exempt).
     primal_feasibility : float
         ``max(0, max_r (G u - 1)_r)``.
     complementary_slackness : float
@@ -116,11 +119,12 @@ class ConvexSolution:
     Attributes
     ----------
     u : numpy.ndarray, shape (n,)
-        Optimal ``u = t**2``.
+        Optimal ``u`` (``t**2`` for p = 1, ``t`` for p = 2).
     t : numpy.ndarray, shape (n,)
         Optimal tolerances ``u**(p/2)``: ``sqrt(u)`` for p = 1, ``u`` for p = 2.
     fun : float
-        Cost ``sum w / u**p`` at ``u`` (an upper bound on the optimum when ``u`` is feasible).
+        Cost ``sum w / u**p`` at ``u`` (an upper bound on the optimum when ``u`` is
+        feasible).
     multipliers : numpy.ndarray, shape (m,)
         Lagrange multipliers ``lam >= 0`` of the rows of ``G``.
     dual_bound : float
@@ -179,7 +183,7 @@ def solve_convex_allocation(
     weights, constraints, lower, upper, *, tol=1e-7, gap_tol=1e-6, max_iter=1000,
     power=1, start=None
 ):
-    """Minimise ``sum_i w_i / u_i**power`` subject to ``G u <= 1`` and ``lower <= u <= upper``.
+    """Minimise ``sum_i w_i / u_i**power`` subject to ``G u <= 1``, ``lower <= u <= upper``.
 
     Parameters
     ----------
@@ -316,10 +320,11 @@ def _polish_multipliers(w, G, lo, hi, lam, steps=8, p=1):
 
     L-BFGS-B stops with the binding rows about 1e-8 short of 1; a few Newton steps make
     them binding to rounding. ``d u*_i / d c_i = -u*_i / ((p + 1) c_i)``
-    (``-sqrt(w_i) c_i^(-3/2) / 2`` for p = 1) for the items not clipped to a bound, so the Jacobian is ``G_A diag(du/dc) G_A^T``; it may be
-    singular (alike rows), hence least squares. A step that would make a multiplier
-    negative is halved until it does not; the polished multipliers are kept only when
-    they bring the rows closer to binding.
+    (``-sqrt(w_i) c_i^(-3/2) / 2`` for p = 1) for the items not clipped to a bound, so
+    the Jacobian is ``G_A diag(du/dc) G_A^T``; it may be singular (alike rows), hence
+    least squares. A step that would make a multiplier negative is halved until it does
+    not (and polishing stops if halving cannot keep it >= 0); the polished multipliers
+    are kept only when they bring the rows closer to binding.
     """
     active = np.flatnonzero(lam > 0)
     if active.size == 0:
@@ -497,15 +502,17 @@ def _feasible_start(G, v_lo, v_hi):
 
 
 def _restore_feasibility(G, u, lo):
-    """Shrink ``u`` towards ``lo`` just enough that ``G u <= 1`` holds (rounding repair).
+    """Shrink ``u`` towards ``lo`` just enough that ``G u <= 1 - FEASIBILITY_MARGIN``
+    holds (rounding repair).
 
     ``u(rho) = max(lo, rho u)`` is feasible at ``rho = 0`` (``G lo <= 1`` was checked)
     and the loads grow with ``rho``, so the largest feasible ``rho`` is found by bisection.
-    Returns ``u`` unchanged when it is already feasible.
+    Returns ``u`` unchanged when it is already within the margin.
     """
-    if G.shape[0] == 0 or np.max(G @ u) <= 1.0:
+    limit = 1.0 - FEASIBILITY_MARGIN
+    if G.shape[0] == 0 or np.max(G @ u) <= limit:
         return u
-    rho = largest_fraction(lambda rho: np.max(G @ np.maximum(lo, rho * u)) <= 1.0)
+    rho = largest_fraction(lambda rho: np.max(G @ np.maximum(lo, rho * u)) <= limit)
     return np.maximum(lo, rho * u)
 
 
@@ -564,7 +571,7 @@ def _certify(w, G, lo, hi, u, lam, tol, gap_tol, message, p=1):
     verdict = "certified" if success else "NOT certified"
     return ConvexSolution(
         u=_read_only(u),
-        t=_read_only(u ** (p / 2)),
+        t=_read_only(np.sqrt(u) if p == 1 else u),  # t**2 = u**p
         fun=fun,
         multipliers=_read_only(lam),
         dual_bound=dual,

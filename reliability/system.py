@@ -316,8 +316,8 @@ def _genz(factor, bound, points) -> np.ndarray:
         value *= inside
         if i < d - 1:
             uniform = low + points[:, i][None, :] * (high - low)
-            z[:, :, i] = np.where(diagonal > 0, ndtri(np.clip(uniform, 1e-300, np.nextafter(1.0, 0.0))),
-                                  0.0)
+            uniform = np.clip(uniform, 1e-300, np.nextafter(1.0, 0.0))
+            z[:, :, i] = np.where(diagonal > 0, ndtri(uniform), 0.0)
     return value
 
 
