@@ -28,6 +28,7 @@ from reliability.machine import OUTPUTS
 
 from .convex import InfeasibleAllocationError, solve_convex_allocation
 from .problem import AllocationProblem
+from .solve import TargetUnreachableError, solve_exact
 
 FRONT_SIDES = ("one_sided", "two_sided")
 
@@ -154,10 +155,7 @@ def _infeasible_record(target, z) -> dict:
 
 def _stack(machine, build_options, gap_tol) -> dict:
     """The worst-case stack allocation, the front's limiting point."""
-    from .solve import TargetUnreachableError, solve_exact
-
-    options = {key: value for key, value in build_options.items() if key != "k"}
-    problem = AllocationProblem.build(machine, side="stack", **options)
+    problem = AllocationProblem.build(machine, side="stack", **build_options)
     try:
         result = solve_exact(problem, gap_tol=gap_tol)
     except TargetUnreachableError as exc:

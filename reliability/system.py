@@ -84,6 +84,11 @@ class SystemReliability:
         return int(np.argmin(self.probability))
 
     @property
+    def worst_pose(self) -> np.ndarray:
+        """Axis positions of the worst pose, ``(n_axes,)``."""
+        return self.poses[self.worst]
+
+    @property
     def worst_probability(self) -> float:
         """The lowest system probability over the poses."""
         return float(self.probability[self.worst])

@@ -136,3 +136,20 @@ def test_target_and_limit_overrides(hobbing):
 def test_bad_overrides_are_refused(hobbing, options, error, match):
     with pytest.raises(error, match=match):
         AllocationProblem.build(hobbing, workspace_grid(hobbing, 2), **options)
+
+
+def test_evaluate_reports_the_stack(hobbing, stack_solution):
+    problem, result = stack_solution
+    frame = problem.evaluate(result.tolerances)
+    assert frame["meets"].all()
+    np.testing.assert_allclose(frame["worst_stack"],
+                               problem.stack(result.tolerances).max(axis=0), rtol=1e-12)
+    assert not problem.evaluate(hobbing.initial_allocation)["meets"].any()  # 4.3-7.5 × I
+
+
+def test_gwo_on_the_stack_never_beats_the_certified_optimum(stack_solution):
+    problem, result = stack_solution
+    gwo = problem.solve_gwo(n_wolves=20, n_iterations=60, rng=1,
+                            initial=result.tolerances[None, :])
+    assert gwo.feasible
+    assert gwo.cost >= result.certificate["dual_bound"] * (1 - 1e-9)

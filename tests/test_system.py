@@ -95,6 +95,7 @@ def test_frame_summary_and_determinism(hobbing, grid, initial):
     assert {"probability", "error", "product", "bonferroni", "min_marginal"} <= set(frame)
     assert frame.index.name == "pose" and len(frame) == len(grid)
     assert "worst pose" in initial.summary() and "Šidák" in initial.summary()
+    np.testing.assert_array_equal(initial.worst_pose, grid[initial.index[initial.worst]])
     first = system_reliability(hobbing, hobbing.initial_allocation, grid[:20], rng=8)
     again = system_reliability(hobbing, hobbing.initial_allocation, grid[:20], rng=8)
     np.testing.assert_array_equal(again.probability, first.probability)
