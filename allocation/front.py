@@ -80,27 +80,19 @@ def cost_reliability_front(machine, targets, *, side: str = "two_sided", stack: 
     problem = AllocationProblem.build(machine, side=side, workspace="worst",
                                       targets=dict.fromkeys(OUTPUTS, highest),
                                       **build_options)
-    rows, output = problem.rows.matrix, problem.rows.output
     z = required_index(targets, side)
     records = [None] * len(targets)
     tolerances = np.full((len(targets), problem.machine.n_errors), np.nan)
-    start, previous_z = None, None
+    solve = CommonTargetSolver(problem, gap_tol)
     built = time.perf_counter()
     for i in order:
-        scale = (z[i] / z[order[-1]]) ** 2  # rows ∝ z² (Eq. 20 with σ ≤ I/z)
-        if start is not None:
-            start = start * (z[i] / previous_z) ** 2
         try:
-            solution = solve_convex_allocation(problem.cost.weights, rows * scale,
-                                               problem.lower ** 2, problem.upper ** 2,
-                                               gap_tol=gap_tol, start=start)
+            solution = solve(targets[i])
         except InfeasibleAllocationError:
             records[i] = _infeasible_record(targets[i], z[i])
-            start = None
             continue
-        start, previous_z = np.array(solution.multipliers), z[i]
         tolerances[i] = solution.t
-        records[i] = _record(problem, solution, output, targets[i], z[i])
+        records[i] = _record(problem, solution, targets[i], z[i])
     solved = time.perf_counter()
     frame = pd.DataFrame.from_records(records)
     frame.index.name = "point"
@@ -109,6 +101,33 @@ def cost_reliability_front(machine, targets, *, side: str = "two_sided", stack: 
                        seconds={"build": built - started, "solve": solved - built},
                        stack=_stack(machine, build_options, gap_tol) if stack else None)
     return frame
+
+
+class CommonTargetSolver:
+    """Certified solves of a worst-case FOSM problem with one target for all outputs.
+
+    ``problem`` must give every output the same target, at least as high as any target
+    asked for: its rows, multiplied by ``(z/z_problem)²``, are the rows at target z
+    (Eq. 20 with σ ≤ I/z), and a row screened out at the highest target cannot bind at a
+    lower one. Each call starts from the last solve's multipliers, scaled the same way.
+    """
+
+    def __init__(self, problem, gap_tol: float = 1e-6):
+        self.problem = problem
+        self.gap_tol = gap_tol
+        self.z_problem = float(problem.required_index[0])
+        self.start, self.z_start = None, None
+
+    def __call__(self, target):
+        """:class:`ConvexSolution` at ``target``; raises InfeasibleAllocationError."""
+        problem = self.problem
+        z = float(required_index(target, problem.side))
+        start = None if self.start is None else self.start * (z / self.z_start) ** 2
+        solution = solve_convex_allocation(
+            problem.cost.weights, problem.rows.matrix * (z / self.z_problem) ** 2,
+            problem.lower ** 2, problem.upper ** 2, gap_tol=self.gap_tol, start=start)
+        self.start, self.z_start = np.array(solution.multipliers), z
+        return solution
 
 
 def allocation_point(machine, tolerances, *, side: str = "two_sided", **build_options):
@@ -138,13 +157,13 @@ def _reference_cost(problem) -> float:
     return float(problem.cost.total(problem.reference))
 
 
-def _record(problem, solution, output, target, z) -> dict:
+def _record(problem, solution, target, z) -> dict:
     binding_rows = solution.active[solution.multipliers[solution.active] > 0]
     return {"target": float(target), "required_index": float(z), "cost": solution.fun,
             "relative_cost": solution.fun / _reference_cost(problem),
             "dual_bound": solution.dual_bound, "relative_gap": solution.relative_gap,
             "certified": bool(solution.success), "feasible": True,
-            "binding": ",".join(OUTPUTS[o] for o in np.unique(output[binding_rows]))}
+            "binding": ",".join(OUTPUTS[o] for o in np.unique(problem.rows.output[binding_rows]))}
 
 
 def _infeasible_record(target, z) -> dict:

@@ -7,7 +7,7 @@
 With FOSM (Eqs. 19–23) at zero error mean, ``P ≥ R`` at a pose is ``σ_o ≤ I_o / z_o`` with
 ``z = Φ⁻¹(R)`` (the paper's one-sided reading) or ``z = Φ⁻¹((1 + R)/2)`` (exact two-sided);
 in ``u = t²`` it is the linear row ``Σ_i J_oi² u_i / k² ≤ (I_o / z_o)²``. The workspace
-constraint of Eq. (35) is read as "at every pose of the grid"; a
+constraint of Eq. (35) is read as "at every pose of the grid" (DESIGN §2); a
 workspace-mean variant asks the mean of P over the poses to reach R instead.
 
 The classical worst-case reading ``side='stack'`` ("completely within the allowable

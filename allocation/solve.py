@@ -53,44 +53,27 @@ class TargetUnreachableError(InfeasibleAllocationError):
 
 def _unreachable_worst(problem, rows=(), loads=()) -> TargetUnreachableError:
     """The error for the worst-case reading, listing every blocked (output, pose)."""
-    if problem.side == "stack":
-        return _unreachable_stack(problem, rows, loads)
-    at_lower = problem.row_matrix() @ np.square(problem.lower)  # (n_poses, 6)
+    at_lower = problem.row_matrix() @ problem.variable(problem.lower)  # (n_poses, 6)
     pose, output = np.nonzero(at_lower > 1.0)
     order = np.argsort(-at_lower[pose, output], kind="stable")
     pose, output = pose[order], output[order]
     frame = pd.DataFrame({"output": np.array(OUTPUTS)[output], "pose": pose})
     for i, axis in enumerate(problem.machine.axes):
         frame[axis] = problem.poses[pose, i]
-    frame["allowed_sigma"] = problem.allowed_sigma[output]
-    frame["sigma_at_lower"] = frame["allowed_sigma"] * np.sqrt(at_lower[pose, output])
+    if problem.side == "stack":  # the load is Σ|J| t / I
+        frame["limit"] = problem.machine.limits[output]
+        frame["stack_at_lower"] = frame["limit"] * at_lower[pose, output]
+        need, have, what = "limit", "stack_at_lower", "worst-case stack"
+        verb = "must stay within"
+    else:  # the load is σ² / allowed σ²
+        frame["allowed_sigma"] = problem.allowed_sigma[output]
+        frame["sigma_at_lower"] = frame["allowed_sigma"] * np.sqrt(at_lower[pose, output])
+        need, have, what, verb = "allowed_sigma", "sigma_at_lower", "target", "needs σ ≤"
     first = frame.iloc[0]
     positions = ", ".join(f"{axis}={first[axis]:.6g}" for axis in problem.machine.axes)
-    message = (f"target unreachable inside the bounds: {first['output']} at pose "
-               f"{int(first['pose'])} ({positions}) needs σ ≤ {first['allowed_sigma']:.4g} "
-               f"but the tightest allowed tolerances give {first['sigma_at_lower']:.4g}; "
-               f"{len(frame)} (output, pose) pair(s) blocked in all (see .blocking)")
-    return TargetUnreachableError(message, frame, rows, loads)
-
-
-def _unreachable_stack(problem, rows=(), loads=()) -> TargetUnreachableError:
-    """The error for the worst-case stack, listing every (output, pose) whose stack at the
-    lower bounds exceeds its limit."""
-    at_lower = problem.stack(problem.lower)  # (n_poses, 6)
-    limits = problem.machine.limits
-    pose, output = np.nonzero(at_lower > limits)
-    order = np.argsort(-(at_lower / limits)[pose, output], kind="stable")
-    pose, output = pose[order], output[order]
-    frame = pd.DataFrame({"output": np.array(OUTPUTS)[output], "pose": pose})
-    for i, axis in enumerate(problem.machine.axes):
-        frame[axis] = problem.poses[pose, i]
-    frame["limit"] = limits[output]
-    frame["stack_at_lower"] = at_lower[pose, output]
-    first = frame.iloc[0]
-    positions = ", ".join(f"{axis}={first[axis]:.6g}" for axis in problem.machine.axes)
-    message = (f"worst-case stack unreachable inside the bounds: {first['output']} at pose "
-               f"{int(first['pose'])} ({positions}) must stay within {first['limit']:.4g} "
-               f"but the tightest allowed tolerances stack to {first['stack_at_lower']:.4g}; "
+    message = (f"{what} unreachable inside the bounds: {first['output']} at pose "
+               f"{int(first['pose'])} ({positions}) {verb} {first[need]:.4g} "
+               f"but the tightest allowed tolerances give {first[have]:.4g}; "
                f"{len(frame)} (output, pose) pair(s) blocked in all (see .blocking)")
     return TargetUnreachableError(message, frame, rows, loads)
 

@@ -31,7 +31,8 @@ from reliability.fosm import required_index
 from reliability.machine import OUTPUTS
 from reliability.system import worst_system_reliability
 
-from .convex import InfeasibleAllocationError, solve_convex_allocation
+from .convex import InfeasibleAllocationError
+from .front import CommonTargetSolver
 from .problem import AllocationProblem, ScreenedRows, with_requirements
 from .solve import AllocationResult, _unreachable_worst
 
@@ -89,7 +90,17 @@ def system_allocation(machine, target: float, *, steps: int = 12, n_points: int 
                                       targets=dict.fromkeys(OUTPUTS, bonferroni),
                                       **build_options)
     generator = np.random.default_rng(rng)
-    solve = _Solver(problem, gap_tol)
+    solver = CommonTargetSolver(problem, gap_tol)
+    certified = []
+
+    def solve(value):
+        try:
+            solution = solver(value)
+        except InfeasibleAllocationError as exc:
+            raise _unreachable_worst(_at_target(problem, value), exc.rows, exc.loads) from None
+        certified.append(bool(solution.success))
+        return solution
+
     lower = solve(target)
     upper = solve(bonferroni)
     check = _system_check(problem, upper.t, target, n_points, generator)
@@ -103,33 +114,7 @@ def system_allocation(machine, target: float, *, steps: int = 12, n_points: int 
             best, best_target, best_check, high = candidate, middle, candidate_check, middle
         else:
             low = middle
-    return _result(problem, best, best_target, best_check, lower, upper, solve.certified)
-
-
-class _Solver:
-    """Certified solves at any common per-output target ≤ the problem's, warm-started."""
-
-    def __init__(self, problem, gap_tol):
-        self.problem = problem
-        self.gap_tol = gap_tol
-        self.z_top = float(required_index(problem.machine.targets[0], "two_sided"))
-        self.start, self.z_start = None, None
-        self.certified = True
-
-    def __call__(self, target):
-        problem = self.problem
-        z = float(required_index(target, "two_sided"))
-        start = None if self.start is None else self.start * (z / self.z_start) ** 2
-        try:
-            solution = solve_convex_allocation(
-                problem.cost.weights, problem.rows.matrix * (z / self.z_top) ** 2,
-                problem.lower ** 2, problem.upper ** 2, gap_tol=self.gap_tol, start=start)
-        except InfeasibleAllocationError as exc:
-            at_target = _at_target(problem, target)
-            raise _unreachable_worst(at_target, exc.rows, exc.loads) from None
-        self.start, self.z_start = np.array(solution.multipliers), z
-        self.certified &= bool(solution.success)
-        return solution
+    return _result(problem, best, best_target, best_check, lower, upper, all(certified))
 
 
 def _at_target(problem, target):
