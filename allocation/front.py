@@ -18,6 +18,7 @@ only the speed depends on it), so after the screening a target costs millisecond
 from __future__ import annotations
 
 import time
+from dataclasses import replace
 
 import numpy as np
 import pandas as pd
@@ -27,7 +28,7 @@ from reliability.fosm import required_index
 from reliability.machine import OUTPUTS
 
 from .convex import InfeasibleAllocationError, solve_convex_allocation
-from .problem import AllocationProblem
+from .problem import AllocationProblem, ScreenedRows
 from .solve import TargetUnreachableError, solve_exact
 
 FRONT_SIDES = ("one_sided", "two_sided")
@@ -99,7 +100,8 @@ def cost_reliability_front(machine, targets, *, side: str = "two_sided", stack: 
     frame.attrs.update(reference_cost=_reference_cost(problem), side=side,
                        tolerances=tolerances,
                        seconds={"build": built - started, "solve": solved - built},
-                       stack=_stack(machine, build_options, gap_tol) if stack else None)
+                       stack=_stack(machine, problem, build_options, gap_tol) if stack
+                       else None)
     return frame
 
 
@@ -172,9 +174,9 @@ def _infeasible_record(target, z) -> dict:
             "certified": False, "feasible": False, "binding": ""}
 
 
-def _stack(machine, build_options, gap_tol) -> dict:
+def _stack(machine, fosm_problem, build_options, gap_tol) -> dict:
     """The worst-case stack allocation, the front's limiting point."""
-    problem = AllocationProblem.build(machine, side="stack", **build_options)
+    problem = _stack_problem(machine, fosm_problem, build_options)
     try:
         result = solve_exact(problem, gap_tol=gap_tol)
     except TargetUnreachableError as exc:
@@ -184,3 +186,25 @@ def _stack(machine, build_options, gap_tol) -> dict:
             "relative_gap": result.certificate["relative_gap"],
             "certified": result.certificate["certified"], "binding": ",".join(binding),
             "tolerances": result.tolerances}
+
+
+def _stack_problem(machine, fosm_problem, build_options):
+    """The stack problem, reusing the FOSM problem's screening where that is exact.
+
+    A stack row ``|J|/I`` and a FOSM row ``J² z²/(k² I²)`` of the same output and pose
+    are equal, or one entrywise above another, exactly when the other reading's are: the
+    duplicate and dominance screening is the same for both. When the FOSM box step kept
+    every row, its survivors, box-screened for the stack, are the stack's screened rows.
+    """
+    counts = fosm_problem.rows.counts
+    if counts["box"] != counts["candidates"]:
+        return AllocationProblem.build(machine, side="stack", **build_options)
+    rows = fosm_problem.rows
+    problem = replace(fosm_problem, machine=machine, side="stack", rows=None)
+    matrix = np.abs(problem.jacobian[rows.pose, rows.output]) / \
+        machine.limits[rows.output][:, None]
+    keep = matrix @ problem.upper > 1.0
+    stack_counts = dict(counts, box=int(keep.sum()), duplicates=int(keep.sum()),
+                        dominance=int(keep.sum()))
+    return replace(problem, rows=ScreenedRows(matrix=matrix[keep], pose=rows.pose[keep],
+                                              output=rows.output[keep], counts=stack_counts))
