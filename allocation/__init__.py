@@ -10,13 +10,16 @@ and its solvers — the Grey Wolf Optimiser as in the paper, and a certified exa
 from .convex import ConvexSolution, InfeasibleAllocationError, solve_convex_allocation
 from .cost import CostModel, cost_weights
 from .fcem import FcemResult, fcem_coefficient
+from .front import allocation_point, cost_reliability_front
 from .gwo import GwoResult, grey_wolf, grey_wolf_reference
 from .problem import AllocationProblem, ScreenedRows, screen_rows
 from .refine import solve_over_workspace
 from .solve import AllocationResult, TargetUnreachableError, solve_exact, solve_gwo
+from .system import system_allocation
 
 __all__ = ["AllocationProblem", "AllocationResult", "ConvexSolution", "CostModel",
            "FcemResult", "GwoResult", "InfeasibleAllocationError", "ScreenedRows",
-           "TargetUnreachableError", "cost_weights", "fcem_coefficient", "grey_wolf",
+           "TargetUnreachableError", "allocation_point", "cost_reliability_front",
+           "cost_weights", "fcem_coefficient", "grey_wolf",
            "grey_wolf_reference", "screen_rows", "solve_convex_allocation", "solve_exact",
-           "solve_gwo", "solve_over_workspace"]
+           "solve_gwo", "solve_over_workspace", "system_allocation"]

@@ -8,6 +8,11 @@ After dividing each constraint by its right-hand side the problem reads::
     subject to  G u <= 1          (G >= 0, one row per constraint)
                 lo <= u <= hi     (lo > 0; lo == hi locks an item)
 
+The classical worst-case stack ``sum_i |dg/dX_i| t_i <= I`` is linear in ``t`` itself,
+so there the variable is ``u = t`` and the cost ``sum_i w_i / u_i**2``. Both are the
+family ``f(u) = sum_i w_i / u_i**p`` with ``t**2 = u**p`` (``power`` p = 1 or 2); every
+formula below is written for general ``p`` and reduces to the one shown for ``p = 1``.
+
 This module solves it and certifies the answer on its own terms:
 
 * **Primal.** In ``v = log u`` the problem is a geometric program in convex form,
@@ -52,6 +57,12 @@ __all__ = [
 ROW_ADD_TOLERANCE = 1e-9
 #: Rows added to the working set per round of constraint generation, per free item.
 ROWS_PER_ROUND = 2
+#: Loads are brought to at most 1 minus this, so that constraints evaluated from
+#: ``t = sqrt(u)`` or in another summation order cannot exceed 1 by rounding.
+FEASIBILITY_MARGIN = 1e-13
+#: L-BFGS-B memory for the dual; more than the default 10 pairs lets working sets of
+#: hundreds of rows reach a 1e-6 duality gap without the slower primal fallback.
+DUAL_MEMORY = 30
 
 
 class InfeasibleAllocationError(ValueError):
@@ -86,9 +97,9 @@ class KktResiduals:
     Attributes
     ----------
     stationarity : float
-        Largest relative violation of ``w_i / u_i**2 = (G^T lam)_i`` over the items:
-        ``|(G^T lam)_i u_i**2 / w_i - 1|`` for free items, and only the wrong-signed part
-        for items at a bound (locked items are exempt).
+        Largest relative violation of ``p w_i / u_i**(p+1) = (G^T lam)_i`` over the items:
+        ``|(G^T lam)_i u_i**(p+1) / (p w_i) - 1|`` for free items, and only the
+        wrong-signed part for items at a bound (locked items are exempt).
     primal_feasibility : float
         ``max(0, max_r (G u - 1)_r)``.
     complementary_slackness : float
@@ -103,16 +114,17 @@ class KktResiduals:
 
 @dataclass(frozen=True, eq=False)
 class ConvexSolution:
-    """Certified solution of ``min sum w/u s.t. G u <= 1, lo <= u <= hi``.
+    """Certified solution of ``min sum w/u**p s.t. G u <= 1, lo <= u <= hi``.
 
     Attributes
     ----------
     u : numpy.ndarray, shape (n,)
-        Optimal ``u = t**2``.
+        Optimal ``u`` (``t**2`` for p = 1, ``t`` for p = 2).
     t : numpy.ndarray, shape (n,)
-        Optimal tolerances ``sqrt(u)``.
+        Optimal tolerances ``u**(p/2)``: ``sqrt(u)`` for p = 1, ``u`` for p = 2.
     fun : float
-        Cost ``sum w / u`` at ``u`` (an upper bound on the optimum when ``u`` is feasible).
+        Cost ``sum w / u**p`` at ``u`` (an upper bound on the optimum when ``u`` is
+        feasible).
     multipliers : numpy.ndarray, shape (m,)
         Lagrange multipliers ``lam >= 0`` of the rows of ``G``.
     dual_bound : float
@@ -168,9 +180,10 @@ class ConvexSolution:
 
 
 def solve_convex_allocation(
-    weights, constraints, lower, upper, *, tol=1e-7, gap_tol=1e-6, max_iter=1000
+    weights, constraints, lower, upper, *, tol=1e-7, gap_tol=1e-6, max_iter=1000,
+    power=1, start=None
 ):
-    """Minimise ``sum_i w_i / u_i`` subject to ``G u <= 1`` and ``lower <= u <= upper``.
+    """Minimise ``sum_i w_i / u_i**power`` subject to ``G u <= 1``, ``lower <= u <= upper``.
 
     Parameters
     ----------
@@ -186,6 +199,12 @@ def solve_convex_allocation(
         Relative duality gap and primal infeasibility accepted as ``success``.
     max_iter : int, optional
         Iteration limit of each SLSQP solve.
+    power : {1, 2}, optional
+        Exponent ``p`` of the cost: 1 for ``u = t**2`` (FOSM rows), 2 for ``u = t``
+        (worst-case stack rows).
+    start : array_like, shape (m,), optional
+        Multipliers to start the dual from (e.g. those of a neighbouring problem, scaled);
+        rows with a positive entry begin in the working set. Only the speed depends on it.
 
     Returns
     -------
@@ -199,15 +218,34 @@ def solve_convex_allocation(
         On bad shapes or entries (the message names the item).
     """
     w, G, lo, hi = _check_inputs(weights, constraints, lower, upper)
+    p = _check_power(power)
+    start = _check_start(start, G.shape[0])
     _check_feasible(G, lo)
-    u, lam, message = _solve_dual(w, G, lo, hi, max_iter)
-    solution = _certify(w, G, lo, hi, u, lam, tol, gap_tol, message)
+    u, lam, message = _solve_dual(w, G, lo, hi, max_iter, p, start)
+    solution = _certify(w, G, lo, hi, u, lam, tol, gap_tol, message, p)
     if solution.success:
         return solution
-    u, message = _solve_primal(w, G, lo, hi, max_iter)
+    u, message = _solve_primal(w, G, lo, hi, max_iter, p)
     u = _restore_feasibility(G, u, lo)
-    lam = _refine_multipliers(w, G, u, lo, hi, tol)
-    return _certify(w, G, lo, hi, u, lam, tol, gap_tol, message)
+    lam = _refine_multipliers(w, G, u, lo, hi, tol, p)
+    return _certify(w, G, lo, hi, u, lam, tol, gap_tol, message, p)
+
+
+def _check_power(power):
+    if power not in (1, 2) or isinstance(power, bool):
+        raise ValueError(f"power must be 1 (u = t**2) or 2 (u = t); got {power!r}")
+    return int(power)
+
+
+def _check_start(start, m):
+    if start is None:
+        return None
+    start = np.asarray(start, dtype=float)
+    if start.shape != (m,):
+        raise ValueError(f"start must have shape ({m},) to match the constraints; "
+                         f"got {start.shape}")
+    _require(np.isfinite(start) & (start >= 0), start, "start", "finite and >= 0")
+    return start
 
 
 def largest_fraction(holds, steps: int = 60) -> float:
@@ -233,13 +271,14 @@ def _add_violated_rows(working, load, per_round):
     return np.union1d(working, worst), violated.size > 0
 
 
-def _dual_minimiser(w, c, lo, hi):
-    """``argmin_{lo <= u <= hi} w/u + c u`` item by item: ``clip(sqrt(w/c), lo, hi)``."""
+def _dual_minimiser(w, c, lo, hi, p=1):
+    """``argmin_{lo <= u <= hi} w/u**p + c u`` item by item:
+    ``clip((p w/c)**(1/(p+1)), lo, hi)``, i.e. ``clip(sqrt(w/c), lo, hi)`` for p = 1."""
     with np.errstate(divide="ignore"):
-        return np.clip(np.sqrt(w / c), lo, hi)  # c = 0 gives inf, clipped to hi
+        return np.clip((p * w / c) ** (1.0 / (p + 1)), lo, hi)  # c = 0: inf, clipped to hi
 
 
-def _solve_dual(w, G, lo, hi, max_iter):
+def _solve_dual(w, G, lo, hi, max_iter, p=1, start=None):
     """Maximise the Lagrangian dual ``g(lam)`` over ``lam >= 0`` by L-BFGS-B.
 
     ``g`` is concave, and differentiable because the inner minimiser is unique:
@@ -248,50 +287,58 @@ def _solve_dual(w, G, lo, hi, max_iter):
     optimum): it starts with the rows most loaded at ``hi`` and grows by the rows that
     ``u*(lam)`` violates, as in :func:`_constraint_generation`. Rounding leaves the final
     point slightly infeasible, which :func:`_restore_feasibility` repairs. Costs are
-    divided by ``f(hi)`` so that the multipliers are O(1) for the solver.
+    divided by ``f(hi)`` so that the multipliers are O(1) for the solver. Given ``start``
+    multipliers, the working set begins with their positive rows (a warm start).
     """
     if G.shape[0] == 0 or np.max(G @ hi) <= 1.0:
         return hi.copy(), np.zeros(G.shape[0]), "every item at its upper bound is feasible"
-    scale = np.sum(w / hi)
+    scale = np.sum(w / hi ** p)
     per_round = ROWS_PER_ROUND * int(np.sum(lo < hi))
-    working = np.argsort(G @ hi)[::-1][:per_round]
-    lam = np.zeros(G.shape[0])
+    if start is None:
+        working = np.argsort(G @ hi)[::-1][:per_round]
+        lam = np.zeros(G.shape[0])
+    else:
+        lam = start.copy()
+        working = np.flatnonzero(lam > 0)
+        if working.size == 0:
+            working = np.argsort(G @ hi)[::-1][:per_round]
     for round_ in itertools.count(1):
         lam[working] = scale * _maximise_dual(w / scale, G[working], lo, hi,
-                                              lam[working] / scale, max_iter)
-        load = G @ _dual_minimiser(w, G.T @ lam, lo, hi)
+                                              lam[working] / scale, max_iter, p)
+        load = G @ _dual_minimiser(w, G.T @ lam, lo, hi, p)
         working, grew = _add_violated_rows(working, load, per_round)
         if not grew:
             break
-    lam = _polish_multipliers(w, G, lo, hi, lam)
-    u = _restore_feasibility(G, _dual_minimiser(w, G.T @ lam, lo, hi), lo)
+    lam = _polish_multipliers(w, G, lo, hi, lam, p=p)
+    u = _restore_feasibility(G, _dual_minimiser(w, G.T @ lam, lo, hi, p), lo)
     return u, lam, (f"dual L-BFGS-B ({round_} round(s), {working.size} of {G.shape[0]} "
                     f"rows in the working set)")
 
 
-def _polish_multipliers(w, G, lo, hi, lam, steps=8):
+def _polish_multipliers(w, G, lo, hi, lam, steps=8, p=1):
     """Newton steps on ``G_A u*(lam) = 1`` over the rows with ``lam > 0``.
 
     L-BFGS-B stops with the binding rows about 1e-8 short of 1; a few Newton steps make
-    them binding to rounding. ``d u*_i / d c_i = -sqrt(w_i) c_i^(-3/2) / 2`` for the items
-    not clipped to a bound, so the Jacobian is ``G_A diag(du/dc) G_A^T``; it may be
-    singular (alike rows), hence least squares. A step that would make a multiplier
-    negative is halved until it does not; the polished multipliers are kept only when
-    they bring the rows closer to binding.
+    them binding to rounding. ``d u*_i / d c_i = -u*_i / ((p + 1) c_i)``
+    (``-sqrt(w_i) c_i^(-3/2) / 2`` for p = 1) for the items not clipped to a bound, so
+    the Jacobian is ``G_A diag(du/dc) G_A^T``; it may be singular (alike rows), hence
+    least squares. A step that would make a multiplier negative is halved until it does
+    not (and polishing stops if halving cannot keep it >= 0); the polished multipliers
+    are kept only when they bring the rows closer to binding.
     """
     active = np.flatnonzero(lam > 0)
     if active.size == 0:
         return lam
 
     def residual(multipliers):
-        return G[active] @ _dual_minimiser(w, G.T @ multipliers, lo, hi) - 1.0
+        return G[active] @ _dual_minimiser(w, G.T @ multipliers, lo, hi, p) - 1.0
 
     current = residual(lam)
     for _ in range(steps):
         c = G.T @ lam
-        u = _dual_minimiser(w, c, lo, hi)
+        u = _dual_minimiser(w, c, lo, hi, p)
         unclipped = (u > lo) & (u < hi)
-        slope = np.where(unclipped, -0.5 * np.sqrt(w) * np.where(c > 0, c, 1.0) ** -1.5, 0.0)
+        slope = np.where(unclipped, -u / ((p + 1) * np.where(c > 0, c, 1.0)), 0.0)
         jacobian = (G[active] * slope) @ G[active].T
         step = np.linalg.lstsq(jacobian, -current, rcond=None)[0]
         trial = lam.copy()
@@ -300,6 +347,8 @@ def _polish_multipliers(w, G, lo, hi, lam, steps=8):
             if np.all(trial[active] >= 0):
                 break
             step = step / 2
+        if np.any(trial[active] < 0):  # weak duality needs lam >= 0
+            break
         candidate = residual(trial)
         if np.max(np.abs(candidate)) >= np.max(np.abs(current)):
             break
@@ -307,18 +356,18 @@ def _polish_multipliers(w, G, lo, hi, lam, steps=8):
     return lam
 
 
-def _maximise_dual(w, G, lo, hi, start, max_iter):
+def _maximise_dual(w, G, lo, hi, start, max_iter, p=1):
     """``argmax_{lam >= 0} g(lam)`` for rows ``G`` (costs already scaled to O(1))."""
 
     def negative_dual(lam):
-        u = _dual_minimiser(w, G.T @ lam, lo, hi)
+        u = _dual_minimiser(w, G.T @ lam, lo, hi, p)
         slack = G @ u - 1.0
-        return -(np.sum(w / u) + slack @ lam), -slack
+        return -(np.sum(w / u ** p) + slack @ lam), -slack
 
     result = minimize(negative_dual, start, jac=True, method="L-BFGS-B",
                       bounds=[(0.0, None)] * G.shape[0],
                       options={"maxiter": max_iter * 10, "maxfun": max_iter * 20,
-                               "ftol": 1e-15, "gtol": 1e-13})
+                               "ftol": 1e-15, "gtol": 1e-13, "maxcor": DUAL_MEMORY})
     return result.x
 
 
@@ -367,12 +416,12 @@ def _check_feasible(G, lo):
         raise InfeasibleAllocationError(rows, loads[rows])
 
 
-def _solve_primal(w, G, lo, hi, max_iter):
+def _solve_primal(w, G, lo, hi, max_iter, p=1):
     """Optimal ``u`` by SLSQP in ``v = log u``, locked items held at their value."""
     if G.shape[0] == 0 or np.max(G @ hi) <= 1.0:
         return hi.copy(), "every item at its upper bound meets all constraints"
     free = lo < hi
-    program = _GeometricProgram.reduced(w, G, lo, free)
+    program = _GeometricProgram.reduced(w, G, lo, free, p)
     v_lo, v_hi = np.log(lo[free]), np.log(hi[free])
     v, message = _constraint_generation(program, v_lo, v_hi, max_iter)
     u = lo.copy()
@@ -398,7 +447,7 @@ def _constraint_generation(program, v_lo, v_hi, max_iter):
 
 @dataclass(frozen=True)
 class _GeometricProgram:
-    """``min log(sum w e^-v + fixed_cost)`` s.t. ``log(G_r e^v) <= 0`` for working rows.
+    """``min log(sum w e^(-p v) + fixed_cost)`` s.t. ``log(G_r e^v) <= 0`` for working rows.
 
     Only the free items are variables; ``G`` holds the rows that involve one, each
     divided by what the locked items leave of its budget of 1.
@@ -407,18 +456,19 @@ class _GeometricProgram:
     w: np.ndarray
     G: np.ndarray
     fixed_cost: float
+    p: int = 1
 
     @classmethod
-    def reduced(cls, w, G, lo, free):
+    def reduced(cls, w, G, lo, free, p=1):
         budget = 1.0 - G[:, ~free] @ lo[~free]  # > 0 on rows involving a free item
         rows = np.flatnonzero(np.any(G[:, free] > 0, axis=1))
         scaled = G[np.ix_(rows, free)] / budget[rows, None]
-        return cls(w[free], scaled, np.sum(w[~free] / lo[~free]))
+        return cls(w[free], scaled, np.sum(w[~free] / lo[~free] ** p), p)
 
     def objective(self, v):
-        terms = self.w * np.exp(-v)
+        terms = self.w * np.exp(-self.p * v)
         total = terms.sum() + self.fixed_cost
-        return np.log(total), -terms / total
+        return np.log(total), -self.p * terms / total
 
     def constraint(self, v, rows):
         return -np.log(self.G[rows] @ np.exp(v))
@@ -452,23 +502,25 @@ def _feasible_start(G, v_lo, v_hi):
 
 
 def _restore_feasibility(G, u, lo):
-    """Shrink ``u`` towards ``lo`` just enough that ``G u <= 1`` holds (rounding repair).
+    """Shrink ``u`` towards ``lo`` just enough that ``G u <= 1 - FEASIBILITY_MARGIN``
+    holds (rounding repair).
 
     ``u(rho) = max(lo, rho u)`` is feasible at ``rho = 0`` (``G lo <= 1`` was checked)
     and the loads grow with ``rho``, so the largest feasible ``rho`` is found by bisection.
-    Returns ``u`` unchanged when it is already feasible.
+    Returns ``u`` unchanged when it is already within the margin.
     """
-    if G.shape[0] == 0 or np.max(G @ u) <= 1.0:
+    limit = 1.0 - FEASIBILITY_MARGIN
+    if G.shape[0] == 0 or np.max(G @ u) <= limit:
         return u
-    rho = largest_fraction(lambda rho: np.max(G @ np.maximum(lo, rho * u)) <= 1.0)
+    rho = largest_fraction(lambda rho: np.max(G @ np.maximum(lo, rho * u)) <= limit)
     return np.maximum(lo, rho * u)
 
 
-def _refine_multipliers(w, G, u, lo, hi, tol):
+def _refine_multipliers(w, G, u, lo, hi, tol, p=1):
     """Multipliers by NNLS on the scaled stationarity equations.
 
     For every unlocked item ``i``:
-    ``sum_r lam_r G_ri u_i**2 / w_i - mu_lo_i + mu_hi_i = 1`` with ``lam``, ``mu >= 0``,
+    ``sum_r lam_r G_ri u_i**(p+1) / (p w_i) - mu_lo_i + mu_hi_i = 1`` with ``lam``, ``mu >= 0``,
     over the rows with ``G u >= 1 - tol`` and bound multipliers only for items at a bound.
     ``lam`` is scaled by ``f(u)`` so that the columns are O(1).
     """
@@ -477,8 +529,8 @@ def _refine_multipliers(w, G, u, lo, hi, tol):
     rows = np.flatnonzero(G @ u >= 1.0 - tol)
     if rows.size == 0 or items.size == 0:
         return lam
-    fun = np.sum(w / u)
-    scale = u[items] ** 2 / w[items]
+    fun = np.sum(w / u ** p)
+    scale = u[items] ** (p + 1) / (p * w[items])
     at_lower, at_upper = (mask[items] for mask in _at_bounds(u, lo, hi, tol))
     identity = np.eye(items.size)
     matrix = np.hstack([
@@ -497,20 +549,20 @@ def _at_bounds(u, lo, hi, tol):
     return unlocked & (u <= lo * (1.0 + tol)), unlocked & (u >= hi * (1.0 - tol))
 
 
-def _dual_bound(w, G, lo, hi, lam):
+def _dual_bound(w, G, lo, hi, lam, p=1):
     """Lagrangian dual ``g(lam)``, a lower bound on the optimum for any ``lam >= 0``."""
     c = G.T @ lam
-    u_best = _dual_minimiser(w, c, lo, hi)
-    return float(np.sum(w / u_best + c * u_best) - lam.sum())
+    u_best = _dual_minimiser(w, c, lo, hi, p)
+    return float(np.sum(w / u_best ** p + c * u_best) - lam.sum())
 
 
-def _certify(w, G, lo, hi, u, lam, tol, gap_tol, message):
-    fun = float(np.sum(w / u))  # Eq. (28) with u = t**2
-    dual = _dual_bound(w, G, lo, hi, lam)
+def _certify(w, G, lo, hi, u, lam, tol, gap_tol, message, p=1):
+    fun = float(np.sum(w / u ** p))  # Eq. (28) with t**2 = u**p
+    dual = _dual_bound(w, G, lo, hi, lam, p)
     slack = G @ u - 1.0
     at_lower, at_upper = _at_bounds(u, lo, hi, tol)
     kkt = KktResiduals(
-        stationarity=_stationarity(w, G, u, lam, lo < hi, at_lower, at_upper),
+        stationarity=_stationarity(w, G, u, lam, lo < hi, at_lower, at_upper, p),
         primal_feasibility=float(max(0.0, slack.max(initial=-np.inf))),
         complementary_slackness=float(np.max(np.abs(lam * slack), initial=0.0) / fun),
     )
@@ -519,7 +571,7 @@ def _certify(w, G, lo, hi, u, lam, tol, gap_tol, message):
     verdict = "certified" if success else "NOT certified"
     return ConvexSolution(
         u=_read_only(u),
-        t=_read_only(np.sqrt(u)),
+        t=_read_only(np.sqrt(u) if p == 1 else u),  # t**2 = u**p
         fun=fun,
         multipliers=_read_only(lam),
         dual_bound=dual,
@@ -541,9 +593,9 @@ def _read_only(array):
     return array
 
 
-def _stationarity(w, G, u, lam, unlocked, at_lower, at_upper):
+def _stationarity(w, G, u, lam, unlocked, at_lower, at_upper, p=1):
     """Largest relative stationarity residual; only the wrong sign counts at a bound."""
-    residual = (G.T @ lam) * u**2 / w - 1.0
+    residual = (G.T @ lam) * u ** (p + 1) / (p * w) - 1.0
     residual[at_lower] = np.maximum(0.0, -residual[at_lower])
     residual[at_upper] = np.maximum(0.0, residual[at_upper])
     return float(np.max(np.abs(residual[unlocked]), initial=0.0))

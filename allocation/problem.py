@@ -10,6 +10,11 @@ in ``u = t²`` it is the linear row ``Σ_i J_oi² u_i / k² ≤ (I_o / z_o)²``.
 constraint of Eq. (35) is read as "at every pose of the grid" (DESIGN §2); a
 workspace-mean variant asks the mean of P over the poses to reach R instead.
 
+The classical worst-case reading ``side='stack'`` ("completely within the allowable
+range") asks every error anywhere in ±t_i to keep each output inside its limit:
+``Σ_i |J_oi| t_i ≤ I_o`` at every pose, linear in ``t`` itself (the solver's variable is
+then ``u = t`` and the cost ``Σ w_i / u_i²``). It involves neither k nor the targets.
+
 Rows that can never bind are removed before any solver sees them:
 
 1. *box*: a row whose load stays ≤ 1 even with every tolerance at its upper bound;
@@ -26,14 +31,14 @@ from dataclasses import dataclass, replace
 import numpy as np
 import pandas as pd
 
-from reliability.errors import InputError
+from reliability.errors import InputError, InputTypeError
 from reliability.fosm import error_sigma, fosm, probability, required_index
 from reliability.machine import OUTPUTS
 from reliability.poses import workspace_grid
 
 from .cost import CostModel
 
-SIDES = ("one_sided", "two_sided")
+SIDES = ("one_sided", "two_sided", "stack")
 WORKSPACES = ("worst", "mean")
 DUPLICATE_DIGITS = 10  # rows equal to 10 significant digits count as one
 
@@ -67,7 +72,7 @@ class AllocationProblem:
     machine : Machine
     poses : ndarray (n_poses, n_axes)
     jacobian : ndarray (n_poses, 6, n_errors)
-    side : {'one_sided', 'two_sided'}
+    side : {'one_sided', 'two_sided', 'stack'}
     workspace : {'worst', 'mean'}
     k : float
         Tolerances are ±kσ.
@@ -78,7 +83,8 @@ class AllocationProblem:
         allocation by default).
     cost : CostModel
     rows : ScreenedRows or None
-        The linear rows of the worst-case reading (None for the mean reading).
+        The linear rows of the worst-case reading (None for the mean reading), in the
+        solver's variable (:attr:`variable_power`).
     """
 
     machine: object
@@ -96,7 +102,8 @@ class AllocationProblem:
     @classmethod
     def build(cls, machine, poses=None, *, side: str = "two_sided", workspace: str = "worst",
               bounds=(0.5, 1.5), lower=None, upper=None, locked=(), reference=None,
-              k: float = 3.0, cost_factors=(1.0, 1.0, 1.0)) -> "AllocationProblem":
+              k: float = 3.0, cost_factors=(1.0, 1.0, 1.0), targets=None,
+              limits=None) -> "AllocationProblem":
         """Set up the problem.
 
         Parameters
@@ -105,8 +112,9 @@ class AllocationProblem:
         poses : array_like, optional
             ``(n_poses, n_axes)``; default the 5-point workspace grid (5^n poses for n
             axes).
-        side : {'one_sided', 'two_sided'}
-            The paper's Φ(β) or the exact two-sided probability.
+        side : {'one_sided', 'two_sided', 'stack'}
+            The paper's Φ(β), the exact two-sided probability, or the classical
+            worst-case stack ``Σ|J| t ≤ I`` (worst-case workspace only).
         workspace : {'worst', 'mean'}
             Target at every pose (Eq. 35 as read in DESIGN §2) or on the workspace mean.
         bounds : (float, float)
@@ -122,6 +130,10 @@ class AllocationProblem:
             Coverage factor of the tolerances.
         cost_factors : (k1, k2, k3)
             Group weights of Eq. (28).
+        targets, limits : mapping, optional
+            ``{output name: value}`` overriding the machine's reliability targets (in
+            (0, 1)) or limits (> 0, mm or rad) for the named outputs; the others keep
+            the machine's. The problem's ``machine`` carries the overridden values.
         """
         _check_choice(side, SIDES, "side")
         _check_choice(workspace, WORKSPACES, "workspace")
@@ -129,6 +141,9 @@ class AllocationProblem:
             raise InputError("machine: its errors are correlated (machine.correlation) but "
                              "these constraint rows assume independent errors; use "
                              "allocation.correlated.solve_correlated")
+        if side == "stack" and workspace != "worst":
+            raise InputError("side='stack' is a worst-case reading; use workspace='worst'")
+        machine = with_requirements(machine, targets=targets, limits=limits)
         poses = workspace_grid(machine) if poses is None else np.atleast_2d(
             machine.check_positions(poses))
         reference = _reference(machine, reference)
@@ -139,7 +154,8 @@ class AllocationProblem:
                       reference=reference, cost=CostModel.from_machine(machine, *cost_factors),
                       rows=None)
         if workspace == "worst":
-            object.__setattr__(problem, "rows", screen_rows(problem.row_matrix(), high ** 2))
+            object.__setattr__(problem, "rows", screen_rows(problem.row_matrix(),
+                                                            problem.variable(high)))
         return problem
 
     # ----- description ---------------------------------------------------------------
@@ -154,6 +170,17 @@ class AllocationProblem:
         return self.lower == self.upper
 
     @property
+    def variable_power(self) -> int:
+        """``p`` with ``t² = u^p`` for the solver's variable ``u``: 2 for the stack
+        (``u = t``), 1 for the reliability readings (``u = t²``)."""
+        return 2 if self.side == "stack" else 1
+
+    def variable(self, t) -> np.ndarray:
+        """The solver's variable of tolerances ``t``: ``t`` (stack) or ``t²``."""
+        t = np.asarray(t, dtype=float)
+        return t if self.side == "stack" else np.square(t)
+
+    @property
     def required_index(self) -> np.ndarray:
         """β each output needs at zero mean: ``z_o`` for the chosen side."""
         return required_index(self.machine.targets, self.side)
@@ -164,9 +191,11 @@ class AllocationProblem:
         return self.machine.limits / self.required_index
 
     def row_matrix(self, jacobian=None) -> np.ndarray:
-        """Rows ``J_oi² / (k² (I_o/z_o)²)`` as ``(n_poses, 6, n_errors)``, of the problem's
-        poses or of the given sensitivities."""
+        """Rows ``J_oi² / (k² (I_o/z_o)²)`` (or ``|J_oi| / I_o`` for the stack) as
+        ``(n_poses, 6, n_errors)``, of the problem's poses or of the given sensitivities."""
         jacobian = self.jacobian if jacobian is None else jacobian
+        if self.side == "stack":
+            return np.abs(jacobian) / self.machine.limits[:, None]
         return np.square(jacobian / self.k) / np.square(self.allowed_sigma)[:, None]
 
     def with_poses(self, extra) -> "AllocationProblem":
@@ -195,8 +224,15 @@ class AllocationProblem:
                                  np.square(sigma_x)))  # Eq. (20)
 
     def probability(self, t) -> np.ndarray:
-        """FOSM probability of the chosen side, ``(..., n_poses, 6)``."""
-        return probability(self.machine.limits, self.sigma(t), self.side)
+        """FOSM probability of the chosen side (two-sided for the stack),
+        ``(..., n_poses, 6)``."""
+        side = "two_sided" if self.side == "stack" else self.side
+        return probability(self.machine.limits, self.sigma(t), side)
+
+    def stack(self, t) -> np.ndarray:
+        """Worst-case stack ``Σ_i |J_oi| t_i`` of every output at every pose,
+        ``(..., n_poses, 6)``."""
+        return np.einsum("pon,...n->...po", np.abs(self.jacobian), np.asarray(t, float))
 
     def violation(self, t) -> np.ndarray:
         """Total constraint violation ``(...,)``, 0 when ``t`` meets every target.
@@ -206,7 +242,7 @@ class AllocationProblem:
         """
         t = np.asarray(t, dtype=float)
         if self.workspace == "worst":
-            load = np.square(t) @ self.rows.matrix.T
+            load = self.variable(t) @ self.rows.matrix.T
             return np.maximum(load - 1.0, 0.0).sum(axis=-1)
         shortfall = self.machine.targets - self.probability(t).mean(axis=-2)
         return np.maximum(shortfall, 0.0).sum(axis=-1)
@@ -215,12 +251,18 @@ class AllocationProblem:
         """Per output: worst-pose and mean probability (both sides) and the verdict."""
         result = fosm(self.machine, t, self.poses, k=self.k, jacobian=self.jacobian)
         frame = result.to_frame()
+        if self.side == "stack":
+            frame["worst_stack"] = self.stack(t).max(axis=0)
+            frame["meets"] = frame["worst_stack"].to_numpy() <= self.machine.limits
+            return frame
         frame["required"] = self.machine.targets
         frame["meets"] = result.meets_targets(self.side, self.workspace)
         return frame
 
     def meets_targets(self, t) -> bool:
         """True when ``t`` satisfies every constraint of this problem (all poses)."""
+        if self.side == "stack":
+            return bool(np.all(self.stack(t) <= self.machine.limits * (1 + 1e-12)))
         probability = self.probability(np.asarray(t, dtype=float))
         value = probability.min(axis=0) if self.workspace == "worst" else \
             probability.mean(axis=0)
@@ -295,6 +337,47 @@ def _undominated(matrix, block: int = 256) -> np.ndarray:
         covers[np.arange(stop - start), np.arange(start, stop)] = False
         dominated[start:stop] = covers.any(axis=1)
     return np.sort(order[~dominated])
+
+
+def with_requirements(machine, *, targets=None, limits=None):
+    """``machine`` with some outputs' targets or limits replaced.
+
+    Parameters
+    ----------
+    machine : Machine
+    targets, limits : mapping, optional
+        ``{output name: value}``; targets in (0, 1), limits finite and > 0.
+
+    Raises
+    ------
+    InputError, InputTypeError
+        Naming the argument and the offending output or value.
+    """
+    changes = {}
+    for what, values in (("targets", targets), ("limits", limits)):
+        if values is None:
+            continue
+        if not hasattr(values, "items"):
+            raise InputTypeError(f"{what} must be a mapping {{output name: value}}; "
+                                 f"got {type(values).__name__}")
+        vector = np.array(getattr(machine, what), dtype=float)
+        for name, value in values.items():
+            if name not in OUTPUTS:
+                raise InputError(f"{what}: unknown output {name!r}; use one of {OUTPUTS}")
+            vector[OUTPUTS.index(name)] = _requirement(what, name, value)
+        changes[what] = vector
+    return replace(machine, **changes) if changes else machine
+
+
+def _requirement(what, name, value) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.number)):
+        raise InputTypeError(f"{what}[{name!r}] must be a number; got {value!r}")
+    value = float(value)
+    if what == "targets" and not 0.0 < value < 1.0:
+        raise InputError(f"targets[{name!r}] must lie in (0, 1); got {value!r}")
+    if what == "limits" and not (np.isfinite(value) and value > 0):
+        raise InputError(f"limits[{name!r}] must be finite and > 0; got {value!r}")
+    return value
 
 
 def _check_choice(value, allowed, what) -> None:

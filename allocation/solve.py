@@ -37,7 +37,8 @@ class TargetUnreachableError(InfeasibleAllocationError):
     blocking : DataFrame
         What blocks, worst first: for the worst-case reading every (output, pose) whose σ
         exceeds the allowed σ even with every tolerance at its lower bound (with the pose's
-        positions, ``allowed_sigma`` and ``sigma_at_lower``); for the mean reading every
+        positions, ``allowed_sigma`` and ``sigma_at_lower``; for the stack ``limit`` and
+        ``stack_at_lower``); for the mean reading every
         output whose mean probability at the lower bounds is short of its target.
     rows, loads
         As in :class:`InfeasibleAllocationError` (screened rows; empty for the mean reading).
@@ -52,20 +53,27 @@ class TargetUnreachableError(InfeasibleAllocationError):
 
 def _unreachable_worst(problem, rows=(), loads=()) -> TargetUnreachableError:
     """The error for the worst-case reading, listing every blocked (output, pose)."""
-    at_lower = problem.row_matrix() @ np.square(problem.lower)  # (n_poses, 6)
+    at_lower = problem.row_matrix() @ problem.variable(problem.lower)  # (n_poses, 6)
     pose, output = np.nonzero(at_lower > 1.0)
     order = np.argsort(-at_lower[pose, output], kind="stable")
     pose, output = pose[order], output[order]
     frame = pd.DataFrame({"output": np.array(OUTPUTS)[output], "pose": pose})
     for i, axis in enumerate(problem.machine.axes):
         frame[axis] = problem.poses[pose, i]
-    frame["allowed_sigma"] = problem.allowed_sigma[output]
-    frame["sigma_at_lower"] = frame["allowed_sigma"] * np.sqrt(at_lower[pose, output])
+    if problem.side == "stack":  # the load is Σ|J| t / I
+        frame["limit"] = problem.machine.limits[output]
+        frame["stack_at_lower"] = frame["limit"] * at_lower[pose, output]
+        need, have, what = "limit", "stack_at_lower", "worst-case stack"
+        verb = "must stay within"
+    else:  # the load is σ² / allowed σ²
+        frame["allowed_sigma"] = problem.allowed_sigma[output]
+        frame["sigma_at_lower"] = frame["allowed_sigma"] * np.sqrt(at_lower[pose, output])
+        need, have, what, verb = "allowed_sigma", "sigma_at_lower", "target", "needs σ ≤"
     first = frame.iloc[0]
     positions = ", ".join(f"{axis}={first[axis]:.6g}" for axis in problem.machine.axes)
-    message = (f"target unreachable inside the bounds: {first['output']} at pose "
-               f"{int(first['pose'])} ({positions}) needs σ ≤ {first['allowed_sigma']:.4g} "
-               f"but the tightest allowed tolerances give {first['sigma_at_lower']:.4g}; "
+    message = (f"{what} unreachable inside the bounds: {first['output']} at pose "
+               f"{int(first['pose'])} ({positions}) {verb} {first[need]:.4g} "
+               f"but the tightest allowed tolerances give {first[have]:.4g}; "
                f"{len(frame)} (output, pose) pair(s) blocked in all (see .blocking)")
     return TargetUnreachableError(message, frame, rows, loads)
 
@@ -110,7 +118,8 @@ class AllocationResult:
     requirements : DataFrame or None
         Exact solver: per output, the number of binding rows, the summed multiplier and
         the elasticity ``2Σλ/F``: relaxing that output's limit I by 1 % saves about
-        ``elasticity`` % of the cost (the rows scale as 1/I²).
+        ``elasticity`` % of the cost (the rows scale as 1/I²; for the stack, whose rows
+        scale as 1/I, the elasticity is ``Σλ/F``).
 
     ``summary()`` (and ``repr``) prints the cost relative to the reference allocation and
     what binds, opening with "NOT FEASIBLE" when the allocation misses a target;
@@ -189,13 +198,16 @@ def solve_exact(problem, *, gap_tol: float = 1e-6) -> AllocationResult:
         return _solve_mean(problem)
     w = problem.cost.weights
     try:
-        solution = solve_convex_allocation(w, problem.rows.matrix, problem.lower ** 2,
-                                           problem.upper ** 2, gap_tol=gap_tol)
+        solution = solve_convex_allocation(w, problem.rows.matrix,
+                                           problem.variable(problem.lower),
+                                           problem.variable(problem.upper), gap_tol=gap_tol,
+                                           power=problem.variable_power)
     except InfeasibleAllocationError as exc:
         raise _unreachable_worst(problem, exc.rows, exc.loads) from None
     active = _row_frame(problem, solution.active)
     active["multiplier"] = solution.multipliers[solution.active]
-    active["elasticity"] = 2.0 * active["multiplier"] / solution.fun
+    scale = 2.0 / problem.variable_power  # rows scale as 1/I² (FOSM) or 1/I (stack)
+    active["elasticity"] = scale * active["multiplier"] / solution.fun
     certificate = {"dual_bound": solution.dual_bound, "duality_gap": solution.duality_gap,
                    "relative_gap": solution.relative_gap,
                    "stationarity": solution.kkt.stationarity,
@@ -206,15 +218,16 @@ def solve_exact(problem, *, gap_tol: float = 1e-6) -> AllocationResult:
                             cost=float(problem.cost.total(solution.t)),
                             feasible=problem.meets_targets(solution.t),
                             certificate=certificate, active=active,
-                            requirements=_requirements(active, solution.fun))
+                            requirements=_requirements(active, solution.fun, scale))
 
 
-def _requirements(active: pd.DataFrame, cost: float) -> pd.DataFrame:
-    """Per-output totals of the binding rows' multipliers (marginal cost of a limit)."""
+def _requirements(active: pd.DataFrame, cost: float, scale: float = 2.0) -> pd.DataFrame:
+    """Per-output totals of the binding rows' multipliers (marginal cost of a limit);
+    ``scale`` is 2 where the rows scale as 1/I² and 1 where they scale as 1/I."""
     grouped = active.groupby("output")["multiplier"]
     frame = pd.DataFrame({"binding_rows": grouped.size(), "multiplier": grouped.sum()})
     frame = frame.reindex(OUTPUTS, fill_value=0)
-    frame["elasticity"] = 2.0 * frame["multiplier"] / cost
+    frame["elasticity"] = scale * frame["multiplier"] / cost
     frame.index.name = "output"
     return frame
 
@@ -269,7 +282,7 @@ def _active_rows(problem, t, tol: float = 1e-6) -> pd.DataFrame:
     """Worst-case rows within ``tol`` of binding at ``t`` (no multipliers)."""
     if problem.rows is None:
         return pd.DataFrame()
-    load = problem.rows.matrix @ np.square(t)
+    load = problem.rows.matrix @ problem.variable(t)
     return _row_frame(problem, np.flatnonzero(load >= 1.0 - tol))
 
 

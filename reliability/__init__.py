@@ -17,9 +17,11 @@ from .pose_sampling import PoseSamplingResult, sample_at_poses
 from .poses import random_poses, workspace_grid
 from .results import GridExperimentResult, RandomPoseResult
 from .sampling import GridExperiment, sample_random_poses
+from .system import SystemReliability, system_reliability, worst_system_reliability
 
 __all__ = ["COMPONENTS", "OUTPUTS", "Axis", "CostCoefficients", "FosmResult",
            "GridExperiment", "GridExperimentResult", "Machine", "MachineDescriptionError",
-           "RandomPoseResult", "fosm", "hobbing_machine", "load_machine",
-           "machine_from_dict", "random_poses", "sample_random_poses", "workspace_grid",
-           "PoseSamplingResult", "rare", "sample_at_poses"]
+           "PoseSamplingResult", "RandomPoseResult", "SystemReliability", "fosm",
+           "hobbing_machine", "load_machine", "machine_from_dict", "random_poses", "rare",
+           "sample_at_poses", "sample_random_poses", "system_reliability", "workspace_grid",
+           "worst_system_reliability"]

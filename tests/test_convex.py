@@ -186,7 +186,7 @@ def test_primal_fallback_when_the_dual_is_not_certified(monkeypatch):
     # must hand over to the primal SLSQP path, which then certifies on its own.
     w, G, lo, hi = random_problem(np.random.default_rng(6), 60)
     monkeypatch.setattr(convex, "_solve_dual",
-                        lambda w_, G_, lo_, hi_, it: (lo_.copy(), np.zeros(G_.shape[0]), "x"))
+                        lambda w_, G_, lo_, hi_, *rest: (lo_.copy(), np.zeros(G_.shape[0]), "x"))
     sol = solve_convex_allocation(w, G, lo, hi)
     assert sol.message.startswith("SLSQP")
     assert_certified(sol, G, lo, hi)
