@@ -55,7 +55,10 @@ def main(argv=None) -> int:
     limit_blas_threads()
     from threadpoolctl import threadpool_limits
 
-    args = build_parser().parse_args(argv)
+    try:
+        args = build_parser().parse_args(argv)
+    except SystemExit as exit_:  # --help, or a usage error already printed
+        return int(exit_.code or 0)
     try:
         with threadpool_limits(limits=1):
             return int(args.run(args))

@@ -51,8 +51,8 @@ class MachineStudy:
 
 
 def run(machine, *, points: int = 5, side: str = "two_sided", bounds=(0.5, 1.5),
-        seed: int = 0, repeats: int = 20, samples: int = 20_000, progress=None
-        ) -> MachineStudy:
+        seed: int = 0, repeats: int = 20, samples: int = 20_000, progress=None,
+        bar=None) -> MachineStudy:
     """Run the study of ``machine``.
 
     Parameters
@@ -69,6 +69,8 @@ def run(machine, *, points: int = 5, side: str = "two_sided", bounds=(0.5, 1.5),
         Grid experiments, and random-pose / worst-pose samples, per allocation.
     progress : callable, optional
         ``progress(text)`` before each step.
+    bar : callable, optional
+        Progress-bar factory passed to :func:`studies.verification.verify`.
 
     Raises
     ------
@@ -89,7 +91,7 @@ def run(machine, *, points: int = 5, side: str = "two_sided", bounds=(0.5, 1.5),
                               np.random.default_rng(seed).spawn(2)):
         progress(f"Monte-Carlo verification of the {name} allocation")
         checks[name] = verify(machine, t, points=points, repeats=repeats, samples=samples,
-                              rng=rng, progress=lambda text: progress(f"  {text}"))
+                              rng=rng, progress=lambda text: progress(f"  {text}"), bar=bar)
     return MachineStudy(machine=machine, points=points, side=side, bounds=tuple(bounds),
                         seed=seed, problem=problem, initial_fosm=initial, optimum=optimum,
                         optimal_fosm=optimal, checks=checks)

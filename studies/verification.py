@@ -53,7 +53,7 @@ class Verification:
 
 
 def verify(machine, tolerances, *, points: int = 5, repeats: int = 20,
-           samples: int = 20_000, rng=None, progress=None) -> Verification:
+           samples: int = 20_000, rng=None, progress=None, bar=None) -> Verification:
     """Run the three Monte-Carlo checks of ``tolerances``.
 
     Parameters
@@ -69,15 +69,23 @@ def verify(machine, tolerances, *, points: int = 5, repeats: int = 20,
     rng : None, int or numpy.random.Generator
     progress : callable, optional
         ``progress(step)`` with a short description before each step.
+    bar : callable, optional
+        ``bar(total, description)`` returning a progress bar (a context manager with
+        ``update(n)``, e.g. ``tqdm``) for the grid experiments and random poses.
     """
     progress = progress or (lambda step: None)
+    bar = bar or _NoBar
     grid_rng, random_rng, worst_rng = np.random.default_rng(rng).spawn(3)
     experiment = GridExperiment(machine, points)
     result = fosm(machine, tolerances, experiment.poses)
     progress(f"{repeats} grid experiments of {experiment.n_poses} poses")
-    grid = experiment.run(tolerances, repeats=repeats, rng=grid_rng)
+    with bar(repeats, "grid experiments") as counter:
+        grid = experiment.run(tolerances, repeats=repeats, rng=grid_rng,
+                              progress=_advance(counter))
     progress(f"{samples} random poses")
-    random = sample_random_poses(machine, tolerances, samples, rng=random_rng)
+    with bar(samples, "random poses") as counter:
+        random = sample_random_poses(machine, tolerances, samples, rng=random_rng,
+                                     progress=_advance(counter))
     progress(f"{samples} samples at each output's worst pose")
     worst = worst_pose_monte_carlo(machine, tolerances, result, samples, worst_rng)
     return Verification(fosm=result, grid=grid,
@@ -104,3 +112,26 @@ def worst_pose_monte_carlo(machine, tolerances, fosm_result, samples: int, rng
     frame["mc_upper"] = estimate.upper
     frame["samples"] = samples
     return frame
+
+
+def _advance(counter):
+    """A ``progress(done, total)`` callback moving ``counter`` to ``done``."""
+    def update(done, total):
+        counter.update(done - counter.n)
+    return update
+
+
+class _NoBar:
+    """A silent stand-in for a progress bar."""
+
+    def __init__(self, total, description):
+        self.n = 0
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        return False
+
+    def update(self, n):
+        self.n += n

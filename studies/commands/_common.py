@@ -128,7 +128,11 @@ def read_tolerances(path, machine) -> np.ndarray:
         A missing column, a name the machine does not have, a name given twice, a missing
         name, or a value that is not a finite positive number.
     """
-    frame = pd.read_csv(path)
+    try:
+        frame = pd.read_csv(path)
+    except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as exc:
+        raise InputError(f"--tolerances {path}: not a readable CSV table "
+                         f"({' '.join(str(exc).split())})") from None
     missing_columns = [c for c in ("error", "allocated") if c not in frame.columns]
     if missing_columns:
         raise InputError(f"--tolerances {path}: missing column(s) {missing_columns}; "
@@ -175,7 +179,7 @@ def percent(value: float) -> str:
 
 
 def progress_bar(total: int, description: str):
-    """A tqdm bar on stderr (silent when stderr is not a terminal is tqdm's choice)."""
+    """A tqdm progress bar on stderr, hidden when stderr is not a terminal."""
     from tqdm import tqdm
     return tqdm(total=total, desc=description, file=sys.stderr, leave=False,
                 disable=None)

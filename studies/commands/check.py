@@ -32,10 +32,11 @@ def run(args) -> int:
 
 
 def _summary(machine) -> str:
+    cost = CostModel.from_machine(machine).total(machine.initial_allocation)
+    cost_line = f"initial allocation cost (Eq. 28, k1 = k2 = k3 = 1): {cost:.6g}"
     described = _checks_module()
     if described is not None and hasattr(described, "describe"):
-        return described.describe(machine)
-    cost = CostModel.from_machine(machine).total(machine.initial_allocation)
+        return f"{described.describe(machine)}\n{cost_line}"
     lines = [f"machine: {machine.name}",
              f"axes ({len(machine.axis_specs)}, chain workpiece -> tool):"]
     for axis in machine.axis_specs:
@@ -50,7 +51,7 @@ def _summary(machine) -> str:
     for output, limit, target in zip(_common.outputs(), machine.limits, machine.targets):
         lines.append(f"  {output}  |{output}| < {limit:g} {_common.OUTPUT_UNITS[output]} "
                      f"with probability >= {target:g}")
-    lines.append(f"initial allocation cost (Eq. 28, k1 = k2 = k3 = 1): {cost:.6g}")
+    lines.append(cost_line)
     return "\n".join(lines)
 
 

@@ -32,7 +32,9 @@ def run(args) -> int:
     out = check_output_folder(args.out, args.overwrite)
     machine = _common.machine(args)
     study = pipeline.run(machine, points=args.points, side=args.side, seed=args.seed,
-                         repeats=args.repeats, samples=args.samples, progress=_common.say)
+                         repeats=args.repeats, samples=args.samples, progress=_common.say,
+                         bar=_common.progress_bar)
+    _common.say("drawing figures and writing the report")
     written = write_report(out, pipeline.sections(study), pipeline.summary(study),
                            title=f"Precision allocation and reliability of {machine.name}",
                            overwrite=args.overwrite)

@@ -33,7 +33,8 @@ def run(args) -> int:
     machine = _common.machine(args)
     t = _common.read_tolerances(args.tolerances, machine)
     result = verify(machine, t, points=args.points, repeats=args.repeats,
-                    samples=args.samples, rng=args.seed, progress=_common.say)
+                    samples=args.samples, rng=args.seed, progress=_common.say,
+                    bar=_common.progress_bar)
     print(f"Monte-Carlo verification of {args.tolerances} on {machine.name!r} "
           f"(seed {args.seed}); probabilities in %\n")
     print(report_tables(machine, result))
