@@ -309,7 +309,8 @@ def verification_section(study: MachineStudy) -> Section:
 def _verification_figures(study, grid, repeats) -> dict:
     machine, figures = study.machine, {}
     figure = Figure(figsize=(5 * len(study.checks), 4.5), layout="constrained")
-    for ax, name in zip(figure.subplots(1, len(study.checks), sharey=True), study.checks):
+    axes = figure.subplots(1, len(study.checks), sharey=True, squeeze=False).ravel()
+    for ax, name in zip(axes, study.checks):
         plots.plot_reliability_comparison(grid.loc[name].reset_index(),
                                           target=float(machine.targets.min()), ax=ax)
         ax.set_title(f"{name} allocation: grid-mean FOSM vs\n"
