@@ -167,11 +167,19 @@ def _moves(study: MachineStudy, n: int = 6) -> tuple[str, str]:
 
 
 # ----- sections --------------------------------------------------------------------------
-def sections(study: MachineStudy) -> list[Section]:
-    """The report's sections, answers first."""
+def sections(study: MachineStudy, extra=()) -> list[Section]:
+    """The report's sections, answers first.
+
+    Parameters
+    ----------
+    study : MachineStudy
+    extra : iterable of callables
+        ``extra_section(study) -> Section``, appended after the standard sections (e.g. the
+        cost–reliability front or rare-event estimates).
+    """
     return [Section("Answers", answers(study), summary=summary(study)),
             machine_section(study), fosm_section(study), allocation_section(study),
-            verification_section(study)]
+            verification_section(study), *(make(study) for make in extra)]
 
 
 def machine_section(study: MachineStudy) -> Section:

@@ -217,3 +217,18 @@ def test_python_m_studies_help():
     assert done.returncode == 0
     for command in cli.COMMANDS:
         assert command in done.stdout
+
+
+def test_writer_takes_extra_sections(tmp_path):
+    from studies.machine_report import write_report
+    from studies.section import Section
+    extra = Section("Extra", "| a |\n| --- |\n| 1 |", tables={"extra.csv": pd.DataFrame(
+        {"a": [1.0 / 3]})}, summary={"extra_key": 2.0 / 3})
+    written = write_report(tmp_path, [Section("First", "text"), extra], {"machine": "m"},
+                           title="T")
+    assert {p.name for p in written} == {"extra.csv", "report.md", "report.html",
+                                         "summary.json"}
+    assert (tmp_path / "extra.csv").read_text() == "a\n0.333333\n"
+    assert json.loads((tmp_path / "summary.json").read_text()) == {
+        "machine": "m", "extra_key": 0.666667}
+    assert "## Extra" in (tmp_path / "report.md").read_text()
