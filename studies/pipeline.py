@@ -123,9 +123,9 @@ def answers(study: MachineStudy) -> str:
     """The designer's questions answered in a few markdown bullets."""
     machine, side = study.machine, study.side
     reading = f"{side.replace('_', '-')} probability, worst case over the " \
-              f"{study.points}-point grid ({len(study.problem.poses)} poses)"
+              f"{study.points}-point grid of {len(study.problem.poses)} poses"
     worst = study.initial_fosm.worst(side)
-    short = [f"{o} {PERCENT(p)} < {t:.4%}" for o, p, t in zip(OUTPUTS, worst, machine.targets)
+    short = [f"{o} {PERCENT(p)} < {100 * t:g} %" for o, p, t in zip(OUTPUTS, worst, machine.targets)
              if p < t]
     meets = ("**yes**: every output meets its target" if not short else
              f"**no**: {'; '.join(short)}")
