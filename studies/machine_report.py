@@ -30,8 +30,9 @@ FIGURE_DPI = 100
 
 
 def check_output_folder(out, overwrite: bool) -> Path:
-    """The report folder: created if absent; refused if it is a file, or holds an earlier
-    report and ``overwrite`` is false. Call before any work."""
+    """Check the report folder before any work: refused if it is a file, if its parent
+    folder does not exist, or if it holds an earlier report and ``overwrite`` is false.
+    :func:`write_report` creates it."""
     out = Path(out)
     if out.exists() and not out.is_dir():
         raise InputError(f"--out {out}: is a file; expected a folder for the report")
@@ -41,7 +42,6 @@ def check_output_folder(out, overwrite: bool) -> Path:
                          f"--overwrite to replace it")
     if not out.parent.is_dir():
         raise InputError(f"--out {out}: folder {out.parent} does not exist")
-    out.mkdir(exist_ok=True)
     return out
 
 
@@ -52,7 +52,7 @@ def write_report(out, sections, summary: dict, *, title: str, overwrite: bool = 
     Parameters
     ----------
     out : str or Path
-        Existing folder (see :func:`check_output_folder`).
+        Folder, created if absent (check it first with :func:`check_output_folder`).
     sections : list of Section
         In report order; their tables, figures and summary entries are written too.
     summary : dict
@@ -64,6 +64,7 @@ def write_report(out, sections, summary: dict, *, title: str, overwrite: bool = 
         touched.
     """
     out = Path(out)
+    out.mkdir(exist_ok=True)
     written, merged = [], dict(summary)
     for section in sections:
         merged.update(section.summary)

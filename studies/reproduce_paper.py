@@ -335,7 +335,6 @@ def write_outputs(study: Study, out: Path, log) -> None:
                     "This is the report `precrel report` writes for any machine. The "
                     "comparison of every number with the paper's Tables 4–9 and "
                     "Figs. 8–15 is in `../report.md` and the CSV files beside it.")
-    (out / MACHINE_REPORT).mkdir(exist_ok=True)
     write_machine_report(out / MACHINE_REPORT, [*pipeline.sections(generic), paper],
                          pipeline.summary(generic),
                          title=f"Precision allocation and reliability of "

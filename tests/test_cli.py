@@ -232,3 +232,12 @@ def test_writer_takes_extra_sections(tmp_path):
     assert json.loads((tmp_path / "summary.json").read_text()) == {
         "machine": "m", "extra_key": 0.666667}
     assert "## Extra" in (tmp_path / "report.md").read_text()
+
+
+def test_failed_report_leaves_no_folder(tmp_path, capsys):
+    out = tmp_path / "unreachable"
+    bad = tmp_path / "bad.toml"
+    bad.write_text(Path(MILL).read_text().replace("limit = 0.01,", "limit = 0.0001,"))
+    code, _, err = run(capsys, "report", str(bad), "--out", str(out), *QUICK)
+    assert_one_line_error(code, err, "unreachable")
+    assert not out.exists()
