@@ -38,6 +38,11 @@ def run(args) -> int:
     print(f"Monte-Carlo verification of {args.tolerances} on {machine.name!r} "
           f"(seed {args.seed}); probabilities in %\n")
     print(report_tables(machine, result))
+    worst = result.worst_poses
+    short = worst[worst["mc_upper"] < machine.targets]["output"].tolist()
+    print("\nat every output's worst pose the Monte-Carlo interval reaches the target"
+          if not short else
+          f"\nMonte-Carlo significantly below target at the worst pose: {', '.join(short)}")
     return 0
 
 
