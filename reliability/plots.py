@@ -291,7 +291,8 @@ def plot_convergence(history, *, optimum=None, ax=None, yscale="auto"):
     Parameters
     ----------
     history : pandas.DataFrame
-        One row per iteration, indexed by iteration, with column ``best_objective`` and
+        One row per iteration, indexed by iteration, with column ``best_objective`` (or
+        ``cost``, as in the history of :func:`allocation.solve_gwo`) and
         optionally a boolean column ``feasible`` (is the best wolf feasible); infeasible
         iterations are marked with red crosses.
     optimum : float, optional
@@ -312,6 +313,8 @@ def plot_convergence(history, *, optimum=None, ax=None, yscale="auto"):
         If the column ``best_objective`` is missing, empty or non-finite, if ``feasible``
         is not boolean, or if `yscale` is unknown.
     """
+    if "best_objective" not in history.columns and "cost" in history.columns:
+        history = history.rename(columns={"cost": "best_objective"})  # solve_gwo's history
     _require_columns(history, ["best_objective"])
     best = _finite_1d("best_objective", history["best_objective"])
     if best.size == 0:
@@ -416,6 +419,7 @@ def plot_reliability_comparison(frame, *, target=None, ax=None):
 # --------------------------------------------------------------------------- Table 9
 def _repeat_groups(frame, outputs, by):
     """Validate the repeats frame; return (outputs, [(group label, sub-frame), ...])."""
+    frame = frame[~frame.index.isin(SUMMARY_ROWS)]
     if by is not None:
         _require_columns(frame, [by])
     if outputs is None:
@@ -433,6 +437,10 @@ def _repeat_groups(frame, outputs, by):
     return outputs, groups
 
 
+#: Summary rows of :meth:`GridExperimentResult.table9`, which are not experiments.
+SUMMARY_ROWS = ("Avg", "Min", "Max")
+
+
 def plot_repeats(frame, *, outputs=None, by=None, target=0.99, ax=None):
     """Per-experiment fractions within limit, per output (the paper's Table 9 as a figure).
 
@@ -445,7 +453,8 @@ def plot_repeats(frame, *, outputs=None, by=None, target=0.99, ax=None):
     ----------
     frame : pandas.DataFrame
         One row per experiment, one column per output, values in [0, 1] (e.g. the rows of
-        ``table9_repeats.csv``).
+        ``table9_repeats.csv``, or :meth:`GridExperimentResult.table9`, whose rows
+        labelled Avg, Min and Max are left out).
     outputs : sequence of str, optional
         Columns to plot; by default every column except `by` and ``"repeat"``.
     by : str, optional

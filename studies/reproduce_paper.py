@@ -7,7 +7,9 @@ reading and the exact two-sided one → GWO with the paper's settings (500 itera
 100 wolves) and the certified exact optimum → FOSM on the 5^6 grid → 20 repeated grid
 experiments (Sec. 5.3) for the paper's Table 6 allocation and for the exact optima →
 Tables 4–9 as CSV, Figs. 8–15 (and a few more) as PNG, and ``report.md`` setting our numbers
-beside the paper's. The same seed gives the same files.
+beside the paper's; in ``machine/``, the same machine through the pipeline every machine's
+report uses (:mod:`studies.pipeline`, as ``precrel report``). The same seed gives the same
+files.
 """
 
 from __future__ import annotations
@@ -18,12 +20,17 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
-import matplotlib
+from .timing import limit_blas_threads
+
+limit_blas_threads()
+
+import matplotlib  # noqa: E402
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
+from threadpoolctl import threadpool_limits  # noqa: E402
 
 import allocation  # noqa: E402
 import reliability  # noqa: E402
@@ -36,7 +43,12 @@ from reliability.sampling import GridExperiment, sample_random_poses  # noqa: E4
 from reliability.statistics import machine_yield  # noqa: E402
 from reliability.worst_case import continuous_worst  # noqa: E402
 
+from . import pipeline  # noqa: E402
+from .machine_report import SIGNIFICANT  # noqa: E402
+from .machine_report import write_report as write_machine_report  # noqa: E402
 from .report import write_report  # noqa: E402
+from .section import Section  # noqa: E402
+from .verification import Verification, worst_pose_monte_carlo  # noqa: E402
 
 #: Eqs. (36)–(37): the factor weights and evaluation matrix behind a = 1.98.
 FCEM_WEIGHTS = (0.4, 0.2, 0.1, 0.3)
@@ -50,6 +62,11 @@ VERIFIED = ("paper", "exact", "exact_two_sided")
 #: The two-sided optimum refined until its target holds between grid points too.
 REFINED = "exact_two_sided_workspace"
 SIDES = {"": "one_sided", "_two_sided": "two_sided"}
+#: Subfolder holding the paper's machine run through the generic pipeline (the report
+#: ``precrel report`` writes for any machine), for the exact two-sided optimum.
+MACHINE_REPORT = "machine"
+#: Samples at each output's worst pose, for the generic report.
+WORST_POSE_SAMPLES = 20_000
 OUTPUT_FILES = (
     "table4_initial.csv", "table5_coefficients.csv", "table6_allocation.csv",
     "table7_cost.csv", "table8_experiment.csv", "table9_repeats.csv", "table9_summary.csv",
@@ -57,7 +74,8 @@ OUTPUT_FILES = (
     "exact_active_constraints.csv", "exact_requirements.csv", "continuous_worst.csv",
     "gwo_history.csv", "fig08.png", "fig09.png",
     *SCATTER_FIGURES, "fig_convergence.png", "fig_fosm_vs_mc.png", "fig_repeats.png",
-    "report.md")
+    "report.md", f"{MACHINE_REPORT}/report.md", f"{MACHINE_REPORT}/report.html",
+    f"{MACHINE_REPORT}/summary.json", f"{MACHINE_REPORT}/allocation.csv")
 
 
 @dataclass
@@ -74,6 +92,7 @@ class Study:
     fosm: dict = field(default_factory=dict)
     grid: dict = field(default_factory=dict)
     random: dict = field(default_factory=dict)
+    worst_pose_mc: pd.DataFrame | None = None
     continuous: dict = field(default_factory=dict)
     refined_poses: np.ndarray | None = None
     timings: dict = field(default_factory=dict)
@@ -135,7 +154,26 @@ def run_study(seed: int = 2023, repeats: int = 20, wolves: int = 100,
                                           rng=next(streams))
         study.random[name] = sample_random_poses(machine, study.allocations[name],
                                                  random_samples, rng=next(streams))
+    log("Monte-Carlo at the worst poses of the two-sided optimum")
+    study.worst_pose_mc = worst_pose_monte_carlo(
+        machine, study.allocations["exact_two_sided"], study.fosm["exact_two_sided"],
+        WORST_POSE_SAMPLES, next(streams))
     return study
+
+
+def machine_study(study: Study) -> pipeline.MachineStudy:
+    """The study's two-sided pieces as the generic pipeline's result (nothing recomputed)."""
+    name = "exact_two_sided"
+    grid, result = study.grid[name], study.fosm[name]
+    check = Verification(fosm=result, grid=grid,
+                         grid_comparison=fosm_versus_monte_carlo(result, grid),
+                         random_poses=study.random[name].to_frame().reset_index(),
+                         worst_poses=study.worst_pose_mc)
+    return pipeline.MachineStudy(
+        machine=study.machine, points=5, side="two_sided", bounds=(0.5, 1.5),
+        seed=study.seed, problem=study.problems["two_sided"],
+        initial_fosm=study.fosm["initial"], optimum=study.solutions[name],
+        optimal_fosm=result, checks={"optimum": check})
 
 
 # ----- tables ------------------------------------------------------------------------
@@ -285,12 +323,22 @@ def write_outputs(study: Study, out: Path, log) -> None:
     """Write tables, figures and the report into ``out``."""
     frames = tables(study)
     for name, frame in frames.items():
-        frame.to_csv(out / name)
+        frame.to_csv(out / name, float_format=f"%.{SIGNIFICANT}g")
     log("tables written; drawing figures")
     for name, fig in figures(study, frames).items():
-        fig.savefig(out / name, dpi=110)
+        fig.savefig(out / name, dpi=110, metadata={"Software": None})
         plt.close(fig)
     write_report(study, frames, out / "report.md")
+    log(f"the generic machine report into {out / MACHINE_REPORT}/")
+    generic = machine_study(study)
+    paper = Section("Comparison with the paper",
+                    "This is the report `precrel report` writes for any machine. The "
+                    "comparison of every number with the paper's Tables 4–9 and "
+                    "Figs. 8–15 is in `../report.md` and the CSV files beside it.")
+    write_machine_report(out / MACHINE_REPORT, [*pipeline.sections(generic), paper],
+                         pipeline.summary(generic),
+                         title=f"Precision allocation and reliability of "
+                               f"{study.machine.name}", overwrite=True)
 
 
 def parse_arguments(argv=None) -> argparse.Namespace:
@@ -321,10 +369,11 @@ def main(argv=None) -> int:
         return 2
     out.mkdir(parents=True, exist_ok=True)
     log = Progress(args.quiet)
-    study = run_study(seed=args.seed, repeats=args.repeats, wolves=args.wolves,
-                      iterations=args.iterations, log=log)
-    log("computations done; writing tables")
-    write_outputs(study, out, log)
+    with threadpool_limits(limits=1):  # small matrix products: BLAS threads only fight
+        study = run_study(seed=args.seed, repeats=args.repeats, wolves=args.wolves,
+                          iterations=args.iterations, log=log)
+        log("computations done; writing tables")
+        write_outputs(study, out, log)
     log(f"done: {len(OUTPUT_FILES)} files in {out}/")
     return 0
 

@@ -182,7 +182,7 @@ def test_convergence_auto_log_scale_over_many_decades():
 @pytest.mark.parametrize(
     "history, kwargs, match",
     [
-        (pd.DataFrame({"cost": [1.0, 2.0]}), {}, r"lacks column\(s\) \['best_objective'\]"),
+        (pd.DataFrame({"fun": [1.0, 2.0]}), {}, r"lacks column\(s\) \['best_objective'\]"),
         (pd.DataFrame({"best_objective": []}, dtype=float), {}, "no iterations"),
         (pd.DataFrame({"best_objective": [1.0, np.nan]}), {}, r"best_objective\[1\] = nan"),
         (pd.DataFrame({"best_objective": [1.0], "feasible": [1]}), {}, "must be boolean"),
@@ -285,3 +285,24 @@ def test_repeats_by_group_draws_one_point_set_per_group():
 def test_repeats_refusals(frame, kwargs, match):
     with pytest.raises(ValueError, match=match):
         plot_repeats(frame, **kwargs)
+
+
+def test_convergence_takes_the_history_solve_gwo_returns(mill3):
+    import allocation
+    from reliability import workspace_grid
+    problem = allocation.AllocationProblem.build(mill3, workspace_grid(mill3, 2))
+    result = problem.solve_gwo(n_wolves=8, n_iterations=5, rng=0)
+    ax = plot_convergence(result.history)
+    np.testing.assert_array_equal(ax.lines[0].get_ydata(), result.history["cost"])
+    plt.close(ax.figure)
+
+
+def test_repeats_leaves_out_table9_summary_rows(hobbing):
+    from reliability.sampling import GridExperiment
+    result = GridExperiment(hobbing, points_per_axis=2).run(
+        hobbing.initial_allocation, repeats=3, rng=0)
+    ax = plot_repeats(result.table9())
+    # One point per experiment and output: 3 x 6, none for Avg/Min/Max.
+    points = sum(len(c.get_offsets()) for c in ax.collections)
+    assert points == 3 * 6
+    plt.close(ax.figure)

@@ -1,0 +1,1 @@
+"""Subcommands of ``precrel``: one module each, with ``add_parser`` and ``run``."""

@@ -1,0 +1,43 @@
+"""``precrel report MACHINE.toml --out DIR``: the whole study of a machine, as a report."""
+
+from __future__ import annotations
+
+from . import _common
+
+
+def add_parser(subparsers):
+    parser = subparsers.add_parser(
+        "report", help="full study of a machine into a folder (tables, figures, report)",
+        description="FOSM of the initial allocation, the certified optimum, Monte-Carlo "
+                    "verification, CSV tables, figures, report.md, a self-contained "
+                    "report.html, summary.json and allocation.csv in DIR.")
+    _common.add_machine(parser)
+    parser.add_argument("--out", required=True, metavar="DIR", help="output folder")
+    parser.add_argument("--seed", type=_common.seed, default=0, metavar="S",
+                        help="random seed (default 0)")
+    parser.add_argument("--repeats", type=_common.positive_int, default=20, metavar="N",
+                        help="grid experiments per allocation (default 20)")
+    parser.add_argument("--samples", type=_common.positive_int, default=20_000, metavar="N",
+                        help="random-pose samples and samples per worst pose (default 20000)")
+    _common.add_points(parser)
+    _common.add_side(parser)
+    parser.add_argument("--overwrite", action="store_true",
+                        help="replace an earlier report in DIR (other files are left alone)")
+    return parser
+
+
+def run(args) -> int:
+    from studies import pipeline
+    from studies.machine_report import check_output_folder, write_report
+    out = check_output_folder(args.out, args.overwrite)
+    machine = _common.machine(args)
+    study = pipeline.run(machine, points=args.points, side=args.side, seed=args.seed,
+                         repeats=args.repeats, samples=args.samples, progress=_common.say,
+                         bar=_common.progress_bar)
+    _common.say("drawing figures and writing the report")
+    written = write_report(out, pipeline.sections(study), pipeline.summary(study),
+                           title=f"Precision allocation and reliability of {machine.name}",
+                           overwrite=args.overwrite)
+    print(pipeline.answers(study))
+    print(f"\n{len(written)} files written to {out}/ (open report.html)")
+    return 0
