@@ -292,7 +292,8 @@ def verification_section(study: MachineStudy) -> Section:
         "prediction, each with a 95 % interval:",
         f"Grid experiments ({check.grid.repeats} per allocation, {check.grid.n_poses} poses "
         f"each; one error draw per experiment shared by its poses): mean share of poses in "
-        f"tolerance, Student-t interval between experiments, beside the grid mean of the "
+        f"tolerance, Wilson interval on the effective sample size from the spread between "
+        f"experiments, beside the grid mean of the "
         f"FOSM two-sided probability.",
         markdown_table(grid.reset_index()[["allocation", "output", "fosm_two_sided",
                                            "mc_estimate", "mc_lower", "mc_upper",

@@ -3,8 +3,8 @@
 Three independent checks of the FOSM prediction, each with its interval:
 
 - repeated grid experiments (one error draw per experiment shared by all grid poses):
-  the mean share in tolerance against the grid mean of the FOSM probability, Student-t
-  interval between experiments;
+  the mean share in tolerance against the grid mean of the FOSM probability, a Wilson
+  interval on Kish's effective sample size from the spread between experiments;
 - random poses (fresh pose and errors per sample): Wilson interval;
 - Monte-Carlo at each output's FOSM worst pose: Wilson interval, against FOSM there.
 

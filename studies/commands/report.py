@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from studies.report_extras import EXTRAS
+
 from . import _common
 
 
@@ -21,6 +23,9 @@ def add_parser(subparsers):
                         help="random-pose samples and samples per worst pose (default 20000)")
     _common.add_points(parser)
     _common.add_side(parser)
+    parser.add_argument("--skip", nargs="+", default=(), choices=EXTRAS, metavar="SECTION",
+                        help="leave out optional sections: " + ", ".join(EXTRAS)
+                             + " (default: include all)")
     parser.add_argument("--overwrite", action="store_true",
                         help="replace an earlier report in DIR (other files are left alone)")
     return parser
@@ -29,13 +34,18 @@ def add_parser(subparsers):
 def run(args) -> int:
     from studies import pipeline
     from studies.machine_report import check_output_folder, write_report
+    from studies.report_extras import builders
     out = check_output_folder(args.out, args.overwrite)
     machine = _common.machine(args)
     study = pipeline.run(machine, points=args.points, side=args.side, seed=args.seed,
                          repeats=args.repeats, samples=args.samples, progress=_common.say,
                          bar=_common.progress_bar)
+    extra = builders([name for name in EXTRAS if name not in args.skip])
+    _common.say("optional sections: " + (", ".join(n for n in EXTRAS if n not in args.skip)
+                                          or "none"))
+    sections = pipeline.sections(study, extra=extra)
     _common.say("drawing figures and writing the report")
-    written = write_report(out, pipeline.sections(study), pipeline.summary(study),
+    written = write_report(out, sections, pipeline.summary(study),
                            title=f"Precision allocation and reliability of {machine.name}",
                            overwrite=args.overwrite)
     print(pipeline.answers(study))

@@ -12,7 +12,8 @@ from . import _common
 def add_parser(subparsers):
     parser = subparsers.add_parser(
         "verify", help="Monte-Carlo verification of an allocation, FOSM beside it",
-        description="Repeated grid experiments (Student-t interval between experiments), "
+        description="Repeated grid experiments (Wilson interval on the effective sample size "
+                    "from the spread between experiments), "
                     "random poses (Wilson interval) and Monte-Carlo at each output's worst "
                     "pose (Wilson interval), each beside the FOSM prediction. Errors are "
                     "drawn normal, sigma = t/3, truncated at +-t.")
@@ -52,7 +53,7 @@ def report_tables(machine, result) -> str:
     grid_table = pd.DataFrame({
         "FOSM grid mean": _pct(grid["fosm_two_sided"]),
         "MC mean": _pct(grid["mc_estimate"]),
-        "95% t-interval": _interval(grid["mc_lower"], grid["mc_upper"]),
+        "95% Wilson (Kish n_eff)": _interval(grid["mc_lower"], grid["mc_upper"]),
         "FOSM worst pose": _pct(grid["fosm_worst_two_sided"]),
     }, index=pd.Index(grid["output"], name="output"))
     random = result.random_poses

@@ -1,0 +1,75 @@
+"""Optional sections of a machine report beyond FOSM, allocation and verification.
+
+Each builder takes the :class:`studies.pipeline.MachineStudy` and returns a
+:class:`~studies.section.Section`:
+
+- ``front``: the certified cost–reliability front and the worst-case stack
+  (:func:`studies.tradeoff_section.front_section`);
+- ``system``: the probability that all six outputs are inside at once, at the worst pose, for
+  the initial and the optimal allocation (:func:`studies.tradeoff_section.system_section`);
+- ``rare``: Monte-Carlo at each output's worst pose and rare-event estimates of the optimal
+  allocation's failure probabilities (:func:`studies.rare_section.rare_section`);
+- ``profiles``: machine-level yield and Table 9's spread as the motion errors' correlation
+  along travel runs from independent to constant
+  (:func:`studies.profiles_section.profiles_section`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .profiles_section import profiles_section
+from .profiles_study import ProfilesStudy, profile_comparison
+from .rare_section import rare_section
+from .tradeoff_section import front_section, system_section
+
+#: Every optional section, in report order.
+EXTRAS = ("front", "system", "rare", "profiles")
+#: Profiles compared in a machine report, from independent to constant (lengths in mm).
+REPORT_PROFILES = ("independent", "gp:100", "gp:1000", "constant")
+
+
+def _stream(study, index: int):
+    """Generator ``index`` of the extra sections: from the study's seed, independent of the
+    streams the pipeline itself uses."""
+    return np.random.default_rng(np.random.SeedSequence([study.seed, 1], spawn_key=(index,)))
+
+
+def front(study):
+    """Cost against reliability, with the stack and the optimum marked."""
+    return front_section(study.machine, poses=study.problem.poses,
+                         marks={"optimum": study.optimum.tolerances})
+
+
+def system(study):
+    """System reliability at the worst pose for the initial and the optimal allocation."""
+    allocations = {"initial": study.machine.initial_allocation,
+                   "optimum": study.optimum.tolerances}
+    return system_section(study.machine, allocations, poses=study.problem.poses,
+                          rng=_stream(study, 0))
+
+
+def rare(study, samples: int = 100_000):
+    """Worst-pose Monte-Carlo and rare-event estimates of the optimal allocation."""
+    return rare_section(study.machine, study.optimum.tolerances, label="optimum",
+                        samples=samples, rng=_stream(study, 1))
+
+
+def profiles(study, repeats: int = 200):
+    """Yield and spread between experiments against the correlation length."""
+    allocations = {"initial": study.machine.initial_allocation,
+                   "optimum": study.optimum.tolerances}
+    comparison = profile_comparison(study.machine, allocations, REPORT_PROFILES,
+                                    repeats=(repeats,), seed=study.seed)
+    return profiles_section(ProfilesStudy(comparison=comparison))
+
+
+BUILDERS = {"front": front, "system": system, "rare": rare, "profiles": profiles}
+
+
+def builders(names=EXTRAS):
+    """The section builders for ``names`` (a subset of :data:`EXTRAS`), in report order."""
+    unknown = sorted(set(names) - set(EXTRAS))
+    if unknown:
+        raise ValueError(f"unknown report section {unknown[0]!r}; choose from {EXTRAS}")
+    return [BUILDERS[name] for name in EXTRAS if name in names]
