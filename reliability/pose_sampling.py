@@ -214,7 +214,8 @@ def sample_at_poses(machine, tolerances, poses=None, *, samples: int = 100_000, 
     events : sequence of str, optional
         Events to report and to drive adaptive stopping (names from ``dx … ez``,
         ``'system'``). Default: all of them (with default poses, each output at its own
-        worst pose and the system event at every pose).
+        worst pose and the system event at every pose; when outputs are selected, the
+        system event only at their worst poses).
     fosm : bool
         Compute the linear-Gaussian comparison (:func:`linear_failure`); NaN when False.
     progress : callable, optional
@@ -232,7 +233,8 @@ def sample_at_poses(machine, tolerances, poses=None, *, samples: int = 100_000, 
     if poses is None:
         poses = worst_poses(machine, t, k=k)
         labels = tuple(f"worst {o}" for o in OUTPUTS)
-        tracked = np.hstack([np.eye(6, dtype=bool), np.ones((6, 1), bool)])
+        outputs = selected[:6] if selected[:6].any() else np.ones(6, bool)
+        tracked = np.hstack([np.eye(6, dtype=bool), outputs[:, None]])
     else:
         poses = _check_poses(machine, poses)
         labels = tuple(f"pose {i}" for i in range(len(poses)))

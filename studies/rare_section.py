@@ -14,8 +14,11 @@ from __future__ import annotations
 
 import numpy as np
 import pandas as pd
+from scipy.stats import norm
 
+from reliability.fosm import fosm
 from reliability.pose_sampling import EVENTS, sample_at_poses
+from reliability.poses import workspace_grid
 from reliability.rare import failure_probability, worst_grid_poses
 from studies.report import markdown_table
 from studies.section import Section
@@ -120,21 +123,48 @@ def rare_section(machine, tolerances, *, label: str = "allocation", samples: int
 
 
 # ----- command-line helpers ------------------------------------------------------------------
+def reachable_events(machine, tolerances, precision: float, max_samples: int, *,
+                     k: float = 3.0, confidence: float = 0.95) -> tuple[str, ...]:
+    """Events whose worst-pose failure probability crude Monte-Carlo can resolve to
+    ``precision`` within ``max_samples``.
+
+    A Wilson interval's relative half-width on a failure probability p after n samples is
+    about z √((1 − p)/(n p)), so n ≤ max_samples reaches ``precision`` only if
+    p ≳ (z/precision)² / max_samples. FOSM's two-sided failure probability at each output's
+    worst grid pose decides; the system event (which fails at least as often as any output)
+    is kept when any output is.
+    """
+    z = norm.ppf(0.5 + confidence / 2)
+    threshold = (z / precision) ** 2 / max_samples
+    grid = fosm(machine, tolerances, workspace_grid(machine), k=k)
+    failure = 1.0 - grid.two_sided.min(axis=0)
+    kept = tuple(o for o, p in zip(machine.outputs, failure) if p >= threshold)
+    return kept + ("system",) if kept else ()
+
+
 def verify_precision_text(machine, tolerances, precision: float, *,
                           max_samples: int = 2_000_000, k: float = 3.0,
                           distribution: str = "normal", rng=None) -> tuple[str, dict]:
     """``precrel verify --precision P``: adaptive Monte-Carlo at the worst poses.
 
+    Only the events crude sampling can resolve within ``max_samples``
+    (:func:`reachable_events`) are sampled; the text names the others, for ``--rare``.
     Returns the text to print (the result's summary) and summary entries.
     """
-    result = worst_pose_verification(machine, tolerances, precision=precision,
-                                     max_samples=max_samples, k=k,
-                                     distribution=distribution, rng=rng)
+    events = reachable_events(machine, tolerances, precision, max_samples, k=k)
+    skipped = [e for e in EVENTS if e not in events]
+    note = (f"\nNot sampled (failure probability too small for {max_samples} samples to reach "
+            f"the precision; use --rare): {', '.join(skipped)}" if skipped else "")
+    if not events:
+        return note.lstrip("\n"), {"precision": float(precision), "events": []}
+    result = sample_at_poses(machine, tolerances, precision=precision,
+                             max_samples=max_samples, k=k, distribution=distribution,
+                             events=events, rng=rng)
     frame = result.to_frame()
     entries = {"samples": result.n_samples, "precision": float(precision),
-               "reached": bool(result.reached),
+               "reached": bool(result.reached), "events": list(events),
                "failure": {f"{r.pose}/{r.event}": r.mc_failure for r in frame.itertuples()}}
-    return result.summary(), entries
+    return result.summary() + note, entries
 
 
 def verify_rare_text(machine, tolerances, *, method: str = "importance",

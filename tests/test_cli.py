@@ -241,3 +241,49 @@ def test_failed_report_leaves_no_folder(tmp_path, capsys):
     code, _, err = run(capsys, "report", str(bad), "--out", str(out), *QUICK)
     assert_one_line_error(code, err, "unreachable")
     assert not out.exists()
+
+
+OPTIONAL_FILES = ("front.csv", "system_reliability.csv", "optimum_rare_events.csv",
+                  "optimum_worst_pose_mc.csv", "profiles_comparison.csv")
+
+
+def test_report_has_the_optional_sections(report_dir):
+    for name in OPTIONAL_FILES:
+        assert (report_dir / name).exists(), name
+    summary = json.loads((report_dir / "summary.json").read_text())
+    system = pd.read_csv(report_dir / "system_reliability.csv", index_col="allocation")
+    # all six inside at once is no more likely than the least reliable output alone
+    assert (system["system"] <= system["least_output"] + 4 * system["error"]).all()
+    assert summary["front_points"] > 0 and summary["front_certified"] is True
+    text = (report_dir / "report.md").read_text()
+    for title in ("Cost against reliability", "System reliability", "worst poses"):
+        assert title in text
+
+
+def test_report_skip_leaves_sections_out(tmp_path, capsys):
+    out = tmp_path / "lean"
+    code, _, _ = run(capsys, "report", MILL, "--out", str(out), *QUICK,
+                     "--skip", "front", "system", "rare", "profiles")
+    assert code == 0
+    assert not any((out / name).exists() for name in OPTIONAL_FILES)
+    code, _, err = run(capsys, "report", MILL, "--out", str(tmp_path / "x"), "--skip", "tea")
+    assert code == 2 and "tea" in err
+
+
+def test_verify_precision_and_rare(allocation_csv, capsys):
+    code, out, _ = run(capsys, "verify", MILL, "--tolerances", str(allocation_csv), *QUICK,
+                       "--precision", "0.5", "--max-samples", "20000", "--rare",
+                       "--max-evaluations", "3000")
+    assert code == 0
+    assert "Relative half-width target 0.5" in out
+    assert "importance" in out and "system" in out
+
+
+def test_front_command_writes_its_table(tmp_path, capsys):
+    path = tmp_path / "front.csv"
+    code, out, _ = run(capsys, "front", MILL, "--targets", "0.9", "0.99", "0.999",
+                       "--grid", "3", "--out", str(path))
+    assert code == 0
+    frame = pd.read_csv(path)
+    assert list(frame["target"]) == [0.9, 0.99, 0.999]
+    assert frame["cost"].is_monotonic_increasing and frame["certified"].all()

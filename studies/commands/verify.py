@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import numpy as np
 import pandas as pd
 
+from studies.rare_section import verify_precision_text, verify_rare_text
 from studies.verification import verify
 
 from . import _common
@@ -26,6 +28,23 @@ def add_parser(subparsers):
                         help="random-pose samples and samples per worst pose (default 20000)")
     parser.add_argument("--seed", type=_common.seed, default=0, metavar="S",
                         help="random seed (default 0)")
+    parser.add_argument("--precision", type=_common.probability, metavar="P",
+                        help="also sample each output's worst pose adaptively until the "
+                             "interval's relative half-width on the failure probability is "
+                             "at most P (e.g. 0.1), or --max-samples is reached")
+    parser.add_argument("--max-samples", type=_common.positive_int, default=2_000_000,
+                        metavar="N", help="sample cap of --precision (default 2000000)")
+    parser.add_argument("--rare", action="store_true",
+                        help="also estimate each output's and the system's failure "
+                             "probability at its worst pose by importance sampling (or "
+                             "--rare-method subset) on the exact model")
+    parser.add_argument("--rare-method", choices=("importance", "subset"),
+                        default="importance", help="rare-event method (default importance)")
+    parser.add_argument("--target-cov", type=_common.probability, default=0.1, metavar="C",
+                        help="coefficient of variation --rare stops at (default 0.1)")
+    parser.add_argument("--max-evaluations", type=_common.positive_int, default=20_000,
+                        metavar="N", help="exact-model evaluations --rare may use "
+                                          "(default 20000)")
     _common.add_points(parser)
     return parser
 
@@ -44,6 +63,19 @@ def run(args) -> int:
     print("\nat every output's worst pose the Monte-Carlo interval reaches the target"
           if not short else
           f"\nMonte-Carlo significantly below target at the worst pose: {', '.join(short)}")
+    extra_streams = np.random.default_rng(np.random.SeedSequence([args.seed, 1])).spawn(2)
+    if args.precision is not None:
+        _common.say(f"adaptive Monte-Carlo at the worst poses to relative precision "
+                    f"{args.precision:g}")
+        text, _ = verify_precision_text(machine, t, args.precision,
+                                        max_samples=args.max_samples, rng=extra_streams[0])
+        print("\n" + text)
+    if args.rare:
+        _common.say(f"rare-event estimates at the worst poses ({args.rare_method})")
+        text, _ = verify_rare_text(machine, t, method=args.rare_method,
+                                   target_cov=args.target_cov,
+                                   max_evaluations=args.max_evaluations, rng=extra_streams[1])
+        print("\n" + text)
     return 0
 
 
