@@ -26,13 +26,20 @@ STROKE_SLACK = 1e-9
 
 
 def positive_int(value, name: str, minimum: int = 1) -> int:
-    """``value`` as an int ``>= minimum``; bools, floats and strings are refused."""
-    if isinstance(value, (bool, np.bool_)) or isinstance(value, (str, bytes)):
-        raise InputTypeError(f"{name} must be an integer >= {minimum}; got {value!r}")
+    """``value`` as an int ``>= minimum``.
+
+    Non-numbers (strings, None) raise :class:`InputTypeError`; numbers that are not
+    whole (2.5, even 3.0, True) raise :class:`InputError`.
+    """
+    expected = f"{name} must be an integer >= {minimum}; got {value!r}"
+    if not isinstance(value, (numbers.Number, np.bool_)):
+        raise InputTypeError(f"{expected} ({type(value).__name__})")
+    if isinstance(value, (bool, np.bool_)):
+        raise InputError(expected)
     try:
         value = operator.index(value)
     except TypeError:
-        raise InputTypeError(f"{name} must be an integer >= {minimum}; got {value!r}") from None
+        raise InputError(expected) from None
     if value < minimum:
         raise InputError(f"{name} must be an integer >= {minimum}; got {value}")
     return value
@@ -68,7 +75,7 @@ def probability(value, name: str) -> float:
 def choice(value, name: str, allowed) -> str:
     """One of ``allowed`` (compared exactly)."""
     if not isinstance(value, str) or value not in allowed:
-        raise InputError(f"{name} must be one of {tuple(allowed)}; got {value!r}")
+        raise InputError(f"unknown {name} {value!r}; use one of {tuple(allowed)}")
     return value
 
 
