@@ -20,6 +20,8 @@ import numpy as np
 import pandas as pd
 from scipy.stats import norm
 
+from reliability import checks
+from reliability.errors import InputError
 from reliability.fosm import probability
 from reliability.machine import OUTPUTS
 
@@ -199,6 +201,10 @@ def solve_gwo(problem, *, n_wolves: int = 100, n_iterations: int = 500, rng=None
         ``progress(iteration, best_cost, best_violation)`` after each iteration.
     """
     free = ~problem.locked
+    if not free.any():
+        raise InputError("solve_gwo: every item of the problem is locked (lower == upper), so "
+                         "there is nothing to optimise; evaluate problem.lower instead")
+    rng = checks.generator(rng)
 
     def full(x):
         t = np.broadcast_to(problem.lower, x.shape[:-1] + problem.lower.shape).copy()
