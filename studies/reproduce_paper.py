@@ -13,6 +13,7 @@ beside the paper's. The same seed gives the same files.
 from __future__ import annotations
 
 import argparse
+import io
 import sys
 import time
 from dataclasses import dataclass, field
@@ -29,6 +30,7 @@ import allocation  # noqa: E402
 import reliability  # noqa: E402
 from reliability import plots  # noqa: E402
 from reliability.comparison import fosm_versus_monte_carlo  # noqa: E402
+from reliability.files import atomic_write_bytes, write_csv  # noqa: E402
 from reliability.fosm import fosm  # noqa: E402
 from reliability.paper_tables import (TABLE6, TABLE7, TABLE8, TABLE9,  # noqa: E402
                                       TABLE9_ALL_INSIDE)
@@ -285,10 +287,12 @@ def write_outputs(study: Study, out: Path, log) -> None:
     """Write tables, figures and the report into ``out``."""
     frames = tables(study)
     for name, frame in frames.items():
-        frame.to_csv(out / name)
+        write_csv(frame, out / name, overwrite=True)
     log("tables written; drawing figures")
     for name, fig in figures(study, frames).items():
-        fig.savefig(out / name, dpi=110)
+        image = io.BytesIO()
+        fig.savefig(image, format=Path(name).suffix[1:], dpi=110)
+        atomic_write_bytes(out / name, image.getvalue(), overwrite=True)
         plt.close(fig)
     write_report(study, frames, out / "report.md")
 
