@@ -115,7 +115,7 @@ def finite_values(array: np.ndarray, name: str, labels=None) -> np.ndarray:
     if len(bad):
         where = tuple(int(i) for i in bad[0])
         label = labels[where[-1]] if labels is not None else where
-        raise InputError(f"{name} must be finite; entry {label!r} is {array[where]!r}")
+        raise InputError(f"{name} must be finite; entry {label!r} is {float(array[where])!r}")
     return array
 
 
@@ -171,7 +171,7 @@ def poses_in_strokes(machine, poses: np.ndarray, name: str = "poses",
         values = poses[..., column]
         outside = np.flatnonzero((values < low - slack) | (values > high + slack))
         if len(outside):
-            value = values.ravel()[outside[0]]
+            value = float(values.ravel()[outside[0]])
             raise InputError(
                 f"{name}: axis {axis.name!r} position {value!r} (row {int(outside[0])}) is "
                 f"outside its stroke [{low}, {high}]; pass allow_outside_stroke=True to "

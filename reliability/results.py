@@ -251,6 +251,11 @@ def read_saved_csv(path) -> pd.DataFrame:
     return frame
 
 
+def _plain(value):
+    """A numpy scalar as the Python value it holds, for readable messages."""
+    return value.item() if isinstance(value, np.generic) else value
+
+
 class _Table:
     """Column-by-column verification of a saved table; rows are reported as in the file
     (row 1 is the first line after the header)."""
@@ -296,7 +301,7 @@ class _Table:
         bad = np.flatnonzero(low_bad | (values > upper if upper is not None else False))
         if len(bad):
             span = "> 0" if positive else f"in [0, {upper}]" if upper is not None else ">= 0"
-            self.fail(int(bad[0]), column, f"{values[bad[0]]!r} must be {span}")
+            self.fail(int(bad[0]), column, f"{float(values[bad[0]])!r} must be {span}")
         return values
 
     def labels(self, column: str, allowed, what: str | None = None) -> np.ndarray:
@@ -314,15 +319,15 @@ class _Table:
         differ = np.flatnonzero(values != values[0])
         if len(differ):
             self.fail(int(positions[differ[0]]), column,
-                      f"more than one value of {what}: {values[differ[0]]!r} and "
-                      f"{values[0]!r} (row {int(positions[0]) + 1})")
+                      f"more than one value of {what}: {_plain(values[differ[0]])!r} and "
+                      f"{_plain(values[0])!r} (row {int(positions[0]) + 1})")
         return values[0]
 
     def close_to(self, column: str, values, expected) -> None:
         bad = np.flatnonzero(~np.isclose(values, expected, rtol=1e-9, atol=0))
         if len(bad):
-            self.fail(int(bad[0]), column, f"{values[bad[0]]!r} does not match inside / poses "
-                                           f"= {expected[bad[0]]!r}")
+            self.fail(int(bad[0]), column, f"{float(values[bad[0]])!r} does not match "
+                                           f"inside / poses = {float(expected[bad[0]])!r}")
 
     def each_once(self, columns, first, second, outputs) -> None:
         """Every key (repeat × output, or output) present exactly once."""
