@@ -463,3 +463,130 @@ if __name__ == "__main__":
     for entry, count in sorted(sizes.items()):
         print(f"{entry:24s} {count:4d}")
     print(f"{'total':24s} {sum(sizes.values()):4d}")
+
+
+# ----- labelled inputs are aligned by name, never used by position ----------------------
+def test_series_in_another_order_gives_the_same_reliability_as_the_array():
+    grid = workspace_grid(HOB, 3)
+    tolerances = SERIES * np.linspace(0.5, 1.5, HOB.n_errors)  # items differ from each other
+    shuffled = _shuffled(tolerances)
+    by_name = fosm(HOB, shuffled, grid)
+    by_array = fosm(HOB, tolerances.to_numpy(), grid)
+    np.testing.assert_array_equal(by_name.two_sided, by_array.two_sided)
+    by_position = fosm(HOB, shuffled.to_numpy(), grid)  # what a positional reading gives
+    assert not np.allclose(by_position.worst(), by_array.worst())
+
+
+def test_mapping_and_frame_inputs_are_aligned_by_name():
+    q = pd.DataFrame(Q0, columns=HOB.axes)[list(reversed(HOB.axes))]
+    np.testing.assert_array_equal(HOB.check_positions(q), Q0)
+    assert np.array_equal(HOB.check_tolerances(dict(_shuffled(SERIES).items())), T0)
+    errors = pd.Series(np.arange(HOB.n_errors) * 1e-6, index=NAMES)
+    np.testing.assert_array_equal(HOB.check_errors(_shuffled(errors)), errors.to_numpy())
+
+
+# ----- inputs accepted on purpose (docs/inputs.md) ------------------------------------------
+def test_full_turn_axes_accept_any_angle():
+    outside_one_turn = Q0 + [10.0, 0, 0, 0, 0, -7.0]  # C and M are full-turn axes
+    fosm(HOB, T0, outside_one_turn)
+
+
+def test_outside_stroke_on_request():
+    beyond = Q0 + [0, 500.0, 0, 0, 0, 0]
+    result = fosm(HOB, T0, beyond, allow_outside_stroke=True)
+    assert np.all(np.isfinite(result.sigma))
+
+
+def test_stroke_ends_are_inside():
+    ends = np.array([[0.0, 0.0, 100.0, -np.pi / 4, 0.0, 0.0],
+                     [0.0, 400.0, 500.0, np.pi / 4, 200.0, 0.0]])
+    fosm(HOB, T0, ends)
+
+
+@pytest.mark.parametrize("seed", [None, 0, np.int64(7), np.random.SeedSequence(3),
+                                  np.random.default_rng(4)])
+def test_seed_forms_accepted(seed):
+    assert random_poses(MILL, 2, rng=seed).shape == (2, 3)
+
+
+def test_rotary_stroke_of_exactly_one_turn_is_accepted():
+    data = _dict()
+    _axis(data, "A")["stroke"] = [-np.pi, np.pi]
+    machine_from_dict(data)
+
+
+# ----- child generators are spawned per batch ------------------------------------------------
+def test_run_spawns_children_per_batch_not_all_up_front():
+    seeds = np.random.SeedSequence(11)
+
+    class Stop(Exception):
+        pass
+
+    def stop(done, total):
+        raise Stop
+
+    with pytest.raises(Stop):
+        GridExperiment(MILL, 3).run(TM, repeats=10**7, batch=4, rng=seeds,
+                                    keep_values="none", progress=stop)
+    assert seeds.n_children_spawned == 4
+
+
+def test_per_batch_spawning_gives_the_streams_of_one_spawn():
+    experiment = GridExperiment(MILL, 3)
+    children = np.random.default_rng(5).spawn(7)  # every repeat's stream, spawned at once
+    draws = [experiment._draw(TM, child, 3.0, "truncated") for child in children]
+    values = experiment.evaluate(np.stack([d[0] for d in draws]), np.stack([d[1] for d in draws]))
+    expected = np.sum(np.abs(values) < MILL.limits, axis=1)
+    for batch in (1, 3, 7, 50):
+        result = experiment.run(TM, repeats=7, batch=batch, rng=5)
+        np.testing.assert_array_equal(result.inside, expected)
+
+
+# ----- same seed, same bytes -------------------------------------------------------------------
+SAVE_SCRIPT = """
+import sys
+import reliability
+from reliability import GridExperiment
+machine = reliability.load_machine(sys.argv[1])
+result = GridExperiment(machine, 3).run(machine.initial_allocation * 3, repeats=9,
+                                        batch=int(sys.argv[3]), rng=2024)
+result.save_csv(sys.argv[2])
+"""
+
+
+def test_same_seed_same_bytes_across_batches_and_processes(tmp_path):
+    machine_file = Path(__file__).parent / "machines" / "mill3.toml"
+    result = GridExperiment(MILL, 3).run(TM * 3, repeats=9, batch=9, rng=2024)
+    assert 0 < result.inside.min() < result.n_poses  # counts that a change would move
+    here = result.save_csv(tmp_path / "here.csv").read_bytes()
+    for batch in (1, 4):
+        out = tmp_path / f"process-{batch}.csv"
+        subprocess.run([sys.executable, "-c", SAVE_SCRIPT, str(machine_file), str(out),
+                        str(batch)], check=True, cwd=ROOT)
+        assert out.read_bytes() == here
+
+
+def test_random_pose_results_round_trip_exactly(tmp_path):
+    result = sample_random_poses(MILL, TM, 500, rng=1, chunk=200)
+    path = result.save_csv(tmp_path / "random.csv")
+    back = RandomPoseResult.load_csv(path)
+    np.testing.assert_array_equal(back.inside, result.inside)
+    np.testing.assert_array_equal(back.fosm_two_sided, result.fosm_two_sided)
+    assert back.n_samples == 500 and back.save_csv(tmp_path / "again.csv").read_bytes() == \
+        path.read_bytes()
+
+
+# ----- saves are atomic ----------------------------------------------------------------------
+def test_interrupted_save_keeps_the_old_file_and_leaves_no_temporary(tmp_path, monkeypatch):
+    path = _grid_result().save_csv(tmp_path / "table9.csv")
+    before = path.read_bytes()
+
+    def broken_replace(source, target):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr("reliability.files.os.replace", broken_replace)
+    other = GridExperimentResult(limits=HOB.limits, inside=np.full((1, 6), 3), n_poses=125)
+    with pytest.raises(KeyboardInterrupt):
+        other.save_csv(path, overwrite=True)
+    assert path.read_bytes() == before
+    assert [p.name for p in tmp_path.iterdir()] == ["table9.csv"]
