@@ -17,9 +17,12 @@ from collections import Counter
 from importlib import resources
 from pathlib import Path
 
+import matplotlib
 import numpy as np
 import pandas as pd
 import pytest
+
+matplotlib.use("Agg")
 
 import allocation
 import reliability
@@ -30,6 +33,7 @@ from reliability import (GridExperiment, GridExperimentResult, MachineDescriptio
 from reliability.checks import require_size
 from reliability.errors import InputError, InputTypeError, SavedResultError, SizeBudgetError
 from reliability.fosm import error_sigma
+from reliability.plots import plot_comprehensive_error_scatter
 from reliability.sampling import draw_errors
 from reliability.statistics import binomial_interval, proportion
 from reliability.worst_case import continuous_worst
@@ -373,6 +377,10 @@ CATALOGUE = [
      ["confidence", "1.5"]),
     ("statistics-method", lambda tmp: binomial_interval(5, 10, method="exactish"), ValueError,
      ["method", "exactish"]),
+    ("plots-scatter-rng-negative",
+     lambda tmp: plot_comprehensive_error_scatter(np.r_[0.0, 0.03, 0.0, 0.0], 0.02,
+                                                  output_label="dx", max_points=2, rng=-1),
+     E, ["rng", "-1"]),
     # ----- require_size -----------------------------------------------------------------
     ("require_size-over", lambda tmp: require_size(10**20, 8, None, "a thing", "do less"), S,
      ["a thing", "budget", "do less"]),
