@@ -598,3 +598,23 @@ def test_interrupted_save_keeps_the_old_file_and_leaves_no_temporary(tmp_path, m
         other.save_csv(path, overwrite=True)
     assert path.read_bytes() == before
     assert [p.name for p in tmp_path.iterdir()] == ["table9.csv"]
+
+
+RANDOM_SCRIPT = """
+import sys
+import reliability
+machine = reliability.load_machine(sys.argv[1])
+reliability.sample_random_poses(machine, machine.initial_allocation * 3, 700, rng=99,
+                                chunk=300).save_csv(sys.argv[2])
+"""
+
+
+def test_random_pose_results_same_bytes_across_processes(tmp_path):
+    machine_file = Path(__file__).parent / "machines" / "mill3.toml"
+    here = sample_random_poses(MILL, TM * 3, 700, rng=99, chunk=300)
+    assert 0 < here.inside.min() < 700
+    expected = here.save_csv(tmp_path / "here.csv").read_bytes()
+    out = tmp_path / "process.csv"
+    subprocess.run([sys.executable, "-c", RANDOM_SCRIPT, str(machine_file), str(out)],
+                   check=True, cwd=ROOT)
+    assert out.read_bytes() == expected
