@@ -336,6 +336,8 @@ def _bounds(machine, reference, bounds, lower, upper, locked):
     bad = np.flatnonzero(low > high)
     if len(bad):
         raise ValueError(f"lower bound exceeds upper bound for {machine.error_names[bad[0]]!r}")
+    if not isinstance(locked, str) and not hasattr(locked, "__iter__"):
+        raise InputTypeError(f"locked must be an error name or names; got {locked!r}")
     for name in (locked,) if isinstance(locked, str) else locked:
         index = machine.error_index(name)
         low[index] = high[index] = reference[index]

@@ -152,6 +152,7 @@ def solve_exact(problem, *, gap_tol: float = 1e-6) -> AllocationResult:
         When some output at some pose cannot meet its target even with every tolerance at
         its lower bound; the message names the output and the pose.
     """
+    gap_tol = checks.finite_float(gap_tol, "gap_tol", 0.0, low_open=True)
     if problem.workspace == "mean":
         return _solve_mean(problem)
     w = problem.cost.weights
@@ -211,7 +212,8 @@ def solve_gwo(problem, *, n_wolves: int = 100, n_iterations: int = 500, rng=None
         t[..., free] = x
         return t
 
-    start = None if initial is None else np.atleast_2d(initial)[:, free]
+    start = None if initial is None else \
+        np.atleast_2d(problem.machine.check_tolerances(initial))[:, free]
     run = grey_wolf(lambda x: problem.cost.total(full(x)), problem.lower[free],
                     problem.upper[free], violation=lambda x: problem.violation(full(x)),
                     n_wolves=n_wolves, n_iterations=n_iterations, rng=rng, initial=start,

@@ -8,7 +8,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from .errors import SavedResultError
+from . import checks
+from .errors import InputError, InputTypeError, SavedResultError
 from .files import write_csv
 from .machine import OUTPUTS
 from .statistics import between_experiment_interval, machine_yield, proportion
@@ -43,6 +44,17 @@ class GridExperimentResult:
     points_per_axis: int = 5
     values: np.ndarray | None = None
 
+    def __post_init__(self):
+        inside = checks.numeric_array(self.inside, "inside", ndim=2)
+        n_poses = checks.positive_int(self.n_poses, "n_poses")
+        if inside.shape[1] != len(OUTPUTS):
+            raise InputError(f"inside must have shape (repeats, 6); got {inside.shape}")
+        bad = np.argwhere((inside < 0) | (inside > n_poses) | (inside != np.round(inside)))
+        if len(bad):
+            r, o = bad[0]
+            raise InputError(f"inside[{r}, {o}] ({OUTPUTS[o]}) = {inside[r, o]!r} must be a "
+                             f"whole count in [0, n_poses = {n_poses}]")
+
     @property
     def repeats(self) -> int:
         """Number of experiments."""
@@ -60,6 +72,8 @@ class GridExperimentResult:
 
     def table8(self, repeat: int = 0) -> pd.DataFrame:
         """One experiment as in Table 8: limit, inside, outside and reliability."""
+        if isinstance(repeat, bool) or not isinstance(repeat, (int, np.integer)):
+            raise InputTypeError(f"repeat must be an integer; got {repeat!r}")
         if not 0 <= repeat < self.repeats:
             raise IndexError(f"repeat {repeat} out of range for {self.repeats} experiments")
         inside = self.inside[repeat]

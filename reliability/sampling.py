@@ -220,8 +220,8 @@ class GridExperiment:
 
     def _check_draws(self, motion, assembly):
         n = len(self.machine.axis_specs)
-        motion = np.asarray(motion, dtype=float)
-        assembly = np.asarray(assembly, dtype=float)
+        motion = checks.numeric_array(motion, "motion errors")
+        assembly = checks.numeric_array(assembly, "assembly errors")
         expected = (n, self.points_per_axis, 6)
         if motion.ndim != 4 or motion.shape[1:] != expected:
             raise ValueError(f"motion errors must have shape (R, {n}, {self.points_per_axis}, 6);"
