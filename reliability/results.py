@@ -185,6 +185,15 @@ class RandomPoseResult:
     distribution: str = "truncated"
     k: float = 3.0
 
+    def __post_init__(self):
+        inside = checks.numeric_array(self.inside, "inside", ndim=1)
+        n_samples = checks.positive_int(self.n_samples, "n_samples")
+        bad = np.flatnonzero((inside < 0) | (inside > n_samples) | (inside != np.round(inside))
+                             ) if inside.shape == (len(OUTPUTS),) else [0]
+        if len(bad):
+            raise InputError(f"inside must be six whole counts in [0, n_samples = {n_samples}]"
+                             f"; got {self.inside!r}")
+
     def reliability(self, confidence: float = 0.95, method: str = "wilson"):
         """Share in tolerance per output with a binomial interval (samples independent)."""
         return proportion(self.inside, self.n_samples, confidence, method, names=OUTPUTS)

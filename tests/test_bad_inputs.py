@@ -413,6 +413,10 @@ CATALOGUE = [
      ["gap_tol", "'x'"]),
     ("AllocationProblem-locked-number", lambda tmp: _small_problem(locked=5), T,
      ["locked", "5"]),
+    ("RandomPoseResult-inside-above-samples",
+     lambda tmp: RandomPoseResult(limits=HOB.limits, inside=np.full(6, 11), n_samples=10,
+                                  fosm_one_sided=np.ones(6), fosm_two_sided=np.ones(6)), E,
+     ["inside", "n_samples = 10"]),
     # ----- require_size -----------------------------------------------------------------
     ("require_size-over", lambda tmp: require_size(10**20, 8, None, "a thing", "do less"), S,
      ["a thing", "budget", "do less"]),
