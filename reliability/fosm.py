@@ -181,8 +181,9 @@ def fosm(machine, tolerances, poses, *, k: float = 3.0, means=None,
     Parameters
     ----------
     machine : Machine
-    tolerances : array_like
-        ``(n_errors,)`` allocated tolerances, read as ±kσ.
+    tolerances : array_like, pandas.Series or mapping
+        ``(n_errors,)`` allocated tolerances, read as ±kσ; a Series or mapping is
+        aligned by error name.
     poses : array_like
         ``(n_poses, n_axes)`` positions, e.g. :func:`reliability.poses.workspace_grid`.
     k : float

@@ -196,20 +196,27 @@ class Machine:
         return jacobian(self, q)
 
     def check_positions(self, q) -> np.ndarray:
-        """Return ``q`` as a float array of shape ``(..., n_axes)`` or raise ValueError."""
+        """Return ``q`` as a float array of shape ``(..., n_axes)`` or raise ValueError.
+
+        A DataFrame is aligned to :attr:`axes` by its column names."""
         if isinstance(q, pd.DataFrame):
             q = checks.labelled(q, self.axes, "positions")
         q = _with_last_axis(q, len(self.axis_specs), "positions", f" for axes {self.axes}")
         return checks.finite_values(q, "positions", self.axes)
 
     def check_errors(self, x) -> np.ndarray:
-        """Return ``x`` as a float array of shape ``(..., n_errors)`` or raise ValueError."""
+        """Return ``x`` as a float array of shape ``(..., n_errors)`` or raise ValueError.
+
+        A Series or mapping is aligned to :attr:`error_names` by name (every name once)."""
         x = _with_last_axis(checks.labelled(x, self.error_names, "errors"), self.n_errors,
                             "errors")
         return checks.finite_values(x, "errors", self.error_names)
 
     def check_tolerances(self, tolerances) -> np.ndarray:
-        """Return tolerances ``(..., n_errors)``, all finite and > 0, or raise ValueError."""
+        """Return tolerances ``(..., n_errors)``, all finite and > 0, or raise ValueError.
+
+        A Series or mapping is aligned to :attr:`error_names` by name (every name once);
+        strings and other non-numbers raise :class:`~reliability.errors.InputTypeError`."""
         t = _with_last_axis(checks.labelled(tolerances, self.error_names, "tolerances"),
                             self.n_errors, "tolerances")
         bad = ~(np.isfinite(t) & (t > 0))
