@@ -206,6 +206,7 @@ def solve_gwo(problem, *, n_wolves: int = 100, n_iterations: int = 500, rng=None
         raise InputError("solve_gwo: every item of the problem is locked (lower == upper), so "
                          "there is nothing to optimise; evaluate problem.lower instead")
     rng = checks.generator(rng)
+    checks.callback(progress, "progress")
 
     def full(x):
         t = np.broadcast_to(problem.lower, x.shape[:-1] + problem.lower.shape).copy()

@@ -93,6 +93,20 @@ def generator(rng, name: str = "rng") -> np.random.Generator:
     return np.random.default_rng(int(rng))
 
 
+def instance(value, name: str, kind: type):
+    """Refuse ``value`` unless it is a ``kind``."""
+    if not isinstance(value, kind):
+        raise InputTypeError(f"{name} must be a {kind.__name__}; got a {type(value).__name__}")
+    return value
+
+
+def callback(value, name: str):
+    """``None`` or a callable (progress and log hooks), checked before the work starts."""
+    if value is not None and not callable(value):
+        raise InputTypeError(f"{name} must be a function or None; got {value!r}")
+    return value
+
+
 def numeric_array(value, name: str, ndim: int | None = None) -> np.ndarray:
     """``value`` as a float array; strings, objects, bools and mappings are refused."""
     if isinstance(value, (str, bytes)) or isinstance(value, Mapping):

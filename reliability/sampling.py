@@ -262,6 +262,7 @@ class GridExperiment:
         """
         t = _one_allocation(self.machine, tolerances)
         repeats, batch = _check_run_options(repeats, keep_values, batch, distribution, k)
+        checks.callback(progress, "progress")
         rng = checks.generator(rng)
         values_kept = {"all": repeats, "first": 1, "none": 0}[keep_values]
         checks.require_size(min(batch, repeats) * self.n_poses, 6 * 8 * 4, self.budget,
@@ -350,6 +351,7 @@ def sample_random_poses(machine, tolerances, n_samples: int, *, rng=None, k: flo
     t = _one_allocation(machine, tolerances)
     n_samples, chunk = _check_run_options(n_samples, "none", chunk, distribution, k,
                                           ("n_samples", "chunk"))
+    checks.callback(progress, "progress")
     rng = checks.generator(rng)
     checks.require_size(min(chunk, n_samples), 8 * (3 * 6 * machine.n_errors + 32), budget,
                         f"a chunk of {min(chunk, n_samples):,} samples", "pass a smaller chunk")

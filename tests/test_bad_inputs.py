@@ -32,6 +32,7 @@ from reliability import (GridExperiment, GridExperimentResult, MachineDescriptio
                          sample_random_poses, workspace_grid)
 from reliability.checks import require_size
 from reliability.errors import InputError, InputTypeError, SavedResultError, SizeBudgetError
+from reliability.comparison import fosm_versus_monte_carlo
 from reliability.fosm import error_sigma
 from reliability.plots import plot_comprehensive_error_scatter
 from reliability.sampling import draw_errors
@@ -417,6 +418,17 @@ CATALOGUE = [
      lambda tmp: RandomPoseResult(limits=HOB.limits, inside=np.full(6, 11), n_samples=10,
                                   fosm_one_sided=np.ones(6), fosm_two_sided=np.ones(6)), E,
      ["inside", "n_samples = 10"]),
+    ("comparison-not-a-fosm-result",
+     lambda tmp: fosm_versus_monte_carlo("fosm", _grid_result()), T, ["fosm_result", "str"]),
+    ("comparison-not-a-grid-result",
+     lambda tmp: fosm_versus_monte_carlo(fosm(HOB, T0, Q0), _random_result()), T,
+     ["grid_result", "RandomPoseResult"]),
+    ("GridExperiment-run-progress-not-callable",
+     lambda tmp: GridExperiment(MILL, 3).run(TM, progress=True), T, ["progress"]),
+    ("sample_random_poses-progress-not-callable",
+     lambda tmp: sample_random_poses(MILL, TM, 10, progress="bar"), T, ["progress", "'bar'"]),
+    ("solve_over_workspace-log-not-callable",
+     lambda tmp: solve_over_workspace(_small_problem(), log=print.__name__), T, ["log"]),
     # ----- require_size -----------------------------------------------------------------
     ("require_size-over", lambda tmp: require_size(10**20, 8, None, "a thing", "do less"), S,
      ["a thing", "budget", "do less"]),
