@@ -62,7 +62,8 @@ def finite_float(value, name: str, low: float | None = None, high: float | None 
     if below or above:
         left = "(" if low_open else "["
         right = ")" if high_open else "]"
-        span = f"{left}{'-inf' if low is None else low}, {'inf' if high is None else high}{right}"
+        span = f"{left}{'-inf' if low is None else f'{low:g}'}, " \
+               f"{'inf' if high is None else f'{high:g}'}{right}"
         raise InputError(f"{name} must lie in {span}; got {value!r}")
     return number
 

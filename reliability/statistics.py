@@ -51,10 +51,7 @@ def _index_text(name, bad, values):
 
 def _check_confidence(confidence):
     """Return ``confidence`` as a float in the open interval (0, 1)."""
-    c = checks.finite_float(confidence, "confidence")
-    if not 0.0 < c < 1.0:
-        raise ValueError(f"confidence must lie in (0, 1); got {confidence!r}")
-    return c
+    return checks.probability(confidence, "confidence")
 
 
 def _check_method(method):
