@@ -38,7 +38,8 @@ def workspace_grid(machine, points_per_axis: int = 5, *, budget: int | None = No
     """
     points = grid_axis_points(machine, points_per_axis)
     n_axes = len(points)
-    checks.require_size(len(points[0]) ** n_axes, 8 * n_axes, budget,
+    # a row is built as a tuple (48 + 8 n bytes) before it becomes 8 n bytes of the array
+    checks.require_size(len(points[0]) ** n_axes, 16 * n_axes + 48, budget,
                         f"a {len(points[0])}-point grid on {n_axes} axes",
                         "use fewer points per axis, pass an explicit pose set, or draw "
                         "random poses")
