@@ -33,6 +33,8 @@ from math import isfinite
 import numpy as np
 import pandas as pd
 
+from reliability import checks
+
 __all__ = ["COMPONENTS", "GROUPS", "CostModel", "cost_weights"]
 
 #: Error components of every axis and joint, in the order of the error names.
@@ -191,7 +193,7 @@ class CostModel:
         return sums
 
     def _check_single(self, t):
-        t = np.asarray(t, dtype=float)
+        t = checks.labelled(t, self.names, "tolerances")
         if t.shape != (self.n_errors,):
             raise ValueError(
                 f"expected one allocation of shape ({self.n_errors},), got shape {t.shape}"
@@ -199,7 +201,7 @@ class CostModel:
         return t
 
     def _check_tolerances(self, t):
-        t = np.asarray(t, dtype=float)
+        t = checks.labelled(t, self.names, "tolerances")
         if t.ndim == 0 or t.shape[-1] != self.n_errors:
             raise ValueError(
                 f"expected tolerances of shape (..., {self.n_errors}), got shape {t.shape}"
@@ -312,7 +314,7 @@ def _check_group_factors(k):
 
 
 def _nonnegative(value, what):
-    value = float(value)
+    value = float(checks.numeric_array(value, what, ndim=0))
     if not (isfinite(value) and value >= 0):
         raise ValueError(f"{what} is {value!r}; it must be finite and >= 0")
     return value

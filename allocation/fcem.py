@@ -13,6 +13,8 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
+from reliability import checks
+
 __all__ = ["FcemResult", "fcem_coefficient"]
 
 #: Tolerance on "sums to one" for the weight vector and each membership row.
@@ -104,7 +106,7 @@ def _check_scores(scores):
 
 
 def _check_weights(weights):
-    weights = np.asarray(weights, dtype=float)
+    weights = checks.numeric_array(weights, "weights")
     if weights.ndim != 1 or weights.size == 0:
         raise ValueError(
             f"weights must be a non-empty 1-D vector, got shape {weights.shape}"

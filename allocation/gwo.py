@@ -45,6 +45,8 @@ from typing import NamedTuple
 import numpy as np
 import pandas as pd
 
+from reliability import checks
+
 __all__ = ["GwoResult", "grey_wolf", "grey_wolf_reference"]
 
 N_LEADERS = 3
@@ -145,7 +147,7 @@ def grey_wolf(
     problem = _Problem.build(
         objective, lower, upper, violation, n_wolves, n_iterations, initial
     )
-    rng = np.random.default_rng(rng)
+    rng = checks.generator(rng)
     z = _initial_pack(problem, rng)
     leaders = _select_leaders(_Wolves(z, *problem.evaluate(z)))
     history = [leaders.summary()]

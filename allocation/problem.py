@@ -31,6 +31,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 import pandas as pd
 
+from reliability import checks
 from reliability.errors import InputError, InputTypeError
 from reliability.fosm import error_sigma, fosm, probability, required_index
 from reliability.machine import OUTPUTS
@@ -102,8 +103,9 @@ class AllocationProblem:
     @classmethod
     def build(cls, machine, poses=None, *, side: str = "two_sided", workspace: str = "worst",
               bounds=(0.5, 1.5), lower=None, upper=None, locked=(), reference=None,
-              k: float = 3.0, cost_factors=(1.0, 1.0, 1.0), targets=None,
-              limits=None) -> "AllocationProblem":
+              k: float = 3.0, cost_factors=(1.0, 1.0, 1.0), targets=None, limits=None,
+              allow_outside_stroke: bool = False,
+              budget: int | None = None) -> "AllocationProblem":
         """Set up the problem.
 
         Parameters
@@ -134,6 +136,11 @@ class AllocationProblem:
             ``{output name: value}`` overriding the machine's reliability targets (in
             (0, 1)) or limits (> 0, mm or rad) for the named outputs; the others keep
             the machine's. The problem's ``machine`` carries the overridden values.
+        allow_outside_stroke : bool
+            Accept poses outside an axis' stroke (extrapolation); refused by default.
+        budget : int, optional
+            Bytes the grid and the Jacobian may take (default
+            :data:`reliability.checks.DEFAULT_BUDGET`).
         """
         _check_choice(side, SIDES, "side")
         _check_choice(workspace, WORKSPACES, "workspace")
@@ -144,8 +151,12 @@ class AllocationProblem:
         if side == "stack" and workspace != "worst":
             raise InputError("side='stack' is a worst-case reading; use workspace='worst'")
         machine = with_requirements(machine, targets=targets, limits=limits)
-        poses = workspace_grid(machine) if poses is None else np.atleast_2d(
-            machine.check_positions(poses))
+        k = checks.finite_float(k, "coverage factor k", 0.0, low_open=True)
+        poses = workspace_grid(machine, budget=budget) if poses is None else \
+            _checked_poses(machine, poses, allow_outside_stroke)
+        checks.require_size(len(poses), 2 * 6 * machine.n_errors * 8, budget,
+                            "the Jacobian and rows of the allocation problem",
+                            "pass fewer poses (a coarser grid)")
         reference = _reference(machine, reference)
         low, high = _bounds(machine, reference, bounds, lower, upper, locked)
         jacobian = machine.jacobian(poses)
@@ -200,7 +211,7 @@ class AllocationProblem:
 
     def with_poses(self, extra) -> "AllocationProblem":
         """The same problem with more poses; their rows are added unscreened."""
-        extra = np.atleast_2d(self.machine.check_positions(extra))
+        extra = _checked_poses(self.machine, extra, False, "extra")
         jacobian = self.machine.jacobian(extra)
         rows = self.rows
         if rows is not None:
@@ -381,8 +392,15 @@ def _requirement(what, name, value) -> float:
 
 
 def _check_choice(value, allowed, what) -> None:
-    if value not in allowed:
-        raise ValueError(f"unknown {what} {value!r}; use one of {allowed}")
+    checks.choice(value, what, allowed)
+
+
+def _checked_poses(machine, poses, allow_outside_stroke, name="poses") -> np.ndarray:
+    poses = np.atleast_2d(machine.check_positions(poses))
+    if poses.ndim != 2 or len(poses) == 0:
+        raise InputError(f"{name} must have shape (n_poses, {len(machine.axes)}) with at "
+                         f"least one pose; got {poses.shape}")
+    return checks.poses_in_strokes(machine, poses, name, allow_outside_stroke)
 
 
 def _reference(machine, reference) -> np.ndarray:
@@ -395,16 +413,20 @@ def _reference(machine, reference) -> np.ndarray:
 
 def _bounds(machine, reference, bounds, lower, upper, locked):
     """Tolerance bounds from factors of the reference or explicit arrays, with locks."""
-    low_factor, high_factor = bounds
-    if not (np.isfinite(low_factor) and np.isfinite(high_factor)
-            and 0 < low_factor <= high_factor):
-        raise ValueError(f"bounds must be finite factors 0 < low <= high; got {bounds!r}")
+    if isinstance(bounds, (str, bytes)) or not hasattr(bounds, "__len__") or len(bounds) != 2:
+        raise InputTypeError(f"bounds must be two factors (low, high); got {bounds!r}")
+    low_factor, high_factor = (checks.finite_float(b, "bounds", 0.0, low_open=True)
+                               for b in bounds)
+    if low_factor > high_factor:
+        raise InputError(f"bounds must be finite factors 0 < low <= high; got {bounds!r}")
     low = reference * low_factor if lower is None else machine.check_tolerances(lower)
     high = reference * high_factor if upper is None else machine.check_tolerances(upper)
     low, high = np.array(low, dtype=float), np.array(high, dtype=float)
     bad = np.flatnonzero(low > high)
     if len(bad):
         raise ValueError(f"lower bound exceeds upper bound for {machine.error_names[bad[0]]!r}")
+    if not isinstance(locked, str) and not hasattr(locked, "__iter__"):
+        raise InputTypeError(f"locked must be an error name or names; got {locked!r}")
     for name in (locked,) if isinstance(locked, str) else locked:
         index = machine.error_index(name)
         low[index] = high[index] = reference[index]

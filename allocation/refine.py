@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from reliability import checks
 from reliability.worst_case import continuous_worst
 
 
@@ -37,6 +38,9 @@ def solve_over_workspace(problem, *, max_rounds: int = 20, tolerance: float = 1e
     added : ndarray (n_added, n_axes)
         The poses added to the grid.
     """
+    max_rounds = checks.positive_int(max_rounds, "max_rounds")
+    tolerance = checks.finite_float(tolerance, "tolerance", 0.0, 1.0, high_open=True)
+    checks.callback(log, "log")
     if problem.workspace != "worst":
         raise ValueError("pose refinement applies to the worst-case reading only")
     grid_size = len(problem.poses)

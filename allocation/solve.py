@@ -20,6 +20,8 @@ import numpy as np
 import pandas as pd
 from scipy.stats import norm
 
+from reliability import checks
+from reliability.errors import InputError
 from reliability.fosm import probability
 from reliability.machine import OUTPUTS
 
@@ -194,6 +196,7 @@ def solve_exact(problem, *, gap_tol: float = 1e-6) -> AllocationResult:
         When some output at some pose cannot meet its target even with every tolerance at
         its lower bound; the message names the output and the pose.
     """
+    gap_tol = checks.finite_float(gap_tol, "gap_tol", 0.0, low_open=True)
     if problem.workspace == "mean":
         return _solve_mean(problem)
     w = problem.cost.weights
@@ -247,13 +250,19 @@ def solve_gwo(problem, *, n_wolves: int = 100, n_iterations: int = 500, rng=None
         ``progress(iteration, best_cost, best_violation)`` after each iteration.
     """
     free = ~problem.locked
+    if not free.any():
+        raise InputError("solve_gwo: every item of the problem is locked (lower == upper), so "
+                         "there is nothing to optimise; evaluate problem.lower instead")
+    rng = checks.generator(rng)
+    checks.callback(progress, "progress")
 
     def full(x):
         t = np.broadcast_to(problem.lower, x.shape[:-1] + problem.lower.shape).copy()
         t[..., free] = x
         return t
 
-    start = None if initial is None else np.atleast_2d(initial)[:, free]
+    start = None if initial is None else \
+        np.atleast_2d(problem.machine.check_tolerances(initial))[:, free]
     run = grey_wolf(lambda x: problem.cost.total(full(x)), problem.lower[free],
                     problem.upper[free], violation=lambda x: problem.violation(full(x)),
                     n_wolves=n_wolves, n_iterations=n_iterations, rng=rng, initial=start,

@@ -17,7 +17,10 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
+from . import checks
+from .fosm import FosmResult
 from .machine import OUTPUTS
+from .results import GridExperimentResult
 
 
 def fosm_versus_monte_carlo(fosm_result, grid_result, confidence: float = 0.95
@@ -44,6 +47,8 @@ def fosm_versus_monte_carlo(fosm_result, grid_result, confidence: float = 0.95
         ``mc_min, mc_max`` and ``two_sided_within`` (the grid-mean two-sided FOSM lies in
         the interval). ``frame.attrs["mc_interval"]`` names the interval.
     """
+    checks.instance(fosm_result, "fosm_result", FosmResult)
+    checks.instance(grid_result, "grid_result", GridExperimentResult)
     if len(fosm_result.poses) != grid_result.n_poses:
         raise ValueError(f"FOSM was computed on {len(fosm_result.poses)} poses but the grid "
                          f"experiment has {grid_result.n_poses}")

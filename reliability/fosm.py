@@ -25,7 +25,9 @@ import numpy as np
 import pandas as pd
 from scipy.stats import norm
 
+from . import checks
 from .display import axis_units
+from .errors import InputError
 from .machine import OUTPUTS
 
 SIDES = ("one_sided", "two_sided")
@@ -44,9 +46,8 @@ def error_sigma(tolerances, k: float = 3.0, distribution: str = "normal") -> np.
         'normal': σ = t/k. 'truncated': the standard deviation of N(0, (t/k)²) truncated at
         ±t, ``σ √(1 − 2kφ(k)/(2Φ(k) − 1))`` (0.9866 σ at k = 3).
     """
-    if not np.isfinite(k) or k <= 0:
-        raise ValueError(f"coverage factor k must be finite and > 0; got {k!r}")
-    sigma = np.asarray(tolerances, dtype=float) / k
+    k = checks.finite_float(k, "coverage factor k", 0.0, low_open=True)
+    sigma = checks.numeric_array(tolerances, "tolerances") / k
     if distribution == "normal":
         return sigma
     if distribution == "truncated":
@@ -225,14 +226,16 @@ class FosmResult:
 
 
 def fosm(machine, tolerances, poses, *, k: float = 3.0, means=None,
-         distribution: str = "normal", jacobian=None) -> FosmResult:
+         distribution: str = "normal", jacobian=None, allow_outside_stroke: bool = False,
+         budget: int | None = None) -> FosmResult:
     """FOSM precision reliability of an allocation over a pose set (Eqs. 19–23).
 
     Parameters
     ----------
     machine : Machine
-    tolerances : array_like
-        ``(n_errors,)`` allocated tolerances, read as ±kσ.
+    tolerances : array_like, pandas.Series or mapping
+        ``(n_errors,)`` allocated tolerances, read as ±kσ; a Series or mapping is
+        aligned by error name.
     poses : array_like
         ``(n_poses, n_axes)`` positions, e.g. :func:`reliability.poses.workspace_grid`.
     k : float
@@ -247,6 +250,10 @@ def fosm(machine, tolerances, poses, *, k: float = 3.0, means=None,
         How σ follows from t, see :func:`error_sigma`.
     jacobian : ndarray, optional
         Precomputed ``machine.jacobian(poses)`` to reuse across allocations.
+    allow_outside_stroke : bool
+        Evaluate poses outside an axis' stroke (extrapolation); refused by default.
+    budget : int, optional
+        Bytes the Jacobian may take (default :data:`reliability.checks.DEFAULT_BUDGET`).
 
     Returns
     -------
@@ -256,10 +263,15 @@ def fosm(machine, tolerances, poses, *, k: float = 3.0, means=None,
     if t.ndim != 1:
         raise ValueError(f"tolerances must be one allocation of shape ({machine.n_errors},)")
     poses = np.atleast_2d(machine.check_positions(poses))
-    if poses.ndim != 2:
-        raise ValueError(f"poses must have shape (n_poses, {len(machine.axes)}); "
-                         f"got {poses.shape}")
+    if poses.ndim != 2 or len(poses) == 0:
+        raise InputError(f"poses must have shape (n_poses, {len(machine.axes)}) with at least "
+                         f"one pose; got {poses.shape}")
+    checks.poses_in_strokes(machine, poses, "poses", allow_outside_stroke)
+    checks.finite_float(k, "coverage factor k", 0.0, low_open=True)
+    checks.choice(distribution, "distribution", ("normal", "truncated"))
     if jacobian is None:
+        checks.require_size(len(poses), 6 * machine.n_errors * 8, budget, "the FOSM Jacobian",
+                            "evaluate fewer poses per call (split the pose set into chunks)")
         jacobian = machine.jacobian(poses)
     jacobian = np.asarray(jacobian, dtype=float)
     if jacobian.shape != poses.shape[:-1] + (6, machine.n_errors):

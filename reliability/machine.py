@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import math
 import tomllib
+import unicodedata
 from dataclasses import dataclass, field, fields
 from importlib import resources
 from pathlib import Path
@@ -23,12 +24,22 @@ from types import MappingProxyType
 from typing import Mapping
 
 import numpy as np
+import pandas as pd
+
+from . import checks
+from .errors import InputError, InputTypeError
 
 COMPONENTS = ("dx", "dy", "dz", "ex", "ey", "ez")
 OUTPUTS = COMPONENTS
 AXIS_KINDS = ("linear", "rotary")
 DIRECTIONS = ("x", "y", "z")
 FULL_TURN = (0.0, 2.0 * math.pi)
+#: Largest magnitude accepted for a stroke end or an offset (mm: 1 km) and for an axis
+#: size (m), and for any other number of a description; larger values overflow the
+#: model's squares and the cost model's powers.
+LARGEST_LENGTH = 1e6
+LARGEST_SIZE = 1e3
+LARGEST = 1e12
 
 
 class MachineDescriptionError(ValueError):
@@ -201,6 +212,10 @@ class Machine:
         numpy.ndarray
             ``(n_errors,)`` in the order of :attr:`error_names`.
         """
+        if not isinstance(values, (Mapping, pd.Series)):
+            raise InputTypeError(f"values must be a mapping or pandas Series by error name; "
+                                 f"got a {type(values).__name__} (use the array directly "
+                                 f"if it is already in the order of error_names)")
         items = dict(values.items())
         named = {}
         for name in items:
@@ -213,7 +228,7 @@ class Machine:
             raise KeyError(f"values missing for {len(missing)} errors, first {missing[0]!r}")
         out = np.full(self.n_errors, np.nan if default is None else float(default))
         for index, name in named.items():
-            out[index] = float(items[name])
+            out[index] = checks.finite_float(items[name], f"values[{name!r}]")
         return out
 
     def with_correlation(self, pairs) -> "Machine":
@@ -237,26 +252,33 @@ class Machine:
         return jacobian(self, q)
 
     def check_positions(self, q) -> np.ndarray:
-        """Return ``q`` as a float array of shape ``(..., n_axes)`` or raise ValueError."""
+        """Return ``q`` as a float array of shape ``(..., n_axes)`` or raise ValueError.
+
+        A DataFrame is aligned to :attr:`axes` by its column names."""
+        if isinstance(q, pd.DataFrame):
+            q = checks.labelled(q, self.axes, "positions")
         q = _with_last_axis(q, len(self.axis_specs), "positions", f" for axes {self.axes}")
-        if not np.all(np.isfinite(q)):
-            raise ValueError("positions contain non-finite values")
-        return q
+        return checks.finite_values(q, "positions", self.axes)
 
     def check_errors(self, x) -> np.ndarray:
-        """Return ``x`` as a float array of shape ``(..., n_errors)`` or raise ValueError."""
-        x = _with_last_axis(x, self.n_errors, "errors")
-        if not np.all(np.isfinite(x)):
-            raise ValueError("errors contain non-finite values")
-        return x
+        """Return ``x`` as a float array of shape ``(..., n_errors)`` or raise ValueError.
+
+        A Series or mapping is aligned to :attr:`error_names` by name (every name once)."""
+        x = _with_last_axis(checks.labelled(x, self.error_names, "errors"), self.n_errors,
+                            "errors")
+        return checks.finite_values(x, "errors", self.error_names)
 
     def check_tolerances(self, tolerances) -> np.ndarray:
-        """Return tolerances ``(..., n_errors)``, all finite and > 0, or raise ValueError."""
-        t = _with_last_axis(tolerances, self.n_errors, "tolerances")
+        """Return tolerances ``(..., n_errors)``, all finite and > 0, or raise ValueError.
+
+        A Series or mapping is aligned to :attr:`error_names` by name (every name once);
+        strings and other non-numbers raise :class:`~reliability.errors.InputTypeError`."""
+        t = _with_last_axis(checks.labelled(tolerances, self.error_names, "tolerances"),
+                            self.n_errors, "tolerances")
         bad = ~(np.isfinite(t) & (t > 0))
         if np.any(bad):
             first = int(np.argwhere(bad)[0][-1])
-            raise ValueError(f"tolerance of {self.error_names[first]!r} must be finite and "
+            raise InputError(f"tolerance of {self.error_names[first]!r} must be finite and "
                              f"> 0; got {t[np.nonzero(bad)][0]!r}")
         return t
 
@@ -273,9 +295,9 @@ def _same(a, b) -> bool:
 
 def _with_last_axis(values, size: int, what: str, detail: str = "") -> np.ndarray:
     """``values`` as floats whose last axis has ``size`` entries, or a ValueError."""
-    array = np.asarray(values, dtype=float)
+    array = checks.numeric_array(values, what)
     if array.ndim < 1 or array.shape[-1] != size:
-        raise ValueError(f"{what} must have shape (..., {size}){detail}; got {array.shape}")
+        raise InputError(f"{what} must have shape (..., {size}){detail}; got {array.shape}")
     return array
 
 
@@ -312,11 +334,12 @@ def load_machine(path) -> Machine:
     path = Path(path)
     try:
         data = tomllib.loads(path.read_text(encoding="utf-8"))
-    except UnicodeDecodeError as exc:
-        raise MachineDescriptionError(f"{path}: not a text file (UTF-8 TOML expected): "
-                                      f"{exc.reason} at byte {exc.start}") from None
     except tomllib.TOMLDecodeError as exc:
         raise MachineDescriptionError(f"{path}: not valid TOML: {exc}") from None
+    except UnicodeDecodeError as exc:
+        raise MachineDescriptionError(f"{path}: not a text (UTF-8 TOML) file: byte "
+                                      f"{exc.start} is {exc.object[exc.start:exc.start + 1]!r}"
+                                      ) from None
     return machine_from_dict(data, source=str(path))
 
 
@@ -360,12 +383,18 @@ def _only_keys(table: Mapping, allowed: set[str], where: str) -> None:
                                       f"allowed: {', '.join(sorted(allowed))}")
 
 
-def _number(value, where: str, positive: bool = False) -> float:
+def _number(value, where: str, positive: bool = False, largest: float = LARGEST) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float)):
         raise MachineDescriptionError(f"{where}: expected a number, got {value!r}")
+    if isinstance(value, int) and abs(value) > largest:
+        raise MachineDescriptionError(f"{where}: magnitude must be at most {largest:g}, got an "
+                                      f"integer of {len(str(abs(value)))} digits")
     value = float(value)
     if not math.isfinite(value):
         raise MachineDescriptionError(f"{where}: must be finite, got {value!r}")
+    if abs(value) > largest:
+        raise MachineDescriptionError(f"{where}: magnitude must be at most {largest:g}, "
+                                      f"got {value!r}")
     if positive and value <= 0:
         raise MachineDescriptionError(f"{where}: must be > 0, got {value!r}")
     return value
@@ -374,7 +403,7 @@ def _number(value, where: str, positive: bool = False) -> float:
 def _vector3(value, where: str) -> tuple[float, float, float]:
     if not isinstance(value, (list, tuple)) or len(value) != 3:
         raise MachineDescriptionError(f"{where}: expected three numbers [x, y, z]")
-    return tuple(_number(v, where) for v in value)
+    return tuple(_number(v, where, largest=LARGEST_LENGTH) for v in value)
 
 
 def _parse_axes(entries, source: str) -> list[Axis]:
@@ -394,9 +423,11 @@ def _parse_axis(entry, where: str) -> Axis:
     _only_keys(entry, {"name", "kind", "direction", "stroke", "size", "full_turn", "offset"},
                where)
     name = _require(entry, "name", where)
-    if not isinstance(name, str) or not name or any(c in name for c in ".- "):
+    if not isinstance(name, str) or not name or any(c in name for c in ".-") or any(
+            c.isspace() or unicodedata.category(c).startswith("C") for c in name):
         raise MachineDescriptionError(f"{where}: axis name must be a non-empty string "
-                                      f"without '.', '-' or spaces, got {name!r}")
+                                      f"without '.', '-', whitespace or control characters, "
+                                      f"got {name!r}")
     where = f"{where} (axis {name!r})"
     kind = _require(entry, "kind", where)
     if kind not in AXIS_KINDS:
@@ -410,13 +441,14 @@ def _parse_axis(entry, where: str) -> Axis:
         raise MachineDescriptionError(f"{where}: full_turn must be true or false")
     if full_turn and kind != "rotary":
         raise MachineDescriptionError(f"{where}: full_turn applies to rotary axes only")
-    stroke = _parse_stroke(entry, full_turn, where)
-    size = _number(_require(entry, "size", where), f"{where}: size", positive=True)
+    stroke = _parse_stroke(entry, full_turn, where, kind)
+    size = _number(_require(entry, "size", where), f"{where}: size", positive=True,
+                   largest=LARGEST_SIZE)
     offset = _vector3(entry.get("offset", (0, 0, 0)), f"{where}: offset")
     return Axis(name, kind, direction, stroke, size, full_turn, offset)
 
 
-def _parse_stroke(entry, full_turn: bool, where: str) -> tuple[float, float]:
+def _parse_stroke(entry, full_turn: bool, where: str, kind: str) -> tuple[float, float]:
     if full_turn:
         if "stroke" in entry:
             raise MachineDescriptionError(f"{where}: give either full_turn or a stroke, not both")
@@ -424,9 +456,14 @@ def _parse_stroke(entry, full_turn: bool, where: str) -> tuple[float, float]:
     stroke = _require(entry, "stroke", where)
     if not isinstance(stroke, list) or len(stroke) != 2:
         raise MachineDescriptionError(f"{where}: stroke must be [min, max]")
-    low, high = (_number(v, f"{where}: stroke") for v in stroke)
+    low, high = (_number(v, f"{where}: stroke", largest=LARGEST_LENGTH) for v in stroke)
     if low >= high:
         raise MachineDescriptionError(f"{where}: stroke min {low} must be < max {high}")
+    if kind == "rotary" and high - low > FULL_TURN[1] * (1 + 1e-12):
+        raise MachineDescriptionError(
+            f"{where}: a limited rotary stroke spans at most one turn (2π rad); "
+            f"[{low}, {high}] spans {(high - low) / FULL_TURN[1]:.3g} turns. Strokes are in "
+            f"radians (degrees given?); use full_turn = true for a whole revolution")
     return (low, high)
 
 

@@ -6,6 +6,8 @@ import itertools
 
 import numpy as np
 
+from . import checks
+
 
 def axis_grid_points(axis, points: int) -> np.ndarray:
     """Equidistant points over one axis' stroke (Sec. 5.3: five per axis).
@@ -21,27 +23,35 @@ def axis_grid_points(axis, points: int) -> np.ndarray:
 
 def grid_axis_points(machine, points_per_axis: int = 5) -> list[np.ndarray]:
     """The grid points of every axis, in chain order."""
-    if isinstance(points_per_axis, bool) or not isinstance(points_per_axis, (int, np.integer)) \
-            or points_per_axis < 2:
-        raise ValueError(f"points_per_axis must be an integer >= 2; got {points_per_axis!r}")
+    points_per_axis = checks.positive_int(points_per_axis, "points_per_axis", 2)
     return [axis_grid_points(axis, int(points_per_axis)) for axis in machine.axis_specs]
 
 
-def workspace_grid(machine, points_per_axis: int = 5) -> np.ndarray:
+def workspace_grid(machine, points_per_axis: int = 5, *, budget: int | None = None
+                   ) -> np.ndarray:
     """All combinations of the axes' grid points, ``(points_per_axis ** n_axes, n_axes)``.
 
     Row order is that of ``itertools.product`` over the axes in chain order: the first
     axis varies slowest, the last fastest (5^6 = 15 625 rows for the paper's machine).
+    The ``P^n`` rows must fit in ``budget`` bytes (default
+    :data:`reliability.checks.DEFAULT_BUDGET`), checked before any is built.
     """
     points = grid_axis_points(machine, points_per_axis)
+    n_axes = len(points)
+    # a row is built as a tuple (48 + 8 n bytes) before it becomes 8 n bytes of the array
+    checks.require_size(len(points[0]) ** n_axes, 16 * n_axes + 48, budget,
+                        f"a {len(points[0])}-point grid on {n_axes} axes",
+                        "use fewer points per axis, pass an explicit pose set, or draw "
+                        "random poses")
     return np.array(list(itertools.product(*points)), dtype=float)
 
 
-def random_poses(machine, n: int, rng=None) -> np.ndarray:
+def random_poses(machine, n: int, rng=None, *, budget: int | None = None) -> np.ndarray:
     """``n`` poses drawn uniformly over every axis' stroke, ``(n, n_axes)``."""
-    if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
-        raise ValueError(f"number of poses must be a positive integer; got {n!r}")
-    rng = np.random.default_rng(rng)
+    n = checks.positive_int(n, "number of poses n")
+    rng = checks.generator(rng)
+    checks.require_size(n, 8 * len(machine.axis_specs), budget, f"{n:,} random poses",
+                        "draw fewer poses per call (in chunks)")
     low = np.array([a.stroke[0] for a in machine.axis_specs])
     high = np.array([a.stroke[1] for a in machine.axis_specs])
     return low + (high - low) * rng.random((int(n), len(low)))

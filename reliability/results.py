@@ -8,6 +8,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from . import checks
+from .errors import InputError, InputTypeError, SavedResultError
 from .files import write_csv
 from .machine import OUTPUTS
 from .statistics import between_experiment_interval, machine_yield, proportion
@@ -42,6 +44,17 @@ class GridExperimentResult:
     points_per_axis: int = 5
     values: np.ndarray | None = None
 
+    def __post_init__(self):
+        inside = checks.numeric_array(self.inside, "inside", ndim=2)
+        n_poses = checks.positive_int(self.n_poses, "n_poses")
+        if inside.shape[1] != len(OUTPUTS):
+            raise InputError(f"inside must have shape (repeats, 6); got {inside.shape}")
+        bad = np.argwhere((inside < 0) | (inside > n_poses) | (inside != np.round(inside)))
+        if len(bad):
+            r, o = bad[0]
+            raise InputError(f"inside[{r}, {o}] ({OUTPUTS[o]}) = {inside[r, o]!r} must be a "
+                             f"whole count in [0, n_poses = {n_poses}]")
+
     @property
     def repeats(self) -> int:
         """Number of experiments."""
@@ -59,6 +72,8 @@ class GridExperimentResult:
 
     def table8(self, repeat: int = 0) -> pd.DataFrame:
         """One experiment as in Table 8: limit, inside, outside and reliability."""
+        if isinstance(repeat, bool) or not isinstance(repeat, (int, np.integer)):
+            raise InputTypeError(f"repeat must be an integer; got {repeat!r}")
         if not 0 <= repeat < self.repeats:
             raise IndexError(f"repeat {repeat} out of range for {self.repeats} experiments")
         inside = self.inside[repeat]
@@ -102,29 +117,40 @@ class GridExperimentResult:
                              "points_per_axis": self.points_per_axis})
 
     @classmethod
-    def from_frame(cls, frame: pd.DataFrame) -> "GridExperimentResult":
-        """Rebuild from :meth:`to_frame`'s table (per-pose values are not stored)."""
-        missing = [c for c in FRAME_COLUMNS + METADATA_COLUMNS if c not in frame.columns]
-        if missing:
-            raise ValueError(f"grid-experiment table lacks column {missing[0]!r}")
-        wide = frame.pivot(index="repeat", columns="output", values="inside")
-        unknown = sorted(set(wide.columns) - set(OUTPUTS))
-        if unknown or len(wide.columns) != len(OUTPUTS):
-            raise ValueError(f"grid-experiment table must have outputs {OUTPUTS}; "
-                             f"got {tuple(wide.columns)}")
-        totals = (frame["inside"] + frame["outside"]).unique()
-        if len(totals) != 1:
-            raise ValueError("grid-experiment table has rows with different pose counts")
-        metadata = {}
-        for column in METADATA_COLUMNS:
-            values = frame[column].unique()
-            if len(values) != 1:
-                raise ValueError(f"grid-experiment table has more than one {column!r}")
-            metadata[column] = values[0]
-        limits = frame.groupby("output")["limit"].first().reindex(OUTPUTS).to_numpy()
-        return cls(limits=limits, inside=wide[list(OUTPUTS)].to_numpy(dtype=np.int64),
-                   n_poses=int(totals[0]), distribution=str(metadata["distribution"]),
-                   k=float(metadata["k"]), points_per_axis=int(metadata["points_per_axis"]))
+    def from_frame(cls, frame: pd.DataFrame, source: str = "grid-experiment table"
+                   ) -> "GridExperimentResult":
+        """Rebuild from :meth:`to_frame`'s table (per-pose values are not stored).
+
+        The table is verified completely first: every repeat × output present once,
+        ``0 ≤ inside ≤ poses``, ``inside + outside`` the same pose count on every row, the
+        fraction equal to ``inside / poses``, one limit per output and one value of each
+        metadata column. The first problem raises :class:`SavedResultError` naming
+        ``source``, the row and the column.
+        """
+        table = _Table(frame, source, FRAME_COLUMNS + METADATA_COLUMNS)
+        repeat = table.integers("repeat", minimum=1)
+        output = table.labels("output", OUTPUTS, "outputs")
+        limit = table.reals("limit", positive=True)
+        inside = table.integers("inside", minimum=0)
+        outside = table.integers("outside", minimum=0)
+        n_poses = table.same("pose counts (inside + outside)", "outside", inside + outside)
+        fraction = table.reals("fraction")
+        table.close_to("fraction", fraction, inside / n_poses)
+        metadata = {c: table.same(c, c, table.frame[c]) for c in METADATA_COLUMNS}
+        metadata["distribution"] = table.labels("distribution", ("truncated", "normal"))[0]
+        k = table.reals("k", positive=True)[0]
+        points = int(table.integers("points_per_axis", minimum=2)[0])
+        table.each_once(("repeat", "output"), repeat, output, OUTPUTS)
+        for name in OUTPUTS:
+            rows = output == name
+            table.same(f"limit of output {name!r}", "limit", limit[rows], rows)
+        repeats = int(repeat.max())
+        wide = np.zeros((repeats, len(OUTPUTS)), dtype=np.int64)
+        wide[repeat - 1, [OUTPUTS.index(o) for o in output]] = inside
+        limits = np.array([limit[output == o][0] for o in OUTPUTS])
+        return cls(limits=limits, inside=wide, n_poses=int(n_poses),
+                   distribution=str(metadata["distribution"]), k=float(k),
+                   points_per_axis=points)
 
     def save_csv(self, path, overwrite: bool = False) -> Path:
         """Write :meth:`to_frame` to CSV; an existing file is kept unless ``overwrite``."""
@@ -132,8 +158,8 @@ class GridExperimentResult:
 
     @classmethod
     def load_csv(cls, path) -> "GridExperimentResult":
-        """Read a file written by :meth:`save_csv`."""
-        return cls.from_frame(pd.read_csv(path))
+        """Read and verify a file written by :meth:`save_csv` (see :meth:`from_frame`)."""
+        return cls.from_frame(read_saved_csv(path), source=str(path))
 
 
 @dataclass(frozen=True, eq=False)
@@ -162,6 +188,15 @@ class RandomPoseResult:
     distribution: str = "truncated"
     k: float = 3.0
 
+    def __post_init__(self):
+        inside = checks.numeric_array(self.inside, "inside", ndim=1)
+        n_samples = checks.positive_int(self.n_samples, "n_samples")
+        bad = np.flatnonzero((inside < 0) | (inside > n_samples) | (inside != np.round(inside))
+                             ) if inside.shape == (len(OUTPUTS),) else [0]
+        if len(bad):
+            raise InputError(f"inside must be six whole counts in [0, n_samples = {n_samples}]"
+                             f"; got {self.inside!r}")
+
     def reliability(self, confidence: float = 0.95, method: str = "wilson"):
         """Share in tolerance per output with a binomial interval (samples independent)."""
         return proportion(self.inside, self.n_samples, confidence, method, names=OUTPUTS)
@@ -174,3 +209,173 @@ class RandomPoseResult:
         frame["fosm_one_sided"] = self.fosm_one_sided
         frame["fosm_two_sided"] = self.fosm_two_sided
         return frame
+
+    def saved_frame(self) -> pd.DataFrame:
+        """The table :meth:`save_csv` writes: one row per output with the counts, the
+        FOSM averages and how the errors were drawn."""
+        return pd.DataFrame({"output": OUTPUTS, "limit": self.limits, "inside": self.inside,
+                             "outside": self.n_samples - self.inside,
+                             "fosm_one_sided": self.fosm_one_sided,
+                             "fosm_two_sided": self.fosm_two_sided,
+                             "distribution": self.distribution, "k": self.k})
+
+    def save_csv(self, path, overwrite: bool = False) -> Path:
+        """Write :meth:`saved_frame` to CSV atomically; an existing file is kept unless
+        ``overwrite``."""
+        return write_csv(self.saved_frame(), path, overwrite, index=False)
+
+    @classmethod
+    def from_frame(cls, frame: pd.DataFrame, source: str = "random-pose table"
+                   ) -> "RandomPoseResult":
+        """Rebuild from :meth:`saved_frame`'s table, verified completely: each output once,
+        ``0 ≤ inside ≤ samples``, one sample count, probabilities in [0, 1], one value of
+        each metadata column."""
+        table = _Table(frame, source, RANDOM_POSE_COLUMNS)
+        output = table.labels("output", OUTPUTS, "outputs")
+        limit = table.reals("limit", positive=True)
+        inside = table.integers("inside", minimum=0)
+        outside = table.integers("outside", minimum=0)
+        n_samples = table.same("sample counts (inside + outside)", "outside", inside + outside)
+        if n_samples < 1:
+            table.fail(0, "inside", "needs at least one sample")
+        one = table.reals("fosm_one_sided", upper=1.0)
+        two = table.reals("fosm_two_sided", upper=1.0)
+        distribution = table.labels("distribution", ("truncated", "normal"))
+        table.same("distribution", "distribution", distribution)
+        k = table.reals("k", positive=True)
+        table.same("k", "k", k)
+        table.each_once(("output",), output, None, OUTPUTS)
+        order = [int(np.flatnonzero(output == o)[0]) for o in OUTPUTS]
+        return cls(limits=limit[order], inside=inside[order].astype(np.int64),
+                   n_samples=int(n_samples), fosm_one_sided=one[order],
+                   fosm_two_sided=two[order], distribution=str(distribution[0]),
+                   k=float(k[0]))
+
+    @classmethod
+    def load_csv(cls, path) -> "RandomPoseResult":
+        """Read and verify a file written by :meth:`save_csv`."""
+        return cls.from_frame(read_saved_csv(path), source=str(path))
+
+
+RANDOM_POSE_COLUMNS = ("output", "limit", "inside", "outside", "fosm_one_sided",
+                       "fosm_two_sided", "distribution", "k")
+LARGEST_COUNT = 2**53  # counts beyond this are not exact in a float column
+
+
+def read_saved_csv(path) -> pd.DataFrame:
+    """A saved CSV as text cells, or :class:`SavedResultError` naming the file."""
+    path = Path(path)
+    try:
+        frame = pd.read_csv(path, dtype=str, keep_default_na=False, encoding="utf-8")
+    except FileNotFoundError:
+        raise
+    except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError,
+            ValueError) as exc:
+        raise SavedResultError(f"{path}: not a saved result table ({exc})") from None
+    if frame.empty:
+        raise SavedResultError(f"{path}: the table has a header but no rows")
+    return frame
+
+
+def _plain(value):
+    """A numpy scalar as the Python value it holds, for readable messages."""
+    return value.item() if isinstance(value, np.generic) else value
+
+
+class _Table:
+    """Column-by-column verification of a saved table; rows are reported as in the file
+    (row 1 is the first line after the header)."""
+
+    def __init__(self, frame, source: str, columns):
+        if not isinstance(frame, pd.DataFrame):
+            raise SavedResultError(f"{source}: expected a table, got {type(frame).__name__}")
+        self.frame = frame.reset_index(drop=True)
+        self.source = source
+        for column in columns:
+            if column not in self.frame.columns:
+                raise SavedResultError(f"{source}: table lacks column {column!r}")
+        extra = [c for c in self.frame.columns if c not in columns]
+        if extra:
+            raise SavedResultError(f"{source}: unexpected column {extra[0]!r}")
+        if len(self.frame) == 0:
+            raise SavedResultError(f"{source}: the table has no rows")
+
+    def fail(self, row: int, column: str, problem: str):
+        raise SavedResultError(f"{self.source}: row {row + 1}, column {column!r}: {problem}")
+
+    def _numbers(self, column: str) -> np.ndarray:
+        cells = self.frame[column]
+        values = pd.to_numeric(cells, errors="coerce").to_numpy(dtype=float)
+        bad = np.flatnonzero(~np.isfinite(values))
+        if len(bad):
+            self.fail(int(bad[0]), column, f"{cells.iloc[bad[0]]!r} is not a finite number")
+        return values
+
+    def integers(self, column: str, minimum: int) -> np.ndarray:
+        values = self._numbers(column)
+        bad = np.flatnonzero((values != np.floor(values)) | (values < minimum)
+                             | (values > LARGEST_COUNT))
+        if len(bad):
+            self.fail(int(bad[0]), column, f"{self.frame[column].iloc[bad[0]]!r} is not a "
+                                           f"whole number >= {minimum}")
+        return values.astype(np.int64)
+
+    def reals(self, column: str, positive: bool = False, upper: float | None = None
+              ) -> np.ndarray:
+        values = self._numbers(column)
+        low_bad = values <= 0 if positive else values < 0
+        bad = np.flatnonzero(low_bad | (values > upper if upper is not None else False))
+        if len(bad):
+            span = "> 0" if positive else f"in [0, {upper}]" if upper is not None else ">= 0"
+            self.fail(int(bad[0]), column, f"{float(values[bad[0]])!r} must be {span}")
+        return values
+
+    def labels(self, column: str, allowed, what: str | None = None) -> np.ndarray:
+        values = self.frame[column].astype(str).to_numpy()
+        bad = np.flatnonzero(~np.isin(values, allowed))
+        if len(bad):
+            self.fail(int(bad[0]), column, f"{values[bad[0]]!r} is not one of the "
+                                           f"{what or column} {tuple(allowed)}")
+        return values
+
+    def same(self, what: str, column: str, values, rows=None):
+        """The one value ``values`` take; the first row that differs is refused."""
+        values = np.asarray(values)
+        positions = np.arange(len(self.frame)) if rows is None else np.flatnonzero(rows)
+        differ = np.flatnonzero(values != values[0])
+        if len(differ):
+            self.fail(int(positions[differ[0]]), column,
+                      f"more than one value of {what}: {_plain(values[differ[0]])!r} and "
+                      f"{_plain(values[0])!r} (row {int(positions[0]) + 1})")
+        return values[0]
+
+    def close_to(self, column: str, values, expected) -> None:
+        bad = np.flatnonzero(~np.isclose(values, expected, rtol=1e-9, atol=0))
+        if len(bad):
+            self.fail(int(bad[0]), column, f"{float(values[bad[0]])!r} does not match "
+                                           f"inside / poses = {float(expected[bad[0]])!r}")
+
+    def each_once(self, columns, first, second, outputs) -> None:
+        """Every key (repeat × output, or output) present exactly once."""
+        keys = pd.DataFrame({"a": first} if second is None else {"a": first, "b": second})
+        duplicated = np.flatnonzero(keys.duplicated().to_numpy())
+        if len(duplicated):
+            self.fail(int(duplicated[0]), columns[-1],
+                      f"{' × '.join(columns)} {tuple(keys.iloc[duplicated[0]])} appears "
+                      f"more than once")
+        if second is None:
+            missing = [o for o in outputs if o not in set(first)]
+            if missing:
+                raise SavedResultError(f"{self.source}: output {missing[0]!r} is missing; "
+                                       f"the table must have outputs {outputs}")
+            return
+        repeats = int(first.max())
+        if len(keys) == repeats * len(outputs):
+            return  # no duplicates, repeats within 1..R and known outputs: all present
+        present = set(zip(first.tolist(), second.tolist()))
+        for r in range(1, repeats + 1):
+            for o in outputs:
+                if (r, o) not in present:
+                    raise SavedResultError(
+                        f"{self.source}: repeat {r}, output {o!r} is missing (repeats "
+                        f"1..{repeats} × outputs {outputs} must each appear once)")

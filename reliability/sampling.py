@@ -22,7 +22,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from . import checks
 from .correlation import correlation_factor, draw_correlated, draw_grid_errors
+from .errors import InputError
 from .fosm import error_sigma, one_sided_probability, output_sigma, two_sided_probability
 from .kinematics import deviation_from_transports, ideal_motion, offset_transform, transports
 from .poses import grid_axis_points, random_poses
@@ -59,14 +61,12 @@ def draw_errors(tolerances, size, *, k: float = 3.0, distribution: str = "trunca
         (exact; 0.27 % rejected at k = 3). 'normal': untruncated.
     rng : None, int or numpy.random.Generator
     """
-    if distribution not in DISTRIBUTIONS:
-        raise ValueError(f"unknown distribution {distribution!r}; use one of {DISTRIBUTIONS}")
-    if not (np.isfinite(k) and k > 0):
-        raise ValueError(f"coverage factor k must be finite and > 0; got {k!r}")
-    t = np.asarray(tolerances, dtype=float)
+    checks.choice(distribution, "distribution", DISTRIBUTIONS)
+    k = checks.finite_float(k, "coverage factor k", 0.0, low_open=True)
+    t = checks.numeric_array(tolerances, "tolerances")
     if not np.all(np.isfinite(t) & (t > 0)):
-        raise ValueError("tolerances must be finite and > 0")
-    rng = np.random.default_rng(rng)
+        raise InputError("tolerances must be finite and > 0")
+    rng = checks.generator(rng)
     z = rng.standard_normal(tuple(size) + t.shape)
     if distribution == "truncated":
         outside = np.abs(z) > k
@@ -97,12 +97,21 @@ class GridExperiment:
         ``"constant"``, ``"gp:<length mm>"``, a model, or ``{axis name: model}``.
     systematic : SystematicErrors, optional
         Measured mean profiles (:mod:`reliability.measured`) added at every grid point.
+    budget : int, optional
+        Bytes one batch of experiments may take (default
+        :data:`reliability.checks.DEFAULT_BUDGET`); ``P^n`` is checked against it here,
+        ``batch × P^n`` and the counts of all repeats in :meth:`run`.
     """
 
     def __init__(self, machine, points_per_axis: int = 5, profile="independent",
-                 systematic=None):
+                 systematic=None, *, budget: int | None = None):
         self.machine = machine
         self.points = grid_axis_points(machine, points_per_axis)
+        checks.require_size(len(self.points[0]) ** len(self.points), 6 * 8, budget,
+                            f"one experiment on a {len(self.points[0])}-point grid of "
+                            f"{len(self.points)} axes",
+                            "use fewer points per axis, or sample random poses instead")
+        self.budget = budget
         self.points_per_axis = int(points_per_axis)
         self.profiles = axis_profiles(machine, profile)
         self._travel = travel_factors(machine, self.profiles, self.points)
@@ -226,8 +235,8 @@ class GridExperiment:
 
     def _check_draws(self, motion, assembly):
         n = len(self.machine.axis_specs)
-        motion = np.asarray(motion, dtype=float)
-        assembly = np.asarray(assembly, dtype=float)
+        motion = checks.numeric_array(motion, "motion errors")
+        assembly = checks.numeric_array(assembly, "assembly errors")
         expected = (n, self.points_per_axis, 6)
         if motion.ndim != 4 or motion.shape[1:] != expected:
             raise ValueError(f"motion errors must have shape (R, {n}, {self.points_per_axis}, 6);"
@@ -267,12 +276,20 @@ class GridExperiment:
         GridExperimentResult
         """
         t = _one_allocation(self.machine, tolerances)
-        _check_run_options(repeats, keep_values, batch, distribution, k)
-        children = np.random.default_rng(rng).spawn(int(repeats))
+        repeats, batch = _check_run_options(repeats, keep_values, batch, distribution, k)
+        checks.callback(progress, "progress")
+        rng = checks.generator(rng)
+        values_kept = {"all": repeats, "first": 1, "none": 0}[keep_values]
+        checks.require_size(min(batch, repeats) * self.n_poses, 6 * 8 * 4, self.budget,
+                            f"a batch of {min(batch, repeats)} experiments",
+                            "pass a smaller batch")
+        checks.require_size(repeats * 6 + values_kept * self.n_poses * 6, 8, self.budget,
+                            f"the results of {repeats:,} experiments",
+                            "run fewer repeats per call, or keep_values='none'/'first'")
         inside, kept = [], []
         for start in range(0, repeats, batch):
-            draws = [self._draw(t, child, k, distribution)
-                     for child in children[start:start + batch]]
+            children = rng.spawn(min(batch, repeats - start))  # same streams as one spawn
+            draws = [self._draw(t, child, k, distribution) for child in children]
             values = self.evaluate(np.stack([d[0] for d in draws]),
                                    np.stack([d[1] for d in draws]))
             inside.append(np.sum(np.abs(values) < self.machine.limits, axis=1))  # Eq. (19)
@@ -312,29 +329,26 @@ class GridExperiment:
 
 
 def _check_run_options(repeats, keep_values, batch, distribution, k,
-                       names=("repeats", "batch")) -> None:
-    for value, name in zip((repeats, batch), names):
-        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
-            raise ValueError(f"{name} must be a positive integer; got {value!r}")
-    if keep_values not in ("first", "all", "none"):
-        raise ValueError(f"keep_values must be 'first', 'all' or 'none'; got {keep_values!r}")
-    if distribution not in DISTRIBUTIONS:
-        raise ValueError(f"unknown distribution {distribution!r}; use one of {DISTRIBUTIONS}")
-    if not (np.isfinite(k) and k > 0):
-        raise ValueError(f"coverage factor k must be finite and > 0; got {k!r}")
+                       names=("repeats", "batch")) -> tuple[int, int]:
+    counts = tuple(checks.positive_int(value, name)
+                   for value, name in zip((repeats, batch), names))
+    checks.choice(keep_values, "keep_values", ("first", "all", "none"))
+    checks.choice(distribution, "distribution", DISTRIBUTIONS)
+    checks.finite_float(k, "coverage factor k", 0.0, low_open=True)
+    return counts
 
 
 def _one_allocation(machine, tolerances) -> np.ndarray:
     t = machine.check_tolerances(tolerances)
     if t.ndim != 1:
-        raise ValueError(f"tolerances must be one allocation of shape ({machine.n_errors},); "
+        raise InputError(f"tolerances must be one allocation of shape ({machine.n_errors},); "
                          f"got {t.shape}")
     return t
 
 
 def sample_random_poses(machine, tolerances, n_samples: int, *, rng=None, k: float = 3.0,
                         distribution: str = "truncated", chunk: int = 50_000,
-                        progress=None) -> RandomPoseResult:
+                        progress=None, budget: int | None = None) -> RandomPoseResult:
     """Pose-level reliability from independent samples (DESIGN §2, issue "random poses").
 
     Every sample draws a pose uniformly over the workspace and a fresh set of all errors,
@@ -356,14 +370,20 @@ def sample_random_poses(machine, tolerances, n_samples: int, *, rng=None, k: flo
         Samples evaluated together (memory ≈ chunk × 3 kB).
     progress : callable, optional
         ``progress(done, total)`` after each chunk.
+    budget : int, optional
+        Bytes one chunk may take (default :data:`reliability.checks.DEFAULT_BUDGET`).
 
     Returns
     -------
     RandomPoseResult
     """
     t = _one_allocation(machine, tolerances)
-    _check_run_options(n_samples, "none", chunk, distribution, k, ("n_samples", "chunk"))
-    rng = np.random.default_rng(rng)
+    n_samples, chunk = _check_run_options(n_samples, "none", chunk, distribution, k,
+                                          ("n_samples", "chunk"))
+    checks.callback(progress, "progress")
+    rng = checks.generator(rng)
+    checks.require_size(min(chunk, n_samples), 8 * (3 * 6 * machine.n_errors + 32), budget,
+                        f"a chunk of {min(chunk, n_samples):,} samples", "pass a smaller chunk")
     sigma_x = error_sigma(t, k, distribution)  # the spread actually drawn
     factor = None if machine.correlation is None else correlation_factor(machine.correlation)
     inside = np.zeros(6, dtype=np.int64)

@@ -27,6 +27,8 @@ import numpy as np
 import pandas as pd
 from scipy import stats
 
+from . import checks
+
 __all__ = [
     "METHODS",
     "ProportionEstimate",
@@ -50,10 +52,7 @@ def _index_text(name, bad, values):
 
 def _check_confidence(confidence):
     """Return ``confidence`` as a float in the open interval (0, 1)."""
-    c = float(confidence)
-    if not 0.0 < c < 1.0:
-        raise ValueError(f"confidence must lie in (0, 1); got {confidence!r}")
-    return c
+    return checks.probability(confidence, "confidence")
 
 
 def _check_method(method):
@@ -330,7 +329,7 @@ def proportion(successes, trials, confidence=0.95, method="wilson", *, names=Non
 
 def _check_fractions(fractions):
     """Return per-experiment fractions as a float array of shape (n >= 2, ...)."""
-    f = np.asarray(fractions, dtype=float)
+    f = checks.numeric_array(fractions, "fractions")
     if f.ndim == 0 or f.shape[0] < 2:
         n = 0 if f.ndim == 0 else f.shape[0]
         raise ValueError(

@@ -13,6 +13,8 @@ import numpy as np
 import pandas as pd
 from scipy.optimize import minimize
 
+from . import checks
+from .errors import InputError
 from .fosm import error_sigma, one_sided_probability, output_sigma, two_sided_probability
 from .machine import OUTPUTS
 
@@ -40,8 +42,17 @@ def continuous_worst(machine, tolerances, grid, *, k: float = 3.0, starts: int =
         probabilities at each, and the continuous worst pose (one column per axis). The
         search is local, so ``beta`` is an upper bound on the true continuous worst β.
     """
-    sigma_x = error_sigma(machine.check_tolerances(tolerances), k)
+    starts = checks.positive_int(starts, "starts")
+    t = machine.check_tolerances(tolerances)
+    if t.ndim != 1:
+        raise InputError(f"tolerances must be one allocation of shape ({machine.n_errors},); "
+                         f"got {t.shape}")
+    sigma_x = error_sigma(t, k)
     grid = np.atleast_2d(machine.check_positions(grid))
+    if grid.ndim != 2 or len(grid) == 0:
+        raise InputError(f"grid must have shape (n_poses, {len(machine.axes)}) with at least "
+                         f"one pose; got {grid.shape}")
+    checks.poses_in_strokes(machine, grid, "grid")
     grid_sigma = output_sigma(machine.jacobian(grid), sigma_x)
     bounds = [axis.stroke for axis in machine.axis_specs]
     rows = []

@@ -8,6 +8,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
+from reliability.files import atomic_write_text
 from reliability.paper_tables import TABLE7, TABLE9, TABLE9_ALL_INSIDE
 
 PERCENT = "{:.2%}".format
@@ -40,7 +41,7 @@ def write_report(study, tables: dict, path) -> None:
     sections = [_header(study), _fcem(study), _allocation(study, tables),
                 _fosm(tables), _between_grid_points(tables), _experiments(study, tables),
                 _comparison(tables), _errata()]
-    path.write_text("\n\n".join(sections) + "\n")
+    atomic_write_text(path, "\n\n".join(sections) + "\n", overwrite=True)
 
 
 def _header(study) -> str:

@@ -15,6 +15,7 @@ files.
 from __future__ import annotations
 
 import argparse
+import io
 import sys
 import time
 from dataclasses import dataclass, field
@@ -36,6 +37,7 @@ import allocation  # noqa: E402
 import reliability  # noqa: E402
 from reliability import plots  # noqa: E402
 from reliability.comparison import fosm_versus_monte_carlo  # noqa: E402
+from reliability.files import atomic_write_bytes, write_csv  # noqa: E402
 from reliability.fosm import fosm  # noqa: E402
 from reliability.paper_tables import (TABLE6, TABLE7, TABLE8, TABLE9,  # noqa: E402
                                       TABLE9_ALL_INSIDE)
@@ -323,10 +325,12 @@ def write_outputs(study: Study, out: Path, log) -> None:
     """Write tables, figures and the report into ``out``."""
     frames = tables(study)
     for name, frame in frames.items():
-        frame.to_csv(out / name, float_format=f"%.{SIGNIFICANT}g")
+        write_csv(frame, out / name, overwrite=True, float_format=f"%.{SIGNIFICANT}g")
     log("tables written; drawing figures")
     for name, fig in figures(study, frames).items():
-        fig.savefig(out / name, dpi=110, metadata={"Software": None})
+        image = io.BytesIO()
+        fig.savefig(image, format=Path(name).suffix[1:], dpi=110, metadata={"Software": None})
+        atomic_write_bytes(out / name, image.getvalue(), overwrite=True)
         plt.close(fig)
     write_report(study, frames, out / "report.md")
     log(f"the generic machine report into {out / MACHINE_REPORT}/")
