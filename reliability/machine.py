@@ -337,7 +337,7 @@ def load_machine(path) -> Machine:
     except tomllib.TOMLDecodeError as exc:
         raise MachineDescriptionError(f"{path}: not valid TOML: {exc}") from None
     except UnicodeDecodeError as exc:
-        raise MachineDescriptionError(f"{path}: not a text (UTF-8 TOML) file: byte "
+        raise MachineDescriptionError(f"{path}: not a text file (UTF-8 TOML expected): byte "
                                       f"{exc.start} is {exc.object[exc.start:exc.start + 1]!r}"
                                       ) from None
     return machine_from_dict(data, source=str(path))
