@@ -25,6 +25,7 @@ import numpy as np
 import pandas as pd
 from scipy.stats import norm
 
+from .chunks import chunks, jacobian_bytes
 from .machine import OUTPUTS
 
 SIDES = ("one_sided", "two_sided")
@@ -173,7 +174,8 @@ class FosmResult:
 
 
 def fosm(machine, tolerances, poses, *, k: float = 3.0, means=None,
-         distribution: str = "normal", jacobian=None) -> FosmResult:
+         distribution: str = "normal", jacobian=None, memory: int | None = None
+         ) -> FosmResult:
     """FOSM precision reliability of an allocation over a pose set (Eqs. 19–23).
 
     Parameters
@@ -193,6 +195,10 @@ def fosm(machine, tolerances, poses, *, k: float = 3.0, means=None,
         How σ follows from t, see :func:`error_sigma`.
     jacobian : ndarray, optional
         Precomputed ``machine.jacobian(poses)`` to reuse across allocations.
+    memory : int, optional
+        Bytes of temporary arrays allowed (:data:`reliability.chunks.MEMORY_BUDGET` by
+        default): the poses are processed in chunks, so only the per-pose results
+        ``(n_poses, 6)`` are ever held whole, never the Jacobian of all poses.
 
     Returns
     -------
@@ -205,31 +211,58 @@ def fosm(machine, tolerances, poses, *, k: float = 3.0, means=None,
     if poses.ndim != 2:
         raise ValueError(f"poses must have shape (n_poses, {len(machine.axes)}); "
                          f"got {poses.shape}")
-    if jacobian is None:
-        jacobian = machine.jacobian(poses)
-    jacobian = np.asarray(jacobian, dtype=float)
-    if jacobian.shape != poses.shape[:-1] + (6, machine.n_errors):
-        raise ValueError(f"jacobian must have shape {poses.shape[:-1] + (6, machine.n_errors)}; "
-                         f"got {jacobian.shape}")
+    if jacobian is not None:
+        jacobian = np.asarray(jacobian, dtype=float)
+        if jacobian.shape != poses.shape[:-1] + (6, machine.n_errors):
+            raise ValueError(f"jacobian must have shape "
+                             f"{poses.shape[:-1] + (6, machine.n_errors)}; got {jacobian.shape}")
+    error_means = None if means is None else machine.check_errors(means)
     sigma_x = error_sigma(t, k, distribution)
-    sigma = output_sigma(jacobian, sigma_x)
-    mean = np.zeros_like(sigma) if means is None else \
-        machine.comprehensive_error(poses, machine.check_errors(means))  # Eq. (20)
+    sigma = pose_sigma(machine, poses, sigma_x, jacobian=jacobian, memory=memory)
+    mean = np.zeros_like(sigma)
+    if error_means is not None:
+        for part in chunks(len(poses), jacobian_bytes(machine), memory):
+            mean[part] = machine.comprehensive_error(poses[part], error_means)  # Eq. (20)
     two = two_sided_probability(machine.limits, sigma, mean)
     worst = np.argmin(two, axis=0)
+    rows = np.arange(len(OUTPUTS))
+    worst_jacobian = machine.jacobian(poses[worst]) if jacobian is None else jacobian[worst]
     return FosmResult(
         poses=poses, limits=machine.limits, targets=machine.targets, mean=mean, sigma=sigma,
         beta=reliability_index(machine.limits, sigma, mean),
         one_sided=one_sided_probability(machine.limits, sigma, mean), two_sided=two,
         worst_pose=worst,
-        contributions=_contributions(machine, jacobian, sigma_x, worst),
+        contributions=_contributions(machine, worst_jacobian[rows, rows], sigma_x),
     )
 
 
-def _contributions(machine, jacobian, sigma_x, worst) -> pd.DataFrame:
-    """Percent of σ² from each error at each output's worst pose (Eq. 20's terms)."""
-    rows = np.arange(len(OUTPUTS))
-    terms = output_variance_terms(jacobian[worst, rows], sigma_x)  # (6, n_errors)
+def pose_sigma(machine, poses, sigma_x, *, jacobian=None, memory: int | None = None
+               ) -> np.ndarray:
+    """σ of every output at every pose, Eq. (20), in chunks of poses: ``(n_poses, 6)``.
+
+    Parameters
+    ----------
+    machine : Machine
+    poses : ndarray (n_poses, n_axes)
+    sigma_x : ndarray (n_errors,)
+        Standard deviation of each error.
+    jacobian : ndarray (n_poses, 6, n_errors), optional
+        Precomputed sensitivities; computed chunk by chunk otherwise.
+    memory : int, optional
+        Bytes of temporary arrays per chunk.
+    """
+    variance_x = np.square(sigma_x)
+    sigma = np.empty((len(poses), len(OUTPUTS)))
+    for part in chunks(len(poses), jacobian_bytes(machine), memory):
+        block = machine.jacobian(poses[part]) if jacobian is None else jacobian[part]
+        sigma[part] = np.sqrt(np.square(block) @ variance_x)  # Eq. (20)
+    return sigma
+
+
+def _contributions(machine, worst_rows, sigma_x) -> pd.DataFrame:
+    """Percent of σ² from each error at each output's worst pose (Eq. 20's terms), from
+    the Jacobian row of each output at its worst pose, ``(6, n_errors)``."""
+    terms = output_variance_terms(worst_rows, sigma_x)  # (6, n_errors)
     percent = 100.0 * terms / terms.sum(axis=-1, keepdims=True)
     return pd.DataFrame(percent.T, index=pd.Index(machine.error_names, name="error"),
                         columns=pd.Index(OUTPUTS, name="output"))

@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import itertools
-
 import numpy as np
 
 
@@ -34,7 +32,8 @@ def workspace_grid(machine, points_per_axis: int = 5) -> np.ndarray:
     axis varies slowest, the last fastest (5^6 = 15 625 rows for the paper's machine).
     """
     points = grid_axis_points(machine, points_per_axis)
-    return np.array(list(itertools.product(*points)), dtype=float)
+    mesh = np.meshgrid(*points, indexing="ij")  # first axis slowest, as itertools.product
+    return np.stack([axis.ravel() for axis in mesh], axis=-1).astype(float)
 
 
 def random_poses(machine, n: int, rng=None) -> np.ndarray:
