@@ -191,15 +191,15 @@ def run_task(task: SweepTask) -> dict:
         experiments entirely in tolerance).
     """
     with threadpool_limits(limits=1):
+        stream = task.stream_parameters()
+        machine = (task.machine, stream["machine_fingerprint"])
         try:
-            allocated = _allocation(task.machine, task.side, task.target,
-                                    task.points_per_axis)
+            allocated = _allocation(machine, task.side, task.target, task.points_per_axis)
         except TargetUnreachableError:
             return {"status": "unreachable", "relative_cost": None, "certified": False,
                     "fraction": [None] * len(OUTPUTS), "yield": None}
-        experiment = _experiment(task.machine, task.target, task.points_per_axis,
-                                 task.profile)
-        rng = np.random.default_rng(seed_sequence(task.stream_parameters()))
+        experiment = _experiment(machine, task.target, task.points_per_axis, task.profile)
+        rng = np.random.default_rng(seed_sequence(stream))
         verified = experiment.run(allocated["tolerances"], repeats=task.repeats, rng=rng,
                                   keep_values="none")
     return {"status": "ok", "relative_cost": allocated["relative_cost"],
@@ -341,23 +341,23 @@ def _supports_profiles() -> bool:
     return "profile" in inspect.signature(GridExperiment).parameters
 
 
-@functools.lru_cache(maxsize=16)
 def _load_machine(name: str):
     return hobbing_machine() if name == PAPER_MACHINE else load_machine(name)
 
 
+# The caches below are keyed by (file name, fingerprint of its content): a machine file
+# edited during a session is a new machine.
 @functools.lru_cache(maxsize=64)
-def _task_machine(name: str, target: float):
+def _task_machine(machine: tuple[str, str], target: float):
     """The machine with every output's target set to ``target``."""
-    machine = _load_machine(name)
-    return replace(machine, targets=np.full(len(OUTPUTS), float(target)))
+    return replace(_load_machine(machine[0]), targets=np.full(len(OUTPUTS), float(target)))
 
 
 @functools.lru_cache(maxsize=64)
-def _allocation(name: str, side: str, target: float, points: int) -> dict:
+def _allocation(machine: tuple[str, str], side: str, target: float, points: int) -> dict:
     """Certified optimum of one machine and reading; shared by the tasks that differ only
     in profile, seed or repeats (deterministic, so caching changes no result)."""
-    machine = _task_machine(name, target)
+    machine = _task_machine(machine, target)
     problem = AllocationProblem.build(machine, workspace_grid(machine, points), side=side)
     best = problem.solve_exact()
     return {"tolerances": best.tolerances,
@@ -366,8 +366,9 @@ def _allocation(name: str, side: str, target: float, points: int) -> dict:
 
 
 @functools.lru_cache(maxsize=64)
-def _experiment(name: str, target: float, points: int, profile: str) -> GridExperiment:
-    machine = _task_machine(name, target)
+def _experiment(machine: tuple[str, str], target: float, points: int,
+                profile: str) -> GridExperiment:
+    machine = _task_machine(machine, target)
     if profile == INDEPENDENT and not _supports_profiles():
         return GridExperiment(machine, points)
     return GridExperiment(machine, points, profile=profile)
