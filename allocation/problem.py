@@ -357,7 +357,7 @@ def _unique_rows(matrix) -> np.ndarray:
     return np.flatnonzero(~pd.DataFrame(key).duplicated().to_numpy())
 
 
-def _undominated(matrix, block: int = 256) -> np.ndarray:
+def _undominated(matrix, block: int = 512) -> np.ndarray:
     """Indices of rows not dominated entrywise by another row (duplicates already gone).
 
     Rows are visited in order of decreasing sum: only a row with a larger sum can dominate
@@ -377,16 +377,34 @@ def _undominated(matrix, block: int = 256) -> np.ndarray:
     for start in range(0, len(order), block):
         index = np.arange(start, min(start + block, len(order)))
         for first in range(0, len(kept), block):  # most rows fall to the first kept rows
-            dominators = kept[first:first + block]
-            covered = np.all(dominators[None, :, :] >= sorted_rows[index, None, :], axis=-1)
-            index = index[~covered.any(axis=1)]
-        candidates = sorted_rows[index]
-        within = np.all(candidates[None, :, :] >= candidates[:, None, :], axis=-1)
-        np.fill_diagonal(within, False)
-        index = index[~within.any(axis=1)]
+            index = index[~_covered(sorted_rows[index], kept[first:first + block])]
+        index = index[~_covered(sorted_rows[index], sorted_rows[index], skip_self=True)]
         keep[index] = True
         kept = np.concatenate([kept, sorted_rows[index]])
     return np.sort(order[keep])
+
+
+def _covered(rows, dominators, skip_self: bool = False) -> np.ndarray:
+    """Which ``rows`` are ≤ some row of ``dominators`` in every entry.
+
+    Candidate pairs are filtered one column at a time, so the work shrinks with the pairs
+    still standing instead of comparing every pair in every column.
+    """
+    if len(rows) == 0 or len(dominators) == 0:
+        return np.zeros(len(rows), dtype=bool)
+    if rows.shape[1] == 0:  # every row equal: only another row can cover
+        return np.full(len(rows), len(dominators) > 1 or not skip_self)
+    row, other = np.nonzero(dominators[None, :, 0] >= rows[:, None, 0])
+    if skip_self:
+        row, other = row[row != other], other[row != other]
+    for column in range(1, rows.shape[1]):
+        if len(row) == 0:
+            break
+        standing = dominators[other, column] >= rows[row, column]
+        row, other = row[standing], other[standing]
+    covered = np.zeros(len(rows), dtype=bool)
+    covered[row] = True
+    return covered
 
 
 def _check_choice(value, allowed, what) -> None:
