@@ -354,6 +354,11 @@ def _unique_rows(matrix) -> np.ndarray:
     scale = matrix.max(axis=1, keepdims=True)
     scale[scale == 0] = 1.0
     key = np.round(matrix / scale, DUPLICATE_DIGITS) * scale
+    codes, uniques = pd.factorize(pd.util.hash_pandas_object(pd.DataFrame(key), index=False))
+    first = np.full(len(uniques), len(key))
+    np.minimum.at(first, codes, np.arange(len(key)))
+    if np.array_equal(key, key[first[codes]]):  # no two distinct rows share a hash
+        return np.sort(first)
     return np.flatnonzero(~pd.DataFrame(key).duplicated().to_numpy())
 
 
