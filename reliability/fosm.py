@@ -26,6 +26,7 @@ import pandas as pd
 from scipy.stats import norm
 
 from .chunks import chunks, jacobian_bytes
+from .kinematics import output_variance
 from .machine import OUTPUTS
 
 SIDES = ("one_sided", "two_sided")
@@ -254,8 +255,11 @@ def pose_sigma(machine, poses, sigma_x, *, jacobian=None, memory: int | None = N
     variance_x = np.square(sigma_x)
     sigma = np.empty((len(poses), len(OUTPUTS)))
     for part in chunks(len(poses), jacobian_bytes(machine), memory):
-        block = machine.jacobian(poses[part]) if jacobian is None else jacobian[part]
-        sigma[part] = np.sqrt(np.square(block) @ variance_x)  # Eq. (20)
+        if jacobian is None:
+            variance = output_variance(machine, poses[part], variance_x)
+        else:
+            variance = np.square(jacobian[part]) @ variance_x
+        sigma[part] = np.sqrt(variance)  # Eq. (20)
     return sigma
 
 

@@ -208,3 +208,31 @@ def jacobian_and_derivative(machine, q) -> tuple[np.ndarray, np.ndarray]:
         seen[6 * n:6 * (n + a)] = True  # assembly errors of the joints before a
         derivative[..., a, :, :] = -(ad @ jac) * seen
     return jac, derivative
+
+
+def output_variance(machine, q, variance_x) -> np.ndarray:
+    """``Σ_i J_oi² var_i`` at every pose (Eq. 20's σ²) without forming the Jacobian.
+
+    Accumulates each gap's block ``Ad(B⁻¹)² @ var_block`` in turn: the same sum as
+    ``np.square(jacobian(machine, q)) @ variance_x`` in a sixth of the memory.
+
+    Parameters
+    ----------
+    machine : Machine
+    q : array_like
+        ``(..., n_axes)`` positions.
+    variance_x : array_like
+        ``(n_errors,)`` error variances.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``(..., 6)``.
+    """
+    q = machine.check_positions(q)
+    variance_x = np.asarray(variance_x, dtype=float)
+    factors, blocks = chain_factors(machine, q)
+    out = np.zeros(q.shape[:-1] + (6,))
+    for block, adjoint in zip(blocks, transports(factors)):
+        out = out + np.square(adjoint) @ variance_x[6 * block:6 * block + 6]
+    return out

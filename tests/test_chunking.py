@@ -249,3 +249,13 @@ def test_grid_experiment_checkpoint_resumes_without_recomputing(trunnion5, tmp_p
         for seed in (9, 10):  # the damaged batch belongs to one of the two runs
             experiment.run(t, repeats=6, rng=seed, batch=2, checkpoint=tmp_path,
                            keep_values="none")
+
+
+def test_output_variance_equals_the_squared_jacobian_sum(any_machine):
+    from reliability.kinematics import output_variance
+
+    q = random_poses(any_machine, 50, rng=2)
+    variance = error_sigma(any_machine.initial_allocation) ** 2
+    expected = np.einsum("pon,n->po", any_machine.jacobian(q) ** 2, variance)  # Eq. (20)
+    np.testing.assert_allclose(output_variance(any_machine, q, variance), expected,
+                               rtol=1e-13)
