@@ -282,14 +282,18 @@ def _execute(function, tasks, pending, executor):
         return
     if isinstance(executor, Executor):
         futures = {executor.submit(function, tasks[i]): i for i in pending}
-        for future in as_completed(futures):
-            yield futures[future], future.result()
-        return
-    from distributed import as_completed as dask_completed
+        finished = as_completed(futures)
+    else:
+        from distributed import as_completed as dask_completed
 
-    futures = {executor.submit(function, tasks[i], pure=False): i for i in pending}
-    for future in dask_completed(list(futures)):
-        yield futures[future], future.result()
+        futures = {executor.submit(function, tasks[i], pure=False): i for i in pending}
+        finished = dask_completed(list(futures))
+    try:
+        for future in finished:
+            yield futures[future], future.result()
+    finally:  # interrupted or failed: drop the tasks not started (finished ones are stored)
+        for future in futures:
+            future.cancel()
 
 
 def _check_executor(executor) -> None:

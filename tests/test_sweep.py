@@ -11,7 +11,8 @@ import argparse
 import dataclasses
 import json
 import shutil
-from concurrent.futures import ProcessPoolExecutor
+import threading
+from concurrent.futures import ProcessPoolExecutor, ThreadPoolExecutor
 from pathlib import Path
 
 import numpy as np
@@ -48,11 +49,13 @@ class Counting:
     def __init__(self, fail_after=None):
         self.fail_after = fail_after
         self.tasks = []
+        self.lock = threading.Lock()
 
     def __call__(self, task):
-        if self.fail_after is not None and len(self.tasks) == self.fail_after:
-            raise KeyboardInterrupt("killed")
-        self.tasks.append(task)
+        with self.lock:
+            if self.fail_after is not None and len(self.tasks) >= self.fail_after:
+                raise KeyboardInterrupt("killed")
+            self.tasks.append(task)
         return run_task(task)
 
 
@@ -119,6 +122,20 @@ def test_killed_sweep_resumes_without_recomputing_finished_tasks(mill, tmp_path)
     again = Counting()
     assert run_sweep(spec, tmp_path / "store", task_function=again).computed == 0
     assert again.tasks == []
+
+
+def test_interrupted_pool_sweep_loses_no_finished_task(mill, tmp_path):
+    spec = small_spec(mill)
+    store = tmp_path / "store"
+    killed = Counting(fail_after=4)
+    with ThreadPoolExecutor(2) as pool, pytest.raises(KeyboardInterrupt):
+        run_sweep(spec, store, executor=pool, task_function=killed)
+    stored = len(list((store / "tasks").glob("*.json")))
+    assert 1 <= stored <= 4  # tasks finished before the interrupt was seen are stored
+    resumed = Counting()
+    result = run_sweep(spec, store, task_function=resumed)
+    assert result.resumed == stored and result.computed == 12 - stored
+    assert len(set(resumed.tasks)) == 12 - stored
 
 
 def test_changed_tasks_are_recomputed(mill, tmp_path):

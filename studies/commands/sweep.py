@@ -71,8 +71,11 @@ def _executor(args):
     if args.executor == "serial":
         yield None
     elif args.executor == "processes":
-        with ProcessPoolExecutor(max_workers=args.workers) as pool:
+        pool = ProcessPoolExecutor(max_workers=args.workers)
+        try:
             yield pool
+        finally:  # on an interrupt, do not wait for tasks that have not started
+            pool.shutdown(wait=True, cancel_futures=True)
     else:
         try:
             from distributed import Client, LocalCluster
