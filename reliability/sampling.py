@@ -297,7 +297,8 @@ class GridExperiment:
         """Parameters that determine one batch's counts (its checkpoint key)."""
         seeds = [[child.bit_generator.seed_seq.entropy,
                   list(child.bit_generator.seed_seq.spawn_key)] for child in children]
-        return {"kind": "grid_experiment", "machine": machine_fingerprint(self.machine), "points_per_axis": self.points_per_axis,
+        return {"kind": "grid_experiment", "machine": machine_fingerprint(self.machine),
+                "points_per_axis": self.points_per_axis,
                 "tolerances": t, "k": float(k), "distribution": distribution,
                 "seeds": seeds}
 
