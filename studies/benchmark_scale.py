@@ -169,7 +169,7 @@ def scaling_table(points_list, code, timeout, memory_limit) -> None:
 def sweep_efficiency(n_tasks: int, workers: int = 2) -> None:
     from concurrent.futures import ProcessPoolExecutor
 
-    from studies.sweep import SweepSpec, run_sweep
+    from studies.sweep import SweepSpec, clear_caches, run_sweep
 
     seeds = max(1, n_tasks // 4)
     spec = SweepSpec(machines=SWEEP_MACHINES, sides=("one_sided", "two_sided"),
@@ -183,6 +183,7 @@ def sweep_efficiency(n_tasks: int, workers: int = 2) -> None:
         start = time.perf_counter()
         run_sweep(spec, folder / "serial")
         times["serial"] = time.perf_counter() - start
+        clear_caches()  # forked workers must not inherit the serial run's allocations
         start = time.perf_counter()
         with ProcessPoolExecutor(workers) as pool:
             run_sweep(spec, folder / "processes", executor=pool)
@@ -202,13 +203,14 @@ def sweep_efficiency(n_tasks: int, workers: int = 2) -> None:
             f"   parallel efficiency {times['serial'] / (workers * elapsed):5.2f}"
         print(f"   {name:<10} {elapsed:8.1f} s{efficiency}")
     print(f"   results.csv byte-identical across the three: {'yes' if same else 'NO'}")
-    print("   (Dask times include starting the LocalCluster; each worker process solves "
+    print("   (parallel times include starting the workers; each worker process solves "
           "the allocations it meets once)")
 
 
 def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--points", type=int, nargs="+", default=[5, 7, 9, 11])
+    parser.add_argument("--points", type=int, nargs="*", default=[5, 7, 9, 11],
+                        help="points per axis of the scaling table (none: skip it)")
     parser.add_argument("--code", type=Path, default=HERE,
                         help="folder of the toolkit copy to measure (default: this one)")
     parser.add_argument("--timeout", type=float, default=600.0, help="s per measurement")
@@ -218,7 +220,8 @@ def main(argv=None) -> None:
                         help="tasks of the sweep (0: skip the sweep)")
     args = parser.parse_args(argv)
     print(f"BLAS threads: {os.environ['OPENBLAS_NUM_THREADS']}; CPUs: {os.cpu_count()}")
-    scaling_table(args.points, args.code.resolve(), args.timeout, args.memory_limit)
+    if args.points:
+        scaling_table(args.points, args.code.resolve(), args.timeout, args.memory_limit)
     if args.sweep_tasks:
         sweep_efficiency(args.sweep_tasks)
 

@@ -345,6 +345,12 @@ def _supports_profiles() -> bool:
     return "profile" in inspect.signature(GridExperiment).parameters
 
 
+def clear_caches() -> None:
+    """Forget the allocations and experiments this process has set up (for timing)."""
+    for cached in (_task_machine, _allocation, _experiment):
+        cached.cache_clear()
+
+
 def _load_machine(name: str):
     return hobbing_machine() if name == PAPER_MACHINE else load_machine(name)
 
