@@ -224,3 +224,13 @@ def test_command_writes_results_and_reports_resumed_tasks(mill, tmp_path, capsys
     with pytest.raises(InputError, match="--workers must be a positive"):
         command.run(parse(["sweep", str(spec), "--store", str(store), "--executor",
                            "processes", "--workers", "0"]))
+
+
+def test_unreachable_target_is_recorded_not_raised(mill, tmp_path):
+    # z = Φ⁻¹(1 − 1e-12) ≈ 7.0: more than twice the σ budget of z ≈ 2.6 at 0.99, beyond
+    # what the tightest tolerances of the box (half the initial ones) can give
+    spec = small_spec(mill, sides=("two_sided",), targets=(0.99, 1 - 1e-12), seeds=(0,))
+    frame = run_sweep(spec, tmp_path / "store").frame
+    assert frame["status"].tolist() == ["ok", "unreachable"]
+    assert np.isnan(frame["relative_cost"].iloc[1]) and not frame["certified"].iloc[1]
+    assert frame.filter(like="fraction_").iloc[1].isna().all()
