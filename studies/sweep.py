@@ -178,8 +178,15 @@ class SweepResult:
     path: Path
 
 
-def run_task(task: SweepTask) -> dict:
+def run_task(task: SweepTask, allocated: dict | None = None) -> dict:
     """Allocate and verify one task; returns plain numbers (stored as JSON).
+
+    Parameters
+    ----------
+    task : SweepTask
+    allocated : dict, optional
+        The task's allocation from :func:`solve_allocation`, when already solved (a sweep
+        solves each distinct allocation once, then verifies every task that uses it).
 
     Returns
     -------
@@ -193,11 +200,11 @@ def run_task(task: SweepTask) -> dict:
     with threadpool_limits(limits=1):
         stream = task.stream_parameters()
         machine = (task.machine, stream["machine_fingerprint"])
-        try:
-            allocated = _allocation(machine, task.side, task.target, task.points_per_axis)
-        except TargetUnreachableError:
-            return {"status": "unreachable", "relative_cost": None, "certified": False,
-                    "fraction": [None] * len(OUTPUTS), "yield": None}
+        if allocated is None:
+            allocated = solve_allocation(*_allocation_key(task, machine[1]))
+        if allocated["status"] != "ok":
+            return {"status": allocated["status"], "relative_cost": None,
+                    "certified": False, "fraction": [None] * len(OUTPUTS), "yield": None}
         experiment = _experiment(machine, task.target, task.points_per_axis, task.profile)
         rng = np.random.default_rng(seed_sequence(stream))
         verified = experiment.run(allocated["tolerances"], repeats=task.repeats, rng=rng,
@@ -247,7 +254,14 @@ def run_sweep(spec: SweepSpec, store, *, executor=None, progress=None, log=None,
     done = resumed
     if progress is not None:
         progress(done, len(tasks))
-    for index, result in _execute(task_function, tasks, pending, executor):
+    keys = {i: _allocation_key(tasks[i], parameters[i]["machine_fingerprint"])
+            for i in pending}
+    distinct = sorted(set(keys.values()))
+    solved = {distinct[i]: allocated
+              for i, allocated in _execute(solve_allocation, distinct, executor)}
+    calls = [(tasks[i], solved[keys[i]]) for i in pending]
+    for position, result in _execute(task_function, calls, executor):
+        index = pending[position]
         results.save(parameters[index], result)
         finished[index] = result
         done += 1
@@ -274,19 +288,21 @@ def results_frame(tasks, results) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
-def _execute(function, tasks, pending, executor):
-    """``(index, result)`` of the pending tasks as they finish."""
+def _execute(function, calls, executor):
+    """``(position, function(*calls[position]))`` as the calls finish."""
     if executor is None:
-        for index in pending:
-            yield index, function(tasks[index])
+        for position, arguments in enumerate(calls):
+            yield position, function(*arguments)
         return
     if isinstance(executor, Executor):
-        futures = {executor.submit(function, tasks[i]): i for i in pending}
+        futures = {executor.submit(function, *arguments): position
+                   for position, arguments in enumerate(calls)}
         finished = as_completed(futures)
     else:
         from distributed import as_completed as dask_completed
 
-        futures = {executor.submit(function, tasks[i], pure=False): i for i in pending}
+        futures = {executor.submit(function, *arguments, pure=False): position
+                   for position, arguments in enumerate(calls)}
         finished = dask_completed(list(futures))
     try:
         for future in finished:
@@ -347,7 +363,7 @@ def _supports_profiles() -> bool:
 
 def clear_caches() -> None:
     """Forget the allocations and experiments this process has set up (for timing)."""
-    for cached in (_task_machine, _allocation, _experiment):
+    for cached in (_task_machine, solve_allocation, _experiment):
         cached.cache_clear()
 
 
@@ -363,14 +379,28 @@ def _task_machine(machine: tuple[str, str], target: float):
     return replace(_load_machine(machine[0]), targets=np.full(len(OUTPUTS), float(target)))
 
 
+def _allocation_key(task: SweepTask, fingerprint: str) -> tuple:
+    """What a task's allocation depends on (tasks differing only in profile, seed or
+    repeats share it)."""
+    return (task.machine, fingerprint, task.side, task.target, task.points_per_axis)
+
+
 @functools.lru_cache(maxsize=64)
-def _allocation(machine: tuple[str, str], side: str, target: float, points: int) -> dict:
-    """Certified optimum of one machine and reading; shared by the tasks that differ only
-    in profile, seed or repeats (deterministic, so caching changes no result)."""
-    machine = _task_machine(machine, target)
-    problem = AllocationProblem.build(machine, workspace_grid(machine, points), side=side)
-    best = problem.solve_exact()
-    return {"tolerances": best.tolerances,
+def solve_allocation(name: str, fingerprint: str, side: str, target: float,
+                     points: int) -> dict:
+    """Certified optimum of one machine (file ``name`` with content ``fingerprint``) and
+    reading: ``status`` ('ok' or 'unreachable'), ``tolerances``, ``relative_cost`` and
+    ``certified``. Deterministic, so solving it anywhere, once or many times, gives the
+    same numbers."""
+    with threadpool_limits(limits=1):
+        machine = _task_machine((name, fingerprint), target)
+        problem = AllocationProblem.build(machine, workspace_grid(machine, points),
+                                          side=side)
+        try:
+            best = problem.solve_exact()
+        except TargetUnreachableError:
+            return {"status": "unreachable"}
+    return {"status": "ok", "tolerances": best.tolerances,
             "relative_cost": float(best.cost / problem.cost.total(problem.reference)),
             "certified": bool(best.certificate["certified"])}
 

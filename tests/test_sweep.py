@@ -51,12 +51,12 @@ class Counting:
         self.tasks = []
         self.lock = threading.Lock()
 
-    def __call__(self, task):
+    def __call__(self, task, *allocated):
         with self.lock:
             if self.fail_after is not None and len(self.tasks) >= self.fail_after:
                 raise KeyboardInterrupt("killed")
             self.tasks.append(task)
-        return run_task(task)
+        return run_task(task, *allocated)
 
 
 def test_serial_process_pool_and_dask_write_byte_identical_results(mill, tmp_path):
