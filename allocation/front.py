@@ -201,8 +201,12 @@ def _stack_problem(machine, fosm_problem, build_options):
         return AllocationProblem.build(machine, side="stack", **build_options)
     rows = fosm_problem.rows
     problem = replace(fosm_problem, machine=machine, side="stack", rows=None)
-    matrix = np.abs(problem.jacobian[rows.pose, rows.output]) / \
-        machine.limits[rows.output][:, None]
+    if problem.jacobian is None:  # not kept (memory budget): only the screened rows' poses
+        sensitivity = machine.jacobian(problem.poses[rows.pose])[np.arange(len(rows.pose)),
+                                                                 rows.output]
+    else:
+        sensitivity = problem.jacobian[rows.pose, rows.output]
+    matrix = np.abs(sensitivity) / machine.limits[rows.output][:, None]
     keep = matrix @ problem.upper > 1.0
     stack_counts = dict(counts, box=int(keep.sum()), duplicates=int(keep.sum()),
                         dominance=int(keep.sum()))

@@ -22,6 +22,9 @@ Rows that can never bind are removed before any solver sees them:
 3. *dominance*: a row that is ≤ another row of the same output in every entry.
 
 All three are exact: the screened problem has the same feasible set inside the box.
+Screening runs over chunks of poses (the Jacobian of all poses is never held when it
+exceeds the memory budget), and the dominance test compares each row only with the rows
+kept so far, in order of decreasing row sum, which is exact by transitivity.
 """
 
 from __future__ import annotations
@@ -32,6 +35,7 @@ import numpy as np
 import pandas as pd
 
 from reliability import checks
+from reliability.chunks import MEMORY_BUDGET, chunks, jacobian_bytes
 from reliability.errors import InputError, InputTypeError
 from reliability.fosm import error_sigma, fosm, probability, required_index
 from reliability.machine import OUTPUTS
@@ -72,7 +76,9 @@ class AllocationProblem:
     ----------
     machine : Machine
     poses : ndarray (n_poses, n_axes)
-    jacobian : ndarray (n_poses, 6, n_errors)
+    jacobian : ndarray (n_poses, 6, n_errors) or None
+        Kept when it fits the memory budget (or for the mean reading); otherwise None and
+        recomputed chunk by chunk where needed (:meth:`jacobian_chunks`).
     side : {'one_sided', 'two_sided', 'stack'}
     workspace : {'worst', 'mean'}
     k : float
@@ -99,13 +105,14 @@ class AllocationProblem:
     reference: np.ndarray
     cost: CostModel
     rows: ScreenedRows | None
+    memory: int | None = None
 
     @classmethod
     def build(cls, machine, poses=None, *, side: str = "two_sided", workspace: str = "worst",
               bounds=(0.5, 1.5), lower=None, upper=None, locked=(), reference=None,
               k: float = 3.0, cost_factors=(1.0, 1.0, 1.0), targets=None, limits=None,
-              allow_outside_stroke: bool = False,
-              budget: int | None = None) -> "AllocationProblem":
+              allow_outside_stroke: bool = False, budget: int | None = None,
+              memory: int | None = None) -> "AllocationProblem":
         """Set up the problem.
 
         Parameters
@@ -139,8 +146,12 @@ class AllocationProblem:
         allow_outside_stroke : bool
             Accept poses outside an axis' stroke (extrapolation); refused by default.
         budget : int, optional
-            Bytes the grid and the Jacobian may take (default
-            :data:`reliability.checks.DEFAULT_BUDGET`).
+            Bytes the grid and the screened rows may take (default
+            :data:`reliability.checks.DEFAULT_BUDGET`), checked before any work.
+        memory : int, optional
+            Bytes of temporary arrays (default :data:`reliability.chunks.MEMORY_BUDGET`):
+            poses are screened in chunks, and the Jacobian of all poses is kept only when it
+            fits (always for the mean reading, which needs it whole).
         """
         _check_choice(side, SIDES, "side")
         _check_choice(workspace, WORKSPACES, "workspace")
@@ -154,20 +165,63 @@ class AllocationProblem:
         k = checks.finite_float(k, "coverage factor k", 0.0, low_open=True)
         poses = workspace_grid(machine, budget=budget) if poses is None else \
             _checked_poses(machine, poses, allow_outside_stroke)
-        checks.require_size(len(poses), 2 * 6 * machine.n_errors * 8, budget,
-                            "the Jacobian and rows of the allocation problem",
+        checks.require_size(len(poses), 6 * 8 * 8, budget,
+                            "the per-pose results and screened rows of the allocation problem",
                             "pass fewer poses (a coarser grid)")
         reference = _reference(machine, reference)
         low, high = _bounds(machine, reference, bounds, lower, upper, locked)
-        jacobian = machine.jacobian(poses)
+        memory_budget = MEMORY_BUDGET if memory is None else memory
+        keep = workspace == "mean" or len(poses) * 6 * machine.n_errors * 8 <= memory_budget
+        jacobian = machine.jacobian(poses) if keep else None
         problem = cls(machine=machine, poses=poses, jacobian=jacobian, side=side,
                       workspace=workspace, k=float(k), lower=low, upper=high,
                       reference=reference, cost=CostModel.from_machine(machine, *cost_factors),
-                      rows=None)
+                      rows=None, memory=memory)
         if workspace == "worst":
-            object.__setattr__(problem, "rows", screen_rows(problem.row_matrix(),
-                                                            problem.variable(high)))
+            object.__setattr__(problem, "rows", problem._screen())
         return problem
+
+    def with_reading(self, side: str) -> "AllocationProblem":
+        """The same poses, bounds and costs under another reliability reading.
+
+        The Jacobian is shared. When the new reading allows every output at least the σ
+        of this one (e.g. one-sided from two-sided at the same targets), its rows are this
+        problem's screened rows rescaled and box-screened again: exact, because a row
+        dominated under one scaling is dominated under any per-output scaling and its
+        dominator is at least as loaded. Otherwise the poses are screened afresh.
+        """
+        _check_choice(side, SIDES, "side")
+        problem = replace(self, side=side, rows=None)
+        if self.workspace != "worst":
+            return problem
+        if "stack" in (side, self.side):  # rows of another kind: screen afresh
+            object.__setattr__(problem, "rows", problem._screen())
+            return problem
+        ratio = np.square(self.allowed_sigma / problem.allowed_sigma)  # new row / old row
+        if np.all(ratio <= 1.0):
+            scaled = self.rows.matrix * ratio[self.rows.output][:, None]
+            keep = scaled @ np.square(self.upper) > 1.0
+            counts = {"candidates": self.rows.counts["candidates"],
+                      "shared": len(self.rows.matrix), "box": int(keep.sum()),
+                      "dominance": int(keep.sum())}
+            rows = ScreenedRows(matrix=scaled[keep], pose=self.rows.pose[keep],
+                                output=self.rows.output[keep], counts=counts)
+        else:
+            rows = problem._screen()
+        object.__setattr__(problem, "rows", rows)
+        return problem
+
+    def _screen(self) -> ScreenedRows:
+        """Screened rows of all poses, built chunk by chunk (:func:`screen_rows`)."""
+        upper_u = self.variable(self.upper)
+        parts = ((part.start, self.row_matrix(block)) for part, block in self.jacobian_chunks())
+        return _screen_parts(parts, upper_u, len(self.poses))
+
+    def jacobian_chunks(self):
+        """``(slice, jacobian)`` over chunks of the poses, within the memory budget."""
+        for part in chunks(len(self.poses), jacobian_bytes(self.machine), self.memory):
+            yield part, (self.machine.jacobian(self.poses[part]) if self.jacobian is None
+                         else self.jacobian[part])
 
     # ----- description ---------------------------------------------------------------
     @property
@@ -204,10 +258,20 @@ class AllocationProblem:
     def row_matrix(self, jacobian=None) -> np.ndarray:
         """Rows ``J_oi² / (k² (I_o/z_o)²)`` (or ``|J_oi| / I_o`` for the stack) as
         ``(n_poses, 6, n_errors)``, of the problem's poses or of the given sensitivities."""
-        jacobian = self.jacobian if jacobian is None else jacobian
+        if jacobian is None:
+            jacobian = self.machine.jacobian(self.poses) if self.jacobian is None \
+                else self.jacobian
         if self.side == "stack":
             return np.abs(jacobian) / self.machine.limits[:, None]
         return np.square(jacobian / self.k) / np.square(self.allowed_sigma)[:, None]
+
+    def loads(self, u) -> np.ndarray:
+        """Row loads ``row @ u`` of every output at every pose, ``(n_poses, 6)``, in
+        chunks (σ² over the allowed σ², for ``u = t²``)."""
+        out = np.empty((len(self.poses), len(OUTPUTS)))
+        for part, block in self.jacobian_chunks():
+            out[part] = self.row_matrix(block) @ u
+        return out
 
     def with_poses(self, extra) -> "AllocationProblem":
         """The same problem with more poses; their rows are added unscreened."""
@@ -224,15 +288,18 @@ class AllocationProblem:
                 output=np.concatenate([rows.output, np.tile(np.arange(len(OUTPUTS)),
                                                             len(extra))]),
                 counts=counts)
-        return replace(self, poses=np.vstack([self.poses, extra]),
-                       jacobian=np.concatenate([self.jacobian, jacobian]), rows=rows)
+        joined = None if self.jacobian is None else np.concatenate([self.jacobian, jacobian])
+        return replace(self, poses=np.vstack([self.poses, extra]), jacobian=joined, rows=rows)
 
     # ----- evaluation ----------------------------------------------------------------
     def sigma(self, t) -> np.ndarray:
         """σ of every output at every pose, ``(..., n_poses, 6)`` for ``t (..., n)``."""
-        sigma_x = error_sigma(t, self.k)
-        return np.sqrt(np.einsum("pon,...n->...po", np.square(self.jacobian),
-                                 np.square(sigma_x)))  # Eq. (20)
+        variance_x = np.square(error_sigma(t, self.k))
+        out = np.empty(variance_x.shape[:-1] + (len(self.poses), len(OUTPUTS)))
+        for part, block in self.jacobian_chunks():
+            out[..., part, :] = np.sqrt(np.einsum("pon,...n->...po", np.square(block),
+                                                  variance_x))  # Eq. (20)
+        return out
 
     def probability(self, t) -> np.ndarray:
         """FOSM probability of the chosen side (two-sided for the stack),
@@ -243,7 +310,11 @@ class AllocationProblem:
     def stack(self, t) -> np.ndarray:
         """Worst-case stack ``Σ_i |J_oi| t_i`` of every output at every pose,
         ``(..., n_poses, 6)``."""
-        return np.einsum("pon,...n->...po", np.abs(self.jacobian), np.asarray(t, float))
+        t = np.asarray(t, dtype=float)
+        out = np.empty(t.shape[:-1] + (len(self.poses), len(OUTPUTS)))
+        for part, block in self.jacobian_chunks():
+            out[..., part, :] = np.einsum("pon,...n->...po", np.abs(block), t)
+        return out
 
     def violation(self, t) -> np.ndarray:
         """Total constraint violation ``(...,)``, 0 when ``t`` meets every target.
@@ -303,20 +374,40 @@ def screen_rows(rows, upper_u) -> ScreenedRows:
     upper_u : ndarray (n,)
         Upper bounds of ``u = t²``.
     """
-    n_poses, n_outputs, n = rows.shape
+    rows = np.asarray(rows, dtype=float)
+    return _screen_parts([(0, rows)], np.asarray(upper_u, dtype=float), rows.shape[0],
+                         rows.shape[1])
+
+
+def _screen_parts(parts, upper_u, n_poses, n_outputs=len(OUTPUTS)) -> ScreenedRows:
+    """:func:`screen_rows` over ``(first_pose, rows)`` chunks in pose order.
+
+    Each chunk is box-screened and deduplicated on its own; the survivors of all chunks
+    are then deduplicated together (keeping each row's first pose, as over all rows at
+    once) and screened for dominance.
+    """
+    pooled = [([], []) for _ in range(n_outputs)]
     counts = {"candidates": n_poses * n_outputs, "box": 0, "duplicates": 0, "dominance": 0}
+    for first, rows in parts:
+        for output in range(n_outputs):
+            matrix = rows[:, output, :]
+            pose = np.flatnonzero(matrix @ upper_u > 1.0)
+            counts["box"] += len(pose)
+            pose = pose[_unique_rows(matrix[pose])]
+            pooled[output][0].append(matrix[pose])
+            pooled[output][1].append(first + pose)
     kept_rows, kept_pose, kept_output = [], [], []
-    for output in range(n_outputs):
-        matrix = rows[:, output, :]
-        pose = np.flatnonzero(matrix @ upper_u > 1.0)
-        counts["box"] += len(pose)
-        pose = pose[_unique_rows(matrix[pose])]
+    for output, (matrices, poses) in enumerate(pooled):
+        matrix = np.concatenate(matrices) if matrices else np.zeros((0, len(upper_u)))
+        pose = np.concatenate(poses) if poses else np.zeros(0, dtype=int)
+        unique = _unique_rows(matrix)
+        matrix, pose = matrix[unique], pose[unique]
         counts["duplicates"] += len(pose)
-        pose = pose[_undominated(matrix[pose])]
-        counts["dominance"] += len(pose)
-        kept_rows.append(matrix[pose])
-        kept_pose.append(pose)
-        kept_output.append(np.full(len(pose), output))
+        keep = _undominated(matrix)
+        counts["dominance"] += len(keep)
+        kept_rows.append(matrix[keep])
+        kept_pose.append(pose[keep])
+        kept_output.append(np.full(len(keep), output))
     return ScreenedRows(matrix=np.concatenate(kept_rows), pose=np.concatenate(kept_pose),
                         output=np.concatenate(kept_output), counts=counts)
 
@@ -328,26 +419,62 @@ def _unique_rows(matrix) -> np.ndarray:
     scale = matrix.max(axis=1, keepdims=True)
     scale[scale == 0] = 1.0
     key = np.round(matrix / scale, DUPLICATE_DIGITS) * scale
-    _, first = np.unique(key, axis=0, return_index=True)
-    return np.sort(first)
+    codes, uniques = pd.factorize(pd.util.hash_pandas_object(pd.DataFrame(key), index=False))
+    first = np.full(len(uniques), len(key))
+    np.minimum.at(first, codes, np.arange(len(key)))
+    if np.array_equal(key, key[first[codes]]):  # no two distinct rows share a hash
+        return np.sort(first)
+    return np.flatnonzero(~pd.DataFrame(key).duplicated().to_numpy())
 
 
-def _undominated(matrix, block: int = 256) -> np.ndarray:
+def _undominated(matrix, block: int = 512) -> np.ndarray:
     """Indices of rows not dominated entrywise by another row (duplicates already gone).
 
-    Rows are compared in order of decreasing sum: only a row with a larger sum can
-    dominate, so each block is tested against the rows before it and itself.
+    Rows are visited in order of decreasing sum: only a row with a larger sum can dominate
+    (a row with an equal sum that dominates is equal, and duplicates are gone). Each block
+    is compared with the rows kept so far and with itself. Comparing with kept rows only is
+    exact: a row dominated by a discarded row is dominated by whatever row discarded it
+    (dominance is transitive), and that chain ends at a kept row. Columns equal in every
+    row never decide dominance and are left out of the comparisons.
     """
+    if len(matrix) == 0:
+        return np.arange(0)
+    varying = np.flatnonzero(np.ptp(matrix, axis=0) > 0)
     order = np.argsort(-matrix.sum(axis=1), kind="stable")
-    sorted_rows = matrix[order]
-    dominated = np.zeros(len(order), dtype=bool)
+    sorted_rows = np.ascontiguousarray(matrix[order][:, varying])
+    kept = np.zeros((0, len(varying)))
+    keep = np.zeros(len(order), dtype=bool)
     for start in range(0, len(order), block):
-        stop = min(start + block, len(order))
-        candidates = sorted_rows[:stop]
-        covers = np.all(candidates[None, :, :] >= sorted_rows[start:stop, None, :], axis=-1)
-        covers[np.arange(stop - start), np.arange(start, stop)] = False
-        dominated[start:stop] = covers.any(axis=1)
-    return np.sort(order[~dominated])
+        index = np.arange(start, min(start + block, len(order)))
+        for first in range(0, len(kept), block):  # most rows fall to the first kept rows
+            index = index[~_covered(sorted_rows[index], kept[first:first + block])]
+        index = index[~_covered(sorted_rows[index], sorted_rows[index], skip_self=True)]
+        keep[index] = True
+        kept = np.concatenate([kept, sorted_rows[index]])
+    return np.sort(order[keep])
+
+
+def _covered(rows, dominators, skip_self: bool = False) -> np.ndarray:
+    """Which ``rows`` are ≤ some row of ``dominators`` in every entry.
+
+    Candidate pairs are filtered one column at a time, so the work shrinks with the pairs
+    still standing instead of comparing every pair in every column.
+    """
+    if len(rows) == 0 or len(dominators) == 0:
+        return np.zeros(len(rows), dtype=bool)
+    if rows.shape[1] == 0:  # every row equal: only another row can cover
+        return np.full(len(rows), len(dominators) > 1 or not skip_self)
+    row, other = np.nonzero(dominators[None, :, 0] >= rows[:, None, 0])
+    if skip_self:
+        row, other = row[row != other], other[row != other]
+    for column in range(1, rows.shape[1]):
+        if len(row) == 0:
+            break
+        standing = dominators[other, column] >= rows[row, column]
+        row, other = row[standing], other[standing]
+    covered = np.zeros(len(rows), dtype=bool)
+    covered[row] = True
+    return covered
 
 
 def with_requirements(machine, *, targets=None, limits=None):

@@ -47,7 +47,7 @@ def solve_over_workspace(problem, *, max_rounds: int = 20, tolerance: float = 1e
     for round_ in range(1, max_rounds + 1):
         result = problem.solve_exact()
         worst = continuous_worst(problem.machine, result.tolerances, problem.poses,
-                                 k=problem.k)
+                                 k=problem.k, grid_sigma=problem.sigma(result.tolerances))
         short = worst["beta"].to_numpy() < problem.required_index * (1 - tolerance)
         shortfall = float(np.max(1 - worst["beta"].to_numpy() / problem.required_index))
         log(f"round {round_}: cost {result.cost:.6g}; {int(short.sum())} output(s) short "

@@ -55,7 +55,7 @@ class TargetUnreachableError(InfeasibleAllocationError):
 
 def _unreachable_worst(problem, rows=(), loads=()) -> TargetUnreachableError:
     """The error for the worst-case reading, listing every blocked (output, pose)."""
-    at_lower = problem.row_matrix() @ problem.variable(problem.lower)  # (n_poses, 6)
+    at_lower = problem.loads(problem.variable(problem.lower))  # (n_poses, 6)
     pose, output = np.nonzero(at_lower > 1.0)
     order = np.argsort(-at_lower[pose, output], kind="stable")
     pose, output = pose[order], output[order]

@@ -26,8 +26,10 @@ import pandas as pd
 from scipy.stats import norm
 
 from . import checks
+from .chunks import chunks, jacobian_bytes
 from .display import axis_units
 from .errors import InputError
+from .kinematics import output_variance
 from .machine import OUTPUTS
 
 SIDES = ("one_sided", "two_sided")
@@ -227,7 +229,7 @@ class FosmResult:
 
 def fosm(machine, tolerances, poses, *, k: float = 3.0, means=None,
          distribution: str = "normal", jacobian=None, allow_outside_stroke: bool = False,
-         budget: int | None = None) -> FosmResult:
+         budget: int | None = None, memory: int | None = None) -> FosmResult:
     """FOSM precision reliability of an allocation over a pose set (Eqs. 19–23).
 
     Parameters
@@ -253,7 +255,12 @@ def fosm(machine, tolerances, poses, *, k: float = 3.0, means=None,
     allow_outside_stroke : bool
         Evaluate poses outside an axis' stroke (extrapolation); refused by default.
     budget : int, optional
-        Bytes the Jacobian may take (default :data:`reliability.checks.DEFAULT_BUDGET`).
+        Bytes the per-pose results may take (default
+        :data:`reliability.checks.DEFAULT_BUDGET`), checked before any work.
+    memory : int, optional
+        Bytes of temporary arrays allowed (:data:`reliability.chunks.MEMORY_BUDGET` by
+        default): the poses are processed in chunks, so only the per-pose results
+        ``(n_poses, 6)`` are ever held whole, never the Jacobian of all poses.
 
     Returns
     -------
@@ -269,36 +276,71 @@ def fosm(machine, tolerances, poses, *, k: float = 3.0, means=None,
     checks.poses_in_strokes(machine, poses, "poses", allow_outside_stroke)
     checks.finite_float(k, "coverage factor k", 0.0, low_open=True)
     checks.choice(distribution, "distribution", ("normal", "truncated"))
-    if jacobian is None:
-        checks.require_size(len(poses), 6 * machine.n_errors * 8, budget, "the FOSM Jacobian",
-                            "evaluate fewer poses per call (split the pose set into chunks)")
-        jacobian = machine.jacobian(poses)
-    jacobian = np.asarray(jacobian, dtype=float)
-    if jacobian.shape != poses.shape[:-1] + (6, machine.n_errors):
-        raise ValueError(f"jacobian must have shape {poses.shape[:-1] + (6, machine.n_errors)}; "
-                         f"got {jacobian.shape}")
+    checks.require_size(len(poses), 6 * 6 * 8, budget,
+                        "the FOSM results (mean, σ, β and probabilities per pose and output)",
+                        "evaluate fewer poses per call (split the pose set into chunks)")
+    if jacobian is not None:
+        jacobian = np.asarray(jacobian, dtype=float)
+        if jacobian.shape != poses.shape[:-1] + (6, machine.n_errors):
+            raise ValueError(f"jacobian must have shape "
+                             f"{poses.shape[:-1] + (6, machine.n_errors)}; got {jacobian.shape}")
+    error_means = None if means is None else machine.check_errors(means)
     sigma_x = error_sigma(t, k, distribution)
-    sigma = output_sigma(jacobian, sigma_x, machine.correlation)
-    mean = np.zeros_like(sigma) if means is None else \
-        machine.comprehensive_error(poses, machine.check_errors(means))  # Eq. (20)
+    sigma = pose_sigma(machine, poses, sigma_x, jacobian=jacobian, memory=memory)
+    mean = np.zeros_like(sigma)
+    if error_means is not None:
+        for part in chunks(len(poses), jacobian_bytes(machine), memory):
+            mean[part] = machine.comprehensive_error(poses[part], error_means)  # Eq. (20)
     two = two_sided_probability(machine.limits, sigma, mean)
     worst = np.argmin(two, axis=0)
+    rows = np.arange(len(OUTPUTS))
+    worst_jacobian = machine.jacobian(poses[worst]) if jacobian is None else jacobian[worst]
     return FosmResult(
         poses=poses, limits=machine.limits, targets=machine.targets, mean=mean, sigma=sigma,
         beta=reliability_index(machine.limits, sigma, mean),
         one_sided=one_sided_probability(machine.limits, sigma, mean), two_sided=two,
         worst_pose=worst,
-        contributions=_contributions(machine, jacobian, sigma_x, worst),
+        contributions=_contributions(machine, worst_jacobian[rows, rows], sigma_x),
         axes=machine.axes, units=axis_units(machine), machine=machine.name, k=float(k),
         distribution=distribution,
     )
 
 
-def _contributions(machine, jacobian, sigma_x, worst) -> pd.DataFrame:
-    """Percent of σ² from each error at each output's worst pose (Eq. 20's terms)."""
-    rows = np.arange(len(OUTPUTS))
-    terms = output_variance_terms(jacobian[worst, rows], sigma_x,
-                                  machine.correlation)  # (6, n_errors)
+def pose_sigma(machine, poses, sigma_x, *, jacobian=None, memory: int | None = None
+               ) -> np.ndarray:
+    """σ of every output at every pose, Eq. (20), in chunks of poses: ``(n_poses, 6)``.
+
+    With correlated errors (``machine.correlation``) σ² = jᵀ D R D j.
+
+    Parameters
+    ----------
+    machine : Machine
+    poses : ndarray (n_poses, n_axes)
+    sigma_x : ndarray (n_errors,)
+        Standard deviation of each error.
+    jacobian : ndarray (n_poses, 6, n_errors), optional
+        Precomputed sensitivities; computed chunk by chunk otherwise.
+    memory : int, optional
+        Bytes of temporary arrays per chunk.
+    """
+    correlation = machine.correlation
+    variance_x = np.square(sigma_x)
+    sigma = np.empty((len(poses), len(OUTPUTS)))
+    for part in chunks(len(poses), jacobian_bytes(machine), memory):
+        if correlation is not None:
+            part_jacobian = machine.jacobian(poses[part]) if jacobian is None else jacobian[part]
+            sigma[part] = output_sigma(part_jacobian, sigma_x, correlation)
+        elif jacobian is None:
+            sigma[part] = np.sqrt(output_variance(machine, poses[part], variance_x))
+        else:
+            sigma[part] = np.sqrt(np.square(jacobian[part]) @ variance_x)  # Eq. (20)
+    return sigma
+
+
+def _contributions(machine, worst_rows, sigma_x) -> pd.DataFrame:
+    """Percent of σ² from each error at each output's worst pose (Eq. 20's terms), from
+    the Jacobian row of each output at its worst pose, ``(6, n_errors)``."""
+    terms = output_variance_terms(worst_rows, sigma_x, machine.correlation)  # (6, n_errors)
     percent = 100.0 * terms / terms.sum(axis=-1, keepdims=True)
     return pd.DataFrame(percent.T, index=pd.Index(machine.error_names, name="error"),
                         columns=pd.Index(OUTPUTS, name="output"))

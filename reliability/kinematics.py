@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .transforms import adjoint_to_frame, read_pose_error, rotation, skew, translation
+from .transforms import AXIS_INDEX, adjoint_to_frame, read_pose_error, rotation, skew, translation
 
 
 def ideal_motion(axis, position) -> np.ndarray:
@@ -166,3 +166,73 @@ def comprehensive_error(machine, q, x) -> np.ndarray:
     twists = [x[..., 6 * b: 6 * b + 6] for b in blocks]
     deviation = segment_deviation(factors, twists)
     return np.broadcast_to(read_pose_error(deviation), shape + (6,))
+
+
+def jacobian_and_derivative(machine, q) -> tuple[np.ndarray, np.ndarray]:
+    """The Jacobian and its derivative with respect to every axis position, analytically.
+
+    A gap's column block is ``Ad(B⁻¹)`` with ``B = G_k … G_m``. Moving axis ``a`` turns its
+    factor ``M_a`` by its unit twist ``ξ_a`` (``(d, 0)`` linear, ``(0, d)`` rotary), which
+    seen at the end of the chain is ``ζ_a = Ad(B_a⁻¹) ξ_a`` — the motion-error block of
+    axis ``a`` applied to ``ξ_a``. Then ``dB/dq_a = B ζ_a^`` and
+
+        ∂ Ad(B⁻¹) / ∂q_a = −ad(ζ_a) Ad(B⁻¹)
+
+    for every gap up to and including axis ``a``'s motion error (later gaps do not see
+    ``q_a``), with ``ad(v, ω) = [[ω^, v^], [0, ω^]]``.
+
+    Parameters
+    ----------
+    machine : Machine
+    q : array_like
+        ``(..., n_axes)`` positions.
+
+    Returns
+    -------
+    jacobian : ndarray (..., 6, n_errors)
+    derivative : ndarray (..., n_axes, 6, n_errors)
+        ``derivative[..., a, o, i] = ∂J[..., o, i]/∂q_a`` (per mm or per rad).
+    """
+    jac = jacobian(machine, q)
+    n = len(machine.axis_specs)
+    derivative = np.zeros(jac.shape[:-2] + (n,) + jac.shape[-2:])
+    for a, axis in enumerate(machine.axis_specs):
+        unit = np.zeros(6)
+        unit[(0 if axis.kind == "linear" else 3) + AXIS_INDEX[axis.direction]] = 1.0
+        zeta = jac[..., :, 6 * a:6 * a + 6] @ unit  # (..., 6)
+        ad = np.zeros(zeta.shape[:-1] + (6, 6))
+        ad[..., :3, :3] = ad[..., 3:, 3:] = skew(zeta[..., 3:])
+        ad[..., :3, 3:] = skew(zeta[..., :3])
+        seen = np.zeros(machine.n_errors, dtype=bool)
+        seen[:6 * (a + 1)] = True  # motion errors of axes up to a
+        seen[6 * n:6 * (n + a)] = True  # assembly errors of the joints before a
+        derivative[..., a, :, :] = -(ad @ jac) * seen
+    return jac, derivative
+
+
+def output_variance(machine, q, variance_x) -> np.ndarray:
+    """``Σ_i J_oi² var_i`` at every pose (Eq. 20's σ²) without forming the Jacobian.
+
+    Accumulates each gap's block ``Ad(B⁻¹)² @ var_block`` in turn: the same sum as
+    ``np.square(jacobian(machine, q)) @ variance_x`` in a sixth of the memory.
+
+    Parameters
+    ----------
+    machine : Machine
+    q : array_like
+        ``(..., n_axes)`` positions.
+    variance_x : array_like
+        ``(n_errors,)`` error variances.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``(..., 6)``.
+    """
+    q = machine.check_positions(q)
+    variance_x = np.asarray(variance_x, dtype=float)
+    factors, blocks = chain_factors(machine, q)
+    out = np.zeros(q.shape[:-1] + (6,))
+    for block, adjoint in zip(blocks, transports(factors)):
+        out = out + np.square(adjoint) @ variance_x[6 * block:6 * block + 6]
+    return out

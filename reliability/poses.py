@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import itertools
-
 import numpy as np
 
 from . import checks
@@ -38,12 +36,13 @@ def workspace_grid(machine, points_per_axis: int = 5, *, budget: int | None = No
     """
     points = grid_axis_points(machine, points_per_axis)
     n_axes = len(points)
-    # a row is built as a tuple (48 + 8 n bytes) before it becomes 8 n bytes of the array
-    checks.require_size(len(points[0]) ** n_axes, 16 * n_axes + 48, budget,
+    # the meshes and the stacked rows take 16 n bytes per pose
+    checks.require_size(len(points[0]) ** n_axes, 16 * n_axes, budget,
                         f"a {len(points[0])}-point grid on {n_axes} axes",
                         "use fewer points per axis, pass an explicit pose set, or draw "
                         "random poses")
-    return np.array(list(itertools.product(*points)), dtype=float)
+    mesh = np.meshgrid(*points, indexing="ij")  # first axis slowest, as itertools.product
+    return np.stack([axis.ravel() for axis in mesh], axis=-1).astype(float)
 
 
 def random_poses(machine, n: int, rng=None, *, budget: int | None = None) -> np.ndarray:

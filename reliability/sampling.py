@@ -23,6 +23,8 @@ from __future__ import annotations
 import numpy as np
 
 from . import checks
+from .checkpoint import ResultStore, machine_fingerprint
+from .chunks import chunk_size
 from .correlation import correlation_factor, draw_correlated, draw_grid_errors
 from .errors import InputError
 from .fosm import error_sigma, one_sided_probability, output_sigma, two_sided_probability
@@ -249,7 +251,8 @@ class GridExperiment:
     # ----- experiments -------------------------------------------------------------
     def run(self, tolerances, *, repeats: int = 20, rng=None, k: float = 3.0,
             distribution: str = "truncated", keep_values: str = "first",
-            batch: int = 50, progress=None) -> "GridExperimentResult":
+            batch: int = 50, progress=None, memory: int | None = None,
+            checkpoint=None) -> "GridExperimentResult":
         """Run ``repeats`` independent grid experiments (Tables 8 and 9).
 
         Parameters
@@ -267,9 +270,18 @@ class GridExperiment:
         keep_values : {'first', 'all', 'none'}
             Which experiments' per-pose values to keep (for Figs. 10–15).
         batch : int
-            Experiments evaluated together (memory ≈ batch × P^n × 6 × 8 bytes).
+            Experiments evaluated together at most (memory ≈ batch × P^n × 6 × 8 bytes);
+            fewer when that exceeds ``memory``.
         progress : callable, optional
             Called as ``progress(done, total)`` after each batch.
+        memory : int, optional
+            Bytes of temporary arrays per batch (:data:`reliability.chunks.MEMORY_BUDGET`
+            by default); at least one experiment per batch.
+        checkpoint : str or Path, optional
+            Folder where each finished batch's counts are stored at once
+            (:class:`reliability.checkpoint.ResultStore`); a run with the same allocation,
+            generator, options and batches reuses them instead of computing again. Batches
+            whose per-pose values are kept (``keep_values``) are always computed.
 
         Returns
         -------
@@ -279,6 +291,7 @@ class GridExperiment:
         repeats, batch = _check_run_options(repeats, keep_values, batch, distribution, k)
         checks.callback(progress, "progress")
         rng = checks.generator(rng)
+        batch = min(batch, chunk_size(4 * 6 * 8 * self.n_poses, memory))
         values_kept = {"all": repeats, "first": 1, "none": 0}[keep_values]
         checks.require_size(min(batch, repeats) * self.n_poses, 6 * 8 * 4, self.budget,
                             f"a batch of {min(batch, repeats)} experiments",
@@ -286,15 +299,24 @@ class GridExperiment:
         checks.require_size(repeats * 6 + values_kept * self.n_poses * 6, 8, self.budget,
                             f"the results of {repeats:,} experiments",
                             "run fewer repeats per call, or keep_values='none'/'first'")
+        store = None if checkpoint is None else ResultStore(checkpoint)
         inside, kept = [], []
         for start in range(0, repeats, batch):
-            children = rng.spawn(min(batch, repeats - start))  # same streams as one spawn
-            draws = [self._draw(t, child, k, distribution) for child in children]
-            values = self.evaluate(np.stack([d[0] for d in draws]),
-                                   np.stack([d[1] for d in draws]))
-            inside.append(np.sum(np.abs(values) < self.machine.limits, axis=1))  # Eq. (19)
-            if keep_values == "all" or (keep_values == "first" and start == 0):
-                kept.append(values if keep_values == "all" else values[:1])
+            wanted = keep_values == "all" or (keep_values == "first" and start == 0)
+            batch_children = rng.spawn(min(batch, repeats - start))  # same as one spawn
+            key = self._checkpoint_key(t, batch_children, k, distribution)
+            stored = None if store is None or wanted else store.load(key)
+            if stored is not None:
+                inside.append(np.asarray(stored, dtype=np.int64))
+            else:
+                draws = [self._draw(t, child, k, distribution) for child in batch_children]
+                values = self.evaluate(np.stack([d[0] for d in draws]),
+                                       np.stack([d[1] for d in draws]))
+                inside.append(np.sum(np.abs(values) < self.machine.limits, axis=1))  # Eq. (19)
+                if store is not None:
+                    store.save(key, inside[-1])
+                if wanted:
+                    kept.append(values if keep_values == "all" else values[:1])
             if progress is not None:
                 progress(min(start + batch, repeats), repeats)
         return GridExperimentResult(
@@ -302,6 +324,17 @@ class GridExperiment:
             n_poses=self.n_poses, distribution=distribution, k=float(k),
             points_per_axis=self.points_per_axis,
             values=np.concatenate(kept) if kept else None)
+
+    def _checkpoint_key(self, t, children, k, distribution) -> dict:
+        """Parameters that determine one batch's counts (its checkpoint key)."""
+        seeds = [[child.bit_generator.seed_seq.entropy,
+                  list(child.bit_generator.seed_seq.spawn_key)] for child in children]
+        return {"kind": "grid_experiment", "machine": machine_fingerprint(self.machine),
+                "points_per_axis": self.points_per_axis,
+                "tolerances": t, "k": float(k), "distribution": distribution,
+                "profiles": [str(p) for p in self.profiles],
+                "systematic": None if self._motion_means is None else self._motion_means,
+                "seeds": seeds}
 
     def _draw(self, t, rng, k, distribution):
         """One experiment's errors from its own generator: motion errors ``(n_axes, P, 6)``

@@ -5,6 +5,9 @@ paper (and the allocation problem, DESIGN §2) checks it on a grid of five point
 FOSM's σ varies smoothly with the pose, so the grid can miss a slightly worse pose between
 its points. This module starts a bounded local search (L-BFGS-B on σ over the strokes) from
 each output's worst grid poses and reports how much worse the continuous workspace is.
+The search uses the analytic gradient of σ
+(:func:`reliability.kinematics.jacobian_and_derivative`), and σ over the grid can be passed
+in when the caller already has it, so the grid is not evaluated again.
 """
 
 from __future__ import annotations
@@ -15,12 +18,13 @@ from scipy.optimize import minimize
 
 from . import checks
 from .errors import InputError
-from .fosm import error_sigma, one_sided_probability, output_sigma, two_sided_probability
+from .fosm import error_sigma, one_sided_probability, pose_sigma, two_sided_probability
+from .kinematics import jacobian_and_derivative
 from .machine import OUTPUTS
 
 
-def continuous_worst(machine, tolerances, grid, *, k: float = 3.0, starts: int = 3
-                     ) -> pd.DataFrame:
+def continuous_worst(machine, tolerances, grid, *, k: float = 3.0, starts: int = 3,
+                     grid_sigma=None, memory: int | None = None) -> pd.DataFrame:
     """Largest σ of each output over the continuous workspace, from the grid's worst poses.
 
     Parameters
@@ -34,6 +38,11 @@ def continuous_worst(machine, tolerances, grid, *, k: float = 3.0, starts: int =
         Coverage factor.
     starts : int
         Local searches per output, from its ``starts`` worst grid poses.
+    grid_sigma : ndarray (n_poses, 6), optional
+        σ of every output at the grid poses for this allocation (e.g. from
+        ``AllocationProblem.sigma``); computed in chunks of poses otherwise.
+    memory : int, optional
+        Bytes of temporary arrays when σ over the grid is computed here.
 
     Returns
     -------
@@ -53,20 +62,38 @@ def continuous_worst(machine, tolerances, grid, *, k: float = 3.0, starts: int =
         raise InputError(f"grid must have shape (n_poses, {len(machine.axes)}) with at least "
                          f"one pose; got {grid.shape}")
     checks.poses_in_strokes(machine, grid, "grid")
-    grid_sigma = output_sigma(machine.jacobian(grid), sigma_x)
+    if grid_sigma is None:
+        grid_sigma = pose_sigma(machine, grid, sigma_x, memory=memory)
+    grid_sigma = np.asarray(grid_sigma, dtype=float)
+    if grid_sigma.shape != (len(grid), len(OUTPUTS)):
+        raise ValueError(f"grid_sigma must have shape ({len(grid)}, {len(OUTPUTS)}); "
+                         f"got {grid_sigma.shape}")
     bounds = [axis.stroke for axis in machine.axis_specs]
     rows = []
     for o, output in enumerate(OUTPUTS):
         def negative_sigma(q, o=o):
-            return -output_sigma(machine.jacobian(q), sigma_x)[o]
+            return _negative_sigma_and_gradient(machine, q, sigma_x, o)
 
         best_q, best_sigma = grid[np.argmax(grid_sigma[:, o])], grid_sigma[:, o].max()
         for start in grid[np.argsort(grid_sigma[:, o])[::-1][:starts]]:
-            result = minimize(negative_sigma, start, method="L-BFGS-B", bounds=bounds)
+            result = minimize(negative_sigma, start, jac=True, method="L-BFGS-B",
+                              bounds=bounds)
             if -result.fun > best_sigma:
                 best_q, best_sigma = result.x, -result.fun
         rows.append(_row(machine, o, grid_sigma[:, o].max(), best_sigma, best_q))
     return pd.DataFrame(rows, index=pd.Index(OUTPUTS, name="output"))
+
+
+def _negative_sigma_and_gradient(machine, q, sigma_x, output: int):
+    """``−σ_o(q)`` and its gradient over the axis positions, analytically.
+
+    ``σ_o² = Σ_i J_oi² σ_i²`` (Eq. 20), so ``∂σ_o/∂q_a = Σ_i J_oi ∂J_oi/∂q_a σ_i² / σ_o``.
+    """
+    jac, derivative = jacobian_and_derivative(machine, q)
+    weighted = jac[output] * np.square(sigma_x)  # (n_errors,)
+    sigma = np.sqrt(weighted @ jac[output])  # Eq. (20)
+    gradient = derivative[:, output, :] @ weighted / sigma
+    return -sigma, -gradient
 
 
 def _row(machine, output: int, grid_sigma: float, sigma: float, pose) -> dict:

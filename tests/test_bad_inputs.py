@@ -241,8 +241,8 @@ CATALOGUE = [
     ("fosm-means-series-missing",
      lambda tmp: fosm(HOB, T0, Q0, means=pd.Series(0.0, index=NAMES[:-1])), E,
      ["errors", "missing", NAMES[-1]]),
-    ("fosm-jacobian-over-budget", lambda tmp: fosm(HOB, T0, Q0, budget=100), S,
-     ["Jacobian", "budget", "chunks"]),
+    ("fosm-results-over-budget", lambda tmp: fosm(HOB, T0, Q0, budget=100), S,
+     ["FOSM results", "budget", "chunks"]),
     ("fosm-error_sigma-k-string", lambda tmp: error_sigma(T0, k="3"), T, ["k", "'3'"]),
     # ----- workspace_grid ------------------------------------------------------------
     ("workspace_grid-points-string", lambda tmp: workspace_grid(HOB, "5"), T,
