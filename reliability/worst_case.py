@@ -87,10 +87,14 @@ def continuous_worst(machine, tolerances, grid, *, k: float = 3.0, starts: int =
 def _negative_sigma_and_gradient(machine, q, sigma_x, output: int):
     """``−σ_o(q)`` and its gradient over the axis positions, analytically.
 
-    ``σ_o² = Σ_i J_oi² σ_i²`` (Eq. 20), so ``∂σ_o/∂q_a = Σ_i J_oi ∂J_oi/∂q_a σ_i² / σ_o``.
+    ``σ_o² = jᵀ Σ j`` with ``Σ = D R D`` (Eq. 20 for R = I: ``Σ_i J_oi² σ_i²``), so
+    ``∂σ_o/∂q_a = (∂j/∂q_a)ᵀ Σ j / σ_o``; R is ``machine.correlation`` or the identity.
     """
     jac, derivative = jacobian_and_derivative(machine, q)
-    weighted = jac[output] * np.square(sigma_x)  # (n_errors,)
+    if machine.correlation is None:
+        weighted = jac[output] * np.square(sigma_x)  # Σ j, (n_errors,)
+    else:
+        weighted = sigma_x * (machine.correlation @ (sigma_x * jac[output]))
     sigma = np.sqrt(weighted @ jac[output])  # Eq. (20)
     gradient = derivative[:, output, :] @ weighted / sigma
     return -sigma, -gradient

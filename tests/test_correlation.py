@@ -6,6 +6,8 @@ import dataclasses
 
 import numpy as np
 import pytest
+
+import reliability
 from scipy.stats import norm
 
 from allocation import AllocationProblem
@@ -334,3 +336,17 @@ def test_with_correlation_takes_a_full_matrix(hobbing):
     R[i, j] = 0.5  # no longer symmetric
     with pytest.raises(MachineDescriptionError, match="'X.dz' and 'X.ey'|'X.ey' and 'X.dz'"):
         hobbing.with_correlation(R)
+
+
+def test_continuous_worst_pose_search_uses_the_correlation(mill3):
+    """The continuous search's σ at its pose equals correlated FOSM there."""
+    from reliability.worst_case import continuous_worst
+    correlated = mill3.with_correlation({("X.ey", "X.dz"): 0.7})
+    grid = reliability.workspace_grid(correlated, 3)
+    table = continuous_worst(correlated, correlated.initial_allocation, grid, starts=2)
+    for output in ("dx", "dz"):
+        pose = table.loc[output, list(correlated.axes)].to_numpy(dtype=float)
+        at = reliability.fosm(correlated, correlated.initial_allocation, pose[None, :])
+        o = correlated.outputs.index(output)
+        assert table.loc[output, "beta"] == pytest.approx(
+            correlated.limits[o] / at.sigma[0, o], rel=1e-9)
