@@ -290,7 +290,8 @@ def fosm(machine, tolerances, poses, *, k: float = 3.0, means=None,
     mean = np.zeros_like(sigma)
     if error_means is not None:
         for part in chunks(len(poses), jacobian_bytes(machine), memory):
-            mean[part] = machine.comprehensive_error(poses[part], error_means)  # Eq. (20)
+            part_means = error_means if error_means.ndim == 1 else error_means[part]
+            mean[part] = machine.comprehensive_error(poses[part], part_means)  # Eq. (20)
     two = two_sided_probability(machine.limits, sigma, mean)
     worst = np.argmin(two, axis=0)
     rows = np.arange(len(OUTPUTS))

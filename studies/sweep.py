@@ -21,7 +21,6 @@ version. A sweep started again computes only the tasks without a stored result.
 from __future__ import annotations
 
 import functools
-import inspect
 import itertools
 import tomllib
 from concurrent.futures import Executor, as_completed
@@ -39,6 +38,7 @@ from reliability.errors import InputError, InputTypeError
 from reliability.files import write_csv
 from reliability.machine import OUTPUTS, hobbing_machine, load_machine
 from reliability.poses import workspace_grid
+from reliability.profiles import profile_model
 from reliability.sampling import GridExperiment
 
 PAPER_MACHINE = "hobbing"
@@ -336,14 +336,13 @@ def _check_spec(spec: SweepSpec) -> None:
         if isinstance(target, bool) or not isinstance(target, (int, float)) \
                 or not 0 < target < 1:
             raise InputError(f"sweep spec: target {target!r} must be a number in (0, 1)")
-    supported = _supports_profiles()
     for profile in spec.profiles:
         if not isinstance(profile, str):
             raise InputTypeError(f"sweep spec: profile {profile!r} must be a name")
-        if not supported and profile != INDEPENDENT:
-            raise InputError(f"sweep spec: profile {profile!r} is not available in this "
-                             f"version (GridExperiment has no error profiles); use "
-                             f"{INDEPENDENT!r}")
+        try:
+            profile_model(profile)
+        except (InputError, InputTypeError) as error:
+            raise InputError(f"sweep spec: profile {profile!r}: {error}") from None
     for name in ("seeds", "repeats"):
         for value in getattr(spec, name):
             if isinstance(value, bool) or not isinstance(value, int) or value < 0 \
@@ -354,11 +353,6 @@ def _check_spec(spec: SweepSpec) -> None:
     points = spec.points_per_axis
     if isinstance(points, bool) or not isinstance(points, int) or points < 2:
         raise InputError(f"sweep spec: points_per_axis {points!r} must be an integer >= 2")
-
-
-def _supports_profiles() -> bool:
-    """Whether :class:`GridExperiment` takes an error profile along travel."""
-    return "profile" in inspect.signature(GridExperiment).parameters
 
 
 def clear_caches() -> None:
@@ -408,7 +402,4 @@ def solve_allocation(name: str, fingerprint: str, side: str, target: float,
 @functools.lru_cache(maxsize=64)
 def _experiment(machine: tuple[str, str], target: float, points: int,
                 profile: str) -> GridExperiment:
-    machine = _task_machine(machine, target)
-    if profile == INDEPENDENT and not _supports_profiles():
-        return GridExperiment(machine, points)
-    return GridExperiment(machine, points, profile=profile)
+    return GridExperiment(_task_machine(machine, target), points, profile=profile)

@@ -189,12 +189,8 @@ def test_spec_from_toml_and_its_checks(mill, tmp_path):
         run_sweep(spec, tmp_path / "store", executor=object())
 
 
-def test_profiles_other_than_independent_need_profile_support(mill):
-    from studies.sweep import _supports_profiles
-
-    if _supports_profiles():
-        pytest.skip("GridExperiment takes profiles here")
-    with pytest.raises(InputError, match="profile 'ramp'.*'independent'"):
+def test_unknown_profiles_are_refused_by_name(mill):
+    with pytest.raises(InputError, match="profile 'ramp'"):
         small_spec(mill, profiles=("ramp",))
 
 
@@ -234,3 +230,15 @@ def test_unreachable_target_is_recorded_not_raised(mill, tmp_path):
     assert frame["status"].tolist() == ["ok", "unreachable"]
     assert np.isnan(frame["relative_cost"].iloc[1]) and not frame["certified"].iloc[1]
     assert frame.filter(like="fraction_").iloc[1].isna().all()
+
+
+def test_profiles_reach_the_grid_experiment(mill, tmp_path):
+    """A constant profile's task equals a grid experiment with that profile, seeded alike."""
+    spec = small_spec(mill, sides=("two_sided",), targets=(0.99,), seeds=(0,),
+                      profiles=("independent", "constant"), repeats=(40,))
+    frame = run_sweep(spec, tmp_path / "store").frame.set_index("profile")
+    task = [t for t in spec.tasks() if t.profile == "constant"][0]
+    alone = run_task(task)
+    assert frame.loc["constant", "yield"] == alone["yield"]
+    # one value per machine along travel: whole machines pass or fail together more often
+    assert frame.loc["constant", "yield"] != frame.loc["independent", "yield"]
