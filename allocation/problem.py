@@ -7,7 +7,7 @@
 With FOSM (Eqs. 19–23) at zero error mean, ``P ≥ R`` at a pose is ``σ_o ≤ I_o / z_o`` with
 ``z = Φ⁻¹(R)`` (the paper's one-sided reading) or ``z = Φ⁻¹((1 + R)/2)`` (exact two-sided);
 in ``u = t²`` it is the linear row ``Σ_i J_oi² u_i / k² ≤ (I_o / z_o)²``. The workspace
-constraint of Eq. (35) is read as "at every pose of the grid" (DESIGN §2); a
+constraint of Eq. (35) is read as "at every pose of the grid" (docs/model.md); a
 workspace-mean variant asks the mean of P over the poses to reach R instead.
 
 The classical worst-case reading ``side='stack'`` ("completely within the allowable
@@ -125,7 +125,7 @@ class AllocationProblem:
             The paper's Φ(β), the exact two-sided probability, or the classical
             worst-case stack ``Σ|J| t ≤ I`` (worst-case workspace only).
         workspace : {'worst', 'mean'}
-            Target at every pose (Eq. 35 as read in DESIGN §2) or on the workspace mean.
+            Target at every pose (Eq. 35 as read in docs/model.md) or on the workspace mean.
         bounds : (float, float)
             Default box as multiples of ``reference`` ([0.5, 1.5]: Table 6 moves no item by
             more than +50 %).

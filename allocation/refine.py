@@ -1,6 +1,6 @@
 """Allocations whose target holds between grid points too (pose cutting planes).
 
-The allocation problem holds the target at the poses of a grid (DESIGN §2), but Eq. (35)
+The allocation problem holds the target at the poses of a grid (docs/model.md), but Eq. (35)
 asks for the whole stroke of every axis, and an optimum certified on the grid can fall
 slightly short between its points (:mod:`reliability.worst_case`). Here the grid optimum is
 checked by a continuous search; every pose where an output falls short is added to the pose

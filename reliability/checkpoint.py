@@ -12,23 +12,13 @@ from __future__ import annotations
 import dataclasses
 import hashlib
 import json
-from importlib import metadata
 from pathlib import Path
 
 import numpy as np
 
 from .errors import InputError, SavedResultError
 from .files import atomic_write_text
-
-DISTRIBUTION = "precision-reliability"
-
-
-def toolkit_version() -> str:
-    """The installed toolkit version ("unknown" when run from a source tree only)."""
-    try:
-        return metadata.version(DISTRIBUTION)
-    except metadata.PackageNotFoundError:
-        return "unknown"
+from .saved import toolkit_version
 
 
 def canonical_json(value) -> str:

@@ -117,7 +117,7 @@ def twist_matrix(twist) -> np.ndarray:
 
 
 def jacobian(machine, q) -> np.ndarray:
-    """Analytic first-order sensitivities of the comprehensive error (DESIGN §2).
+    """Analytic first-order sensitivities of the comprehensive error (docs/model.md).
 
     Parameters
     ----------

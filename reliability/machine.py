@@ -1,4 +1,5 @@
-"""A serial machine described as data (DESIGN §3), loaded and validated from TOML.
+"""A serial machine described as data (docs/machine-file.md), loaded and validated from
+TOML.
 
 A machine is an ordered chain of axes from the workpiece to the tool. Each axis is linear
 or rotary about/along x, y or z, with a stroke and a size (guide length or rotation
@@ -171,7 +172,7 @@ class Machine:
 
     @property
     def error_names(self) -> tuple[str, ...]:
-        """All error names: motion errors axis by axis, then assembly errors (DESIGN §2)."""
+        """All error names: motion errors axis by axis, then assembly errors (docs/model.md)."""
         return error_names(self.axes)
 
     @property
@@ -307,7 +308,7 @@ def joint_names(axes) -> tuple[str, ...]:
 
 
 def error_names(axes) -> tuple[str, ...]:
-    """Error names of a chain with these axis names, in the order of DESIGN §2."""
+    """Error names of a chain with these axis names, in the order of docs/model.md."""
     owners = tuple(axes) + joint_names(axes)
     return tuple(f"{owner}.{comp}" for owner in owners for comp in COMPONENTS)
 
@@ -317,7 +318,7 @@ def hobbing_machine() -> Machine:
     """The paper's large CNC gear hobbing machine (CNC-LGHM), Tables 2–5.
 
     The δz limit is 0.02 mm as in Eq. (35) and Table 8, not the 0.05 mm printed in
-    Table 2 (an erratum, DESIGN §2).
+    Table 2 (an erratum, docs/model.md).
     """
     text = resources.files(__package__).joinpath("machines/hobbing.toml").read_text()
     return machine_from_dict(tomllib.loads(text), source="hobbing.toml")

@@ -1,7 +1,7 @@
 """Numbers published in Hu, Wang & Ma (2023), used as regression targets and in reports.
 
 Only facts from the paper are stored here; the toolkit never uses them to compute its own
-results. Known errata (DESIGN §2) are noted where they apply.
+results. Known errata (docs/model.md) are noted where they apply.
 """
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Pose sets: the workspace grid of Sec. 5.3 and uniform random poses (DESIGN §2)."""
+"""Pose sets: the workspace grid of Sec. 5.3 and uniform random poses (docs/model.md)."""
 
 from __future__ import annotations
 

@@ -1,7 +1,7 @@
 """Monte-Carlo verification on the exact model: the grid experiment of Sec. 5.3 and
 random-pose sampling.
 
-Grid experiment (DESIGN §2). Each axis takes ``P`` equidistant points (P = 5 in the
+Grid experiment (docs/model.md). Each axis takes ``P`` equidistant points (P = 5 in the
 paper); at every point of every axis its six motion errors are drawn once per experiment;
 the assembly errors are drawn once per experiment; all ``P^n`` pose combinations are then
 evaluated with the exact model (Eq. 18). All poses of one experiment share its assembly
@@ -382,7 +382,7 @@ def _one_allocation(machine, tolerances) -> np.ndarray:
 def sample_random_poses(machine, tolerances, n_samples: int, *, rng=None, k: float = 3.0,
                         distribution: str = "truncated", chunk: int = 50_000,
                         progress=None, budget: int | None = None) -> RandomPoseResult:
-    """Pose-level reliability from independent samples (DESIGN §2, issue "random poses").
+    """Pose-level reliability from independent samples (docs/model.md).
 
     Every sample draws a pose uniformly over the workspace and a fresh set of all errors,
     so samples are independent and a binomial interval applies. The FOSM prediction for

@@ -91,7 +91,7 @@ def skew(vector) -> np.ndarray:
 
 
 def read_pose_error(matrix) -> np.ndarray:
-    """Six pose errors of a near-identity transform, as DESIGN §2 reads Eq. (18).
+    """Six pose errors of a near-identity transform, as docs/model.md reads Eq. (18).
 
     δ is the translation column; ε is the skew-symmetric part of the rotation block,
     ``εx = (E32 − E23)/2`` etc., which equals the small-angle parameters of Eq. (2)
@@ -132,7 +132,7 @@ def adjoint_to_frame(matrix) -> np.ndarray:
 
     For ``B = [[R, p], [0, 1]]`` and twist order (δ, ε),
     ``B⁻¹ (I + ξ^) B = I + ξ'^`` with ``δ' = Rᵀδ − Rᵀ[p]×ε`` and ``ε' = Rᵀε``.
-    This is how an error at one link is seen in the tool frame (DESIGN §2,
+    This is how an error at one link is seen in the tool frame (docs/model.md,
     "Linearisation").
 
     Parameters

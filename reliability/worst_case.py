@@ -1,7 +1,8 @@
 """The worst pose between grid points: a continuous search of the workspace.
 
 Eq. (35) asks the reliability target to hold over the whole stroke of every axis; the
-paper (and the allocation problem, DESIGN §2) checks it on a grid of five points per axis.
+paper (and the allocation problem, docs/model.md) checks it on a grid of five points per
+axis.
 FOSM's σ varies smoothly with the pose, so the grid can miss a slightly worse pose between
 its points. This module starts a bounded local search (L-BFGS-B on σ over the strokes) from
 each output's worst grid poses and reports how much worse the continuous workspace is.

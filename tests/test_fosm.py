@@ -259,7 +259,7 @@ def test_refusals(hobbing, table4):
 def test_poses_with_more_than_two_dimensions_refused_clearly(hobbing):
     # FosmResult is defined for (n_poses, n_axes); a (5, 3125, 6) batch currently fails
     # deep inside pandas ("Must pass 2-d input") instead of naming the poses' shape
-    # (DESIGN §5: wrong shapes get a clear exception).
+    # (wrong shapes get a clear exception).
     poses = workspace_grid(hobbing).reshape(5, 3125, 6)
     with pytest.raises(ValueError, match=r"poses.*\(5, 3125, 6\)"):
         fosm(hobbing, hobbing.initial_allocation, poses)

@@ -24,7 +24,8 @@ def test_hobbing_axes_and_names(hobbing):
     assert names[6] == "X.dx" and names[35] == "M.ez"
     assert names[36] == "C-X.dx" and names[42] == "X-Z.dx"
     assert names[-1] == "Y-M.ez"
-    # DESIGN §2 order, written out independently: motion axis by axis, then joints.
+    # The documented order (docs/model.md), written out independently: motion axis by
+    # axis, then joints.
     owners = ["C", "X", "Z", "A", "Y", "M", "C-X", "X-Z", "Z-A", "A-Y", "Y-M"]
     assert names == tuple(f"{o}.{c}" for o in owners for c in COMPONENTS)
     assert [m.error_index(n) for n in names] == list(range(66))
@@ -229,7 +230,7 @@ def test_load_machine_from_file_names_the_file(tmp_path, mill3):
 
 def test_non_broadcastable_positions_and_errors_refused_clearly(hobbing):
     # q (4, 6) and x (3, 66) have batch shapes (4,) and (3,) that do not broadcast. The
-    # message should name both shapes (DESIGN §5); currently numpy's einsum error speaks of
+    # message should name both shapes; currently numpy's einsum error speaks of
     # "remapped shapes (4,6,6)->... (3,6)->..." instead.
     with pytest.raises(ValueError, match=r"\(4, 6\).*\(3, 66\)"):
         hobbing.comprehensive_error(np.zeros((4, 6)), np.zeros((3, 66)))

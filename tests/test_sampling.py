@@ -187,7 +187,7 @@ def _grid_index(n_axes, points):
 
 
 def literal_grid_errors(machine, points, motion, assembly):
-    """Eqs. (16)-(18) literally: ``E = inv(M) @ M_e`` pose by pose, read as in DESIGN §2.
+    """Eqs. (16)-(18) literally: ``E = inv(M) @ M_e`` pose by pose, read as in docs/model.md.
 
     ``M_e = Π_i [O_i E^m_i M_i E^p_i] T`` and ``M = Π_i [O_i M_i] T``, the motion errors
     of axis i at pose p being ``motion[:, i, index[p, i]]``.
