@@ -15,7 +15,7 @@ import sys
 from .timing import limit_blas_threads
 
 #: Subcommand modules under ``studies.commands``, in the order ``--help`` lists them.
-COMMANDS = ("check", "predict", "allocate", "verify", "report", "front")
+COMMANDS = ("check", "predict", "allocate", "verify", "report", "front", "sweep")
 PROG = "precrel"
 #: Exit code of bad input (argparse's own convention).
 USAGE_ERROR = 2

@@ -514,9 +514,116 @@ def test_bad_input_is_refused_with_its_cause_named(call, exception, fragments, t
         assert fragment in message, f"{fragment!r} not in {message!r}"
 
 
+# ----- the command line: exit 2 with one line naming the cause, before any work --------
+MILL_FILE = str(Path(__file__).parent / "machines" / "mill3.toml")
+
+
+def _file(name, content):
+    """A file written into the test's folder; returns its path as text."""
+    def make(tmp):
+        path = tmp / name
+        path.write_bytes(content if isinstance(content, bytes) else content.encode())
+        return str(path)
+    return make
+
+
+def _tolerances(rows):
+    return _file("t.csv", "error,allocated\n" + "".join(f"{n},{v}\n" for n, v in rows))
+
+
+def _all_mill(**changes):
+    values = dict(zip(MILL.error_names, TM))
+    values.update(changes)
+    return _tolerances(values.items())
+
+
+CLI_CATALOGUE = [
+    ("precrel-check-missing-file", lambda tmp: ["check", str(tmp / "nope.toml")],
+     ["nope.toml"]),
+    ("precrel-check-binary-file",
+     lambda tmp: ["check", _file("m.toml", b"\x89PNG\r\n\x00\xff")(tmp)],
+     ["m.toml", "not a text file"]),
+    ("precrel-check-bad-toml", lambda tmp: ["check", _file("m.toml", "name = ")(tmp)],
+     ["m.toml", "not valid TOML"]),
+    ("precrel-predict-points-one", lambda tmp: ["predict", MILL_FILE, "--points", "1"],
+     ["--points"]),
+    ("precrel-predict-side-unknown", lambda tmp: ["predict", MILL_FILE, "--side", "left"],
+     ["--side", "left"]),
+    ("precrel-predict-tolerances-unknown-name",
+     lambda tmp: ["predict", MILL_FILE, "--tolerances", _all_mill(**{"Q.dx": 0.002})(tmp)],
+     ["Q.dx"]),
+    ("precrel-predict-tolerances-missing-name",
+     lambda tmp: ["predict", MILL_FILE, "--tolerances",
+                  _tolerances(list(zip(MILL.error_names, TM))[:-1])(tmp)],
+     [MILL.error_names[-1]]),
+    ("precrel-predict-tolerances-negative",
+     lambda tmp: ["predict", MILL_FILE, "--tolerances", _all_mill(**{"X.dx": -0.002})(tmp)],
+     ["X.dx"]),
+    ("precrel-predict-tolerances-no-allocated-column",
+     lambda tmp: ["predict", MILL_FILE, "--tolerances", _file("t.csv", "error,t\nX.dx,1\n")(tmp)],
+     ["allocated"]),
+    ("precrel-allocate-out-exists",
+     lambda tmp: ["allocate", MILL_FILE, "--out", _file("a.csv", "keep me")(tmp)],
+     ["a.csv", "--overwrite"]),
+    ("precrel-allocate-out-is-a-folder",
+     lambda tmp: ["allocate", MILL_FILE, "--out", str(tmp), "--overwrite"], ["--out"]),
+    ("precrel-allocate-bounds-reversed",
+     lambda tmp: ["allocate", MILL_FILE, "--out", str(tmp / "a.csv"), "--bounds", "2", "1"],
+     ["--bounds"]),
+    ("precrel-allocate-target-one",
+     lambda tmp: ["allocate", MILL_FILE, "--out", str(tmp / "a.csv"), "--target", "1"],
+     ["--target"]),
+    ("precrel-allocate-lock-unknown",
+     lambda tmp: ["allocate", MILL_FILE, "--out", str(tmp / "a.csv"), "--lock", "Q.dx"],
+     ["Q.dx"]),
+    ("precrel-allocate-method-unknown",
+     lambda tmp: ["allocate", MILL_FILE, "--out", str(tmp / "a.csv"), "--method", "magic"],
+     ["--method", "magic"]),
+    ("precrel-verify-repeats-zero",
+     lambda tmp: ["verify", MILL_FILE, "--tolerances", "x.csv", "--repeats", "0"],
+     ["--repeats"]),
+    ("precrel-verify-seed-negative",
+     lambda tmp: ["verify", MILL_FILE, "--tolerances", "x.csv", "--seed", "-1"], ["--seed"]),
+    ("precrel-verify-samples-text",
+     lambda tmp: ["verify", MILL_FILE, "--tolerances", "x.csv", "--samples", "many"],
+     ["--samples", "many"]),
+    ("precrel-verify-precision-one",
+     lambda tmp: ["verify", MILL_FILE, "--tolerances", "x.csv", "--precision", "1"],
+     ["--precision"]),
+    ("precrel-report-out-is-a-file",
+     lambda tmp: ["report", MILL_FILE, "--out", _file("r", "a file")(tmp)], ["r"]),
+    ("precrel-report-skip-unknown",
+     lambda tmp: ["report", MILL_FILE, "--out", str(tmp / "r"), "--skip", "tea"], ["tea"]),
+    ("precrel-front-target-above-one",
+     lambda tmp: ["front", MILL_FILE, "--targets", "0.9", "1.5"], ["--targets"]),
+    ("precrel-sweep-missing-spec",
+     lambda tmp: ["sweep", str(tmp / "spec.toml"), "--store", str(tmp / "s")], ["spec.toml"]),
+    ("precrel-sweep-workers-zero",
+     lambda tmp: ["sweep", _file("spec.toml", 'machines = ["hobbing"]\n')(tmp), "--store",
+                  str(tmp / "s"), "--workers", "0"], ["--workers"]),
+    ("precrel-unknown-command", lambda tmp: ["plot", MILL_FILE], ["plot"]),
+]
+
+
+@pytest.mark.parametrize("argv", [case[1] for case in CLI_CATALOGUE],
+                         ids=[case[0] for case in CLI_CATALOGUE])
+def test_command_line_refuses_with_one_line(argv, tmp_path, capsys):
+    from studies import cli
+
+    fragments = dict((case[0], case[2]) for case in CLI_CATALOGUE)
+    case = next(c for c in CLI_CATALOGUE if c[1] is argv)
+    code = cli.main(argv(tmp_path))
+    captured = capsys.readouterr()
+    assert code == 2 and captured.out == ""
+    last = captured.err.strip().splitlines()[-1]
+    assert last.startswith("precrel"), captured.err
+    for fragment in fragments[case[0]]:
+        assert fragment in last, f"{fragment!r} not in {last!r}"
+
+
 def catalogue_size_by_entry_point() -> Counter:
-    """Rows per entry point (the id up to the first '-')."""
-    return Counter(case[0].split("-")[0] for case in CATALOGUE)
+    """Rows per entry point (the id up to the first '-'), library and command line."""
+    return Counter(case[0].split("-")[0] for case in CATALOGUE + CLI_CATALOGUE)
 
 
 if __name__ == "__main__":

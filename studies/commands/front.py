@@ -19,6 +19,8 @@ from reliability.files import write_csv
 from reliability.machine import load_machine
 from reliability.poses import workspace_grid
 
+from . import _common
+
 #: Default span of the targets: 1 − R from 1e−1 to 1e−9, log-spaced.
 FAILURE_SPAN = (1e-1, 1e-9)
 
@@ -31,18 +33,18 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     parser.add_argument("machine", type=Path, help="machine description (TOML)")
     parser.add_argument("--side", choices=FRONT_SIDES, default="two_sided",
                         help="reading of the reliability requirement (default: two_sided)")
-    parser.add_argument("--targets", type=float, nargs="+", default=None, metavar="R",
+    parser.add_argument("--targets", type=_common.probability, nargs="+", default=None, metavar="R",
                         help="reliability targets in (0, 1) (default: --points targets "
                              "with 1 − R log-spaced from 1e-1 to 1e-9)")
-    parser.add_argument("--points", type=int, default=20,
+    parser.add_argument("--points", type=_common.positive_int, default=20,
                         help="number of log-spaced targets when --targets is not given "
                              "(default: 20)")
-    parser.add_argument("--bounds", type=float, nargs=2, default=(0.5, 1.5),
+    parser.add_argument("--bounds", type=_common.positive_float, nargs=2, default=(0.5, 1.5),
                         metavar=("LO", "HI"),
                         help="tolerance box as factors of the initial allocation "
                              "(default: 0.5 1.5; high targets and the stack usually need "
                              "a lower LO, e.g. 0.001)")
-    parser.add_argument("--grid", type=int, default=5,
+    parser.add_argument("--grid", type=_common.grid_points, default=5,
                         help="grid points per axis (default: 5)")
     parser.add_argument("--out", type=Path, default=None, help="write the table as CSV")
     parser.add_argument("--overwrite", action="store_true",
