@@ -71,9 +71,13 @@ def main(argv=None) -> int:
 
 
 def _one_line(exc: BaseException) -> str:
+    from allocation import TargetUnreachableError
+
     text = " ".join(str(exc).split()) or type(exc).__name__
     if isinstance(exc, OSError) and exc.filename and str(exc.filename) not in text:
         text = f"{exc.filename}: {text}"
+    if isinstance(exc, TargetUnreachableError):
+        text += "; a wider box (--bounds LO HI, e.g. 0.1 1.5) may reach it"
     return text
 
 

@@ -287,3 +287,11 @@ def test_front_command_writes_its_table(tmp_path, capsys):
     frame = pd.read_csv(path)
     assert list(frame["target"]) == [0.9, 0.99, 0.999]
     assert frame["cost"].is_monotonic_increasing and frame["certified"].all()
+
+
+def test_report_takes_bounds_and_an_unreachable_box_says_how_to_proceed(tmp_path, capsys):
+    out = tmp_path / "tight"
+    code, _, err = run(capsys, "report", MILL, "--out", str(out), *QUICK, "--bounds", "1", "1.01",
+                       "--skip", "front", "system", "rare", "profiles")
+    assert_one_line_error(code, err, "unreachable", "--bounds")
+    assert not out.exists()

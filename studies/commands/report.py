@@ -23,6 +23,10 @@ def add_parser(subparsers):
                         help="random-pose samples and samples per worst pose (default 20000)")
     _common.add_points(parser)
     _common.add_side(parser)
+    parser.add_argument("--bounds", type=_common.positive_float, nargs=2, default=(0.5, 1.5),
+                        metavar=("LO", "HI"),
+                        help="tolerance box as factors of the initial allocation "
+                             "(default 0.5 1.5)")
     parser.add_argument("--skip", nargs="+", default=(), choices=EXTRAS, metavar="SECTION",
                         help="leave out optional sections: " + ", ".join(EXTRAS)
                              + " (default: include all)")
@@ -35,9 +39,11 @@ def run(args) -> int:
     from studies import pipeline
     from studies.machine_report import check_output_folder, write_report
     from studies.report_extras import builders
+    bounds = _common.check_bounds(args.bounds)
     out = check_output_folder(args.out, args.overwrite)
     machine = _common.machine(args)
-    study = pipeline.run(machine, points=args.points, side=args.side, seed=args.seed,
+    study = pipeline.run(machine, points=args.points, side=args.side, bounds=bounds,
+                         seed=args.seed,
                          repeats=args.repeats, samples=args.samples, progress=_common.say,
                          bar=_common.progress_bar)
     extra = builders([name for name in EXTRAS if name not in args.skip])
