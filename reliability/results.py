@@ -105,6 +105,34 @@ class GridExperimentResult:
         """Share of experiments (simulated machines) entirely within every limit."""
         return machine_yield(self.all_inside, confidence)
 
+    def summary(self, confidence: float = 0.95) -> str:
+        """A short readable account: the set-up, the machine-level yield and, per output,
+        the limit (with its unit), the mean share in tolerance with its interval, and the
+        least and most of any experiment."""
+        estimate = self.reliability(confidence)
+        machines = self.machine_yield(confidence)
+        table = pd.DataFrame({
+            "limit": [_with_unit(limit, output) for limit, output in zip(self.limits, OUTPUTS)],
+            "mean [%]": _percent(estimate.estimate),
+            f"{confidence:.0%} interval [%]": [f"[{lo:.3f}, {hi:.3f}]" for lo, hi in
+                                              zip(100 * np.asarray(estimate.lower),
+                                                  100 * np.asarray(estimate.upper))],
+            "min [%]": _percent(estimate.minimum), "max [%]": _percent(estimate.maximum)},
+            index=pd.Index(OUTPUTS, name="output"))
+        return "\n".join([
+            f"{self.repeats} grid experiments of {self.n_poses:,} poses "
+            f"({self.points_per_axis} points per axis), errors {self.distribution}, "
+            f"t = ±{self.k:g}σ",
+            f"machine-level yield: {int(self.all_inside.sum())} of {self.repeats} experiments "
+            f"entirely within every limit ({machines.estimate:.1%}, {confidence:.0%} "
+            f"Clopper–Pearson [{machines.lower:.1%}, {machines.upper:.1%}])",
+            f"share of poses in tolerance (interval: Wilson score on the effective sample "
+            f"size from the spread between experiments):",
+            table.to_string()])
+
+    def __repr__(self) -> str:
+        return f"GridExperimentResult:\n{self.summary()}"
+
     def to_frame(self) -> pd.DataFrame:
         """Long table, one row per experiment and output (saved by :meth:`save_csv`)."""
         repeat = np.repeat(np.arange(1, self.repeats + 1), len(OUTPUTS))
@@ -200,6 +228,24 @@ class RandomPoseResult:
     def reliability(self, confidence: float = 0.95, method: str = "wilson"):
         """Share in tolerance per output with a binomial interval (samples independent)."""
         return proportion(self.inside, self.n_samples, confidence, method, names=OUTPUTS)
+
+    def summary(self, confidence: float = 0.95) -> str:
+        """A short readable account: per output the limit (with its unit), the share in
+        tolerance with its Wilson interval, and FOSM over the same poses."""
+        estimate = self.reliability(confidence)
+        table = pd.DataFrame({
+            "limit": [_with_unit(limit, output) for limit, output in zip(self.limits, OUTPUTS)],
+            "in tolerance [%]": _percent(estimate.estimate),
+            f"{confidence:.0%} Wilson [%]": [f"[{lo:.3f}, {hi:.3f}]" for lo, hi in
+                                            zip(100 * np.asarray(estimate.lower),
+                                                100 * np.asarray(estimate.upper))],
+            "FOSM two-sided [%]": _percent(self.fosm_two_sided)},
+            index=pd.Index(OUTPUTS, name="output"))
+        return (f"{self.n_samples:,} random poses, each with fresh errors ({self.distribution}, "
+                f"t = ±{self.k:g}σ)\n{table.to_string()}")
+
+    def __repr__(self) -> str:
+        return f"RandomPoseResult:\n{self.summary()}"
 
     def to_frame(self, confidence: float = 0.95) -> pd.DataFrame:
         """One row per output: limit, counts, estimate and interval."""
@@ -379,3 +425,11 @@ class _Table:
                     raise SavedResultError(
                         f"{self.source}: repeat {r}, output {o!r} is missing (repeats "
                         f"1..{repeats} × outputs {outputs} must each appear once)")
+
+
+def _percent(values) -> list[str]:
+    return [f"{100 * v:.3f}" for v in np.asarray(values, dtype=float)]
+
+
+def _with_unit(limit: float, output: str) -> str:
+    return f"{limit:g} {'mm' if output.startswith('d') else 'rad'}"

@@ -295,3 +295,14 @@ def test_report_takes_bounds_and_an_unreachable_box_says_how_to_proceed(tmp_path
                        "--skip", "front", "system", "rare", "profiles")
     assert_one_line_error(code, err, "unreachable", "--bounds")
     assert not out.exists()
+
+
+def test_tolerances_may_name_errors_by_iso_symbol(allocation_csv, mill3, tmp_path, capsys):
+    frame = pd.read_csv(allocation_csv)
+    frame["error"] = [mill3.iso_names[mill3.error_index(n)] for n in frame["error"]]
+    iso = tmp_path / "iso.csv"
+    frame.to_csv(iso, index=False)
+    by_name = run(capsys, "predict", MILL, "--points", "3", "--tolerances", str(allocation_csv))
+    by_iso = run(capsys, "predict", MILL, "--points", "3", "--tolerances", str(iso))
+    assert by_iso[0] == 0 and by_iso[1].replace(str(iso), "") == \
+        by_name[1].replace(str(allocation_csv), "")

@@ -227,3 +227,19 @@ def test_random_pose_result_to_frame():
     ci = stats.binomtest(900, 1000).proportion_ci(method="exact")
     assert exact.lower[3] == pytest.approx(ci.low, rel=1e-10)
     assert exact.upper[3] == pytest.approx(ci.high, rel=1e-10)
+
+
+def test_sampling_results_print_readable_summaries(mill3):
+    from reliability import GridExperiment, sample_random_poses
+
+    grid = GridExperiment(mill3, 3).run(mill3.initial_allocation, repeats=4, rng=3)
+    text = repr(grid)
+    entirely = int((grid.inside == grid.n_poses).all(axis=1).sum())
+    assert f"{entirely} of 4 experiments entirely within every limit" in text
+    assert "0.01 mm" in text and "3e-05 rad" in text and "27 poses" in text
+    assert "array(" not in text
+    random = sample_random_poses(mill3, mill3.initial_allocation, 500, rng=3)
+    text = repr(random)
+    assert "500 random poses" in text and "Wilson" in text and "array(" not in text
+    share = 100 * random.inside[0] / 500
+    assert f"{share:.3f}" in text

@@ -137,11 +137,13 @@ def read_tolerances(path, machine) -> np.ndarray:
     if missing_columns:
         raise InputError(f"--tolerances {path}: missing column(s) {missing_columns}; "
                          f"expected columns 'error' and 'allocated'")
-    names = frame["error"].astype(str).str.strip()
-    unknown = [n for n in names if n not in machine.error_names]
+    given = frame["error"].astype(str).str.strip()
+    unknown = [n for n in given if not _known(machine, n)]
     if unknown:
         raise InputError(f"--tolerances {path}: unknown error name(s) {unknown[:5]}; "
-                         f"the machine's errors are named like {machine.error_names[0]!r}")
+                         f"the machine's errors are named like {machine.error_names[0]!r} "
+                         f"(or by their ISO 230-1 symbols, like {machine.iso_names[0]!r})")
+    names = pd.Series([machine.error_names[machine.error_index(n)] for n in given])
     repeated = sorted(set(names[names.duplicated()]))
     if repeated:
         raise InputError(f"--tolerances {path}: error(s) given twice: {repeated[:5]}")
@@ -152,9 +154,18 @@ def read_tolerances(path, machine) -> np.ndarray:
     values = pd.to_numeric(frame["allocated"], errors="coerce").to_numpy(dtype=float)
     bad = np.flatnonzero(~(np.isfinite(values) & (values > 0)))
     if len(bad):
-        raise InputError(f"--tolerances {path}: allocated value of {names[bad[0]]!r} is "
+        raise InputError(f"--tolerances {path}: allocated value of {given[bad[0]]!r} is "
                          f"{frame['allocated'][bad[0]]!r}; expected a number > 0")
     return pd.Series(values, index=names).reindex(list(machine.error_names)).to_numpy()
+
+
+def _known(machine, name: str) -> bool:
+    """Whether ``name`` is one of the machine's error names or ISO 230-1 symbols."""
+    try:
+        machine.error_index(name)
+    except KeyError:
+        return False
+    return True
 
 
 # ----- printing ------------------------------------------------------------------------
