@@ -126,8 +126,8 @@ class GridExperimentResult:
             f"machine-level yield: {int(self.all_inside.sum())} of {self.repeats} experiments "
             f"entirely within every limit ({machines.estimate:.1%}, {confidence:.0%} "
             f"Clopper–Pearson [{machines.lower:.1%}, {machines.upper:.1%}])",
-            f"share of poses in tolerance (interval: Wilson score on the effective sample "
-            f"size from the spread between experiments):",
+            "share of poses in tolerance (interval: Wilson score on the effective sample "
+            "size from the spread between experiments):",
             table.to_string()])
 
     def __repr__(self) -> str:

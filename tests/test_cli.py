@@ -13,7 +13,7 @@ import pandas as pd
 import pytest
 
 from allocation import AllocationProblem
-from reliability import load_machine, workspace_grid
+from reliability import workspace_grid
 from studies import cli
 from studies.machine_report import markdown_to_html, rounded
 

@@ -13,7 +13,6 @@ import numpy as np
 import pandas as pd
 import pytest
 
-import reliability
 from reliability import hobbing_machine, load_machine, machine_from_dict
 
 MACHINE_DIR = Path(__file__).parent / "machines"
