@@ -32,6 +32,6 @@ def pose_columns(poses, axes, units) -> pd.DataFrame:
                          for i, (axis, unit) in enumerate(zip(axes, units))})
 
 
-def output_limits_text(limits) -> list[str]:
+def output_limits_text(limits, digits: int = 4) -> list[str]:
     """Each output's limit with its unit."""
-    return [with_unit(float(limit), unit) for limit, unit in zip(limits, OUTPUT_UNITS)]
+    return [with_unit(float(limit), unit, digits) for limit, unit in zip(limits, OUTPUT_UNITS)]

@@ -9,6 +9,7 @@ import numpy as np
 import pandas as pd
 
 from . import checks
+from .display import output_limits_text
 from .errors import InputError, InputTypeError, SavedResultError
 from .files import write_csv
 from .machine import OUTPUTS
@@ -112,11 +113,9 @@ class GridExperimentResult:
         estimate = self.reliability(confidence)
         machines = self.machine_yield(confidence)
         table = pd.DataFrame({
-            "limit": [_with_unit(limit, output) for limit, output in zip(self.limits, OUTPUTS)],
+            "limit": output_limits_text(self.limits, digits=6),
             "mean [%]": _percent(estimate.estimate),
-            f"{confidence:.0%} interval [%]": [f"[{lo:.3f}, {hi:.3f}]" for lo, hi in
-                                              zip(100 * np.asarray(estimate.lower),
-                                                  100 * np.asarray(estimate.upper))],
+            f"{confidence:.0%} interval [%]": _percent_intervals(estimate),
             "min [%]": _percent(estimate.minimum), "max [%]": _percent(estimate.maximum)},
             index=pd.Index(OUTPUTS, name="output"))
         return "\n".join([
@@ -234,11 +233,9 @@ class RandomPoseResult:
         tolerance with its Wilson interval, and FOSM over the same poses."""
         estimate = self.reliability(confidence)
         table = pd.DataFrame({
-            "limit": [_with_unit(limit, output) for limit, output in zip(self.limits, OUTPUTS)],
+            "limit": output_limits_text(self.limits, digits=6),
             "in tolerance [%]": _percent(estimate.estimate),
-            f"{confidence:.0%} Wilson [%]": [f"[{lo:.3f}, {hi:.3f}]" for lo, hi in
-                                            zip(100 * np.asarray(estimate.lower),
-                                                100 * np.asarray(estimate.upper))],
+            f"{confidence:.0%} Wilson [%]": _percent_intervals(estimate),
             "FOSM two-sided [%]": _percent(self.fosm_two_sided)},
             index=pd.Index(OUTPUTS, name="output"))
         return (f"{self.n_samples:,} random poses, each with fresh errors ({self.distribution}, "
@@ -431,5 +428,7 @@ def _percent(values) -> list[str]:
     return [f"{100 * v:.3f}" for v in np.asarray(values, dtype=float)]
 
 
-def _with_unit(limit: float, output: str) -> str:
-    return f"{limit:g} {'mm' if output.startswith('d') else 'rad'}"
+def _percent_intervals(estimate) -> list[str]:
+    """Each output's interval as ``"[lower, upper]"`` in percent."""
+    return [f"[{100 * lo:.3f}, {100 * hi:.3f}]"
+            for lo, hi in zip(np.asarray(estimate.lower), np.asarray(estimate.upper))]

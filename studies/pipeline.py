@@ -19,6 +19,7 @@ from matplotlib.figure import Figure
 
 from allocation import AllocationProblem
 from reliability import plots
+from reliability.display import OUTPUT_UNITS, axis_units
 from reliability.fosm import fosm
 from reliability.machine import OUTPUTS
 from reliability.poses import workspace_grid
@@ -190,10 +191,10 @@ def machine_section(study: MachineStudy) -> Section:
         "direction": [a.direction for a in machine.axis_specs],
         "stroke_low": [a.stroke[0] for a in machine.axis_specs],
         "stroke_high": [a.stroke[1] for a in machine.axis_specs],
-        "unit": [_common.axis_unit(a) for a in machine.axis_specs],
+        "unit": list(axis_units(machine)),
         "size_m": [a.size for a in machine.axis_specs]})
     requirements = pd.DataFrame({"output": list(OUTPUTS), "limit": machine.limits,
-                                 "unit": [_common.OUTPUT_UNITS[o] for o in OUTPUTS],
+                                 "unit": list(OUTPUT_UNITS),
                                  "target": machine.targets})
     text = (f"Axes in chain order, workpiece to tool; {machine.n_errors} errors "
             f"({6 * len(machine.axes)} motion, {machine.n_errors - 6 * len(machine.axes)} "
@@ -209,9 +210,8 @@ def fosm_table(machine, result, side: str) -> pd.DataFrame:
     frame = result.to_frame()
     rows = np.arange(len(OUTPUTS))
     table = pd.DataFrame({"output": list(OUTPUTS)})
-    for i, axis in enumerate(machine.axis_specs):
-        table[f"{axis.name} ({_common.axis_unit(axis)})"] = \
-            result.poses[result.worst_pose, i]
+    for i, (axis, unit) in enumerate(zip(machine.axes, axis_units(machine))):
+        table[f"{axis} ({unit})"] = result.poses[result.worst_pose, i]
     table["sigma"] = result.sigma[result.worst_pose, rows]
     table["beta"] = frame["beta"].to_numpy()
     table["worst_one_sided"] = frame["worst_one_sided"].to_numpy()

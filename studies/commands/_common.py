@@ -9,11 +9,10 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from reliability import display
 from reliability.errors import InputError
-from reliability.machine import OUTPUTS, load_machine
+from reliability.machine import load_machine
 
-#: Units of the six outputs (Eq. 18): translations in mm, rotations in rad.
-OUTPUT_UNITS = {"dx": "mm", "dy": "mm", "dz": "mm", "ex": "rad", "ey": "rad", "ez": "rad"}
 SIDE_CHOICES = ("one_sided", "two_sided")
 
 
@@ -169,14 +168,9 @@ def _known(machine, name: str) -> bool:
 
 
 # ----- printing ------------------------------------------------------------------------
-def axis_unit(axis) -> str:
-    return "mm" if axis.kind == "linear" else "rad"
-
-
 def pose_text(machine, pose) -> str:
     """A pose as axis positions with units, e.g. ``X=-300 mm, C=1.571 rad``."""
-    return ", ".join(f"{a.name}={value:.6g} {axis_unit(a)}"
-                     for a, value in zip(machine.axis_specs, pose))
+    return display.pose_text(pose, machine.axes, display.axis_units(machine), digits=6)
 
 
 def top_contributors(contributions: pd.DataFrame, output: str, n: int = 3) -> str:
@@ -199,7 +193,3 @@ def progress_bar(total: int, description: str):
 def say(text: str) -> None:
     """A progress line on stderr."""
     print(text, file=sys.stderr, flush=True)
-
-
-def outputs() -> tuple[str, ...]:
-    return OUTPUTS

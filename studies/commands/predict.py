@@ -4,7 +4,9 @@ from __future__ import annotations
 
 import pandas as pd
 
+from reliability.display import OUTPUT_UNITS
 from reliability.fosm import fosm
+from reliability.machine import OUTPUTS
 from reliability.poses import workspace_grid
 
 from . import _common
@@ -34,7 +36,7 @@ def run(args) -> int:
     print(f"FOSM of the {source} of {machine.name!r} over the {args.points}-point grid "
           f"({len(result.poses)} poses); target judged {args.side.replace('_', '-')}\n")
     print(prediction_table(machine, result, args.side).to_string())
-    failing = [o for o, met in zip(_common.outputs(), result.meets_targets(args.side))
+    failing = [o for o, met in zip(OUTPUTS, result.meets_targets(args.side))
                if not met]
     print("\nevery output meets its target" if not failing else
           f"\ntarget NOT met by: {', '.join(failing)}")
@@ -51,7 +53,7 @@ def prediction_table(machine, result, side: str) -> pd.DataFrame:
         pose = result.poses[result.worst_pose[i]]
         rows.append({
             "output": output,
-            "limit": f"{row['limit']:g} {_common.OUTPUT_UNITS[output]}",
+            "limit": f"{row['limit']:g} {OUTPUT_UNITS[i]}",
             "target": f"{row['target']:g}",
             "worst pose": _common.pose_text(machine, pose),
             "beta": f"{row['beta']:.4f}",
