@@ -38,8 +38,8 @@ from dataclasses import dataclass
 from typing import Mapping
 
 import numpy as np
-from scipy.special import ndtr, ndtri
 
+from .correlation import normal_to_marginal
 from .errors import InputError, InputTypeError
 
 #: Jitter added to a correlation matrix's diagonal, in turn, until its Cholesky factor exists.
@@ -253,14 +253,7 @@ def to_marginal(z, tolerances, k: float = 3.0, distribution: str = "truncated") 
     ±k, i.e. N(0, σ²) truncated at ±t. It is evaluated on the lower tail and mirrored,
     ``−sign(z) Φ⁻¹(Φ(−k) + Φ(−|z|)(1 − 2Φ(−k)))``, so that large ``|z|`` lose no accuracy.
     """
-    sigma = np.asarray(tolerances, dtype=float) / k
-    if distribution == "normal":
-        return z * sigma
-    if distribution != "truncated":
-        raise InputError(f"unknown distribution {distribution!r}; use 'truncated' or 'normal'")
-    tail = ndtr(-k)
-    lower = ndtri(tail + ndtr(-np.abs(z)) * (1.0 - 2.0 * tail))
-    return -np.sign(z) * lower * sigma
+    return normal_to_marginal(z, k, distribution) * (np.asarray(tolerances, dtype=float) / k)
 
 
 def draw_motion_errors(factors, tolerances, rng, k: float = 3.0,
