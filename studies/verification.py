@@ -23,8 +23,8 @@ import pandas as pd
 from reliability.comparison import fosm_versus_monte_carlo
 from reliability.fosm import fosm
 from reliability.machine import OUTPUTS
-from reliability.sampling import GridExperiment, draw_errors, sample_random_poses
-from reliability.statistics import proportion
+from reliability.pose_sampling import sample_at_poses
+from reliability.sampling import GridExperiment, sample_random_poses
 
 
 @dataclass(frozen=True)
@@ -95,21 +95,21 @@ def verify(machine, tolerances, *, points: int = 5, repeats: int = 20,
 
 def worst_pose_monte_carlo(machine, tolerances, fosm_result, samples: int, rng
                            ) -> pd.DataFrame:
-    """Monte-Carlo of each output at its own FOSM worst pose (truncated normal errors)."""
+    """Monte-Carlo of each output at its own FOSM worst pose (truncated normal errors), by
+    :func:`reliability.pose_sampling.sample_at_poses`; Wilson intervals."""
     poses = fosm_result.poses[fosm_result.worst_pose]  # (6, n_axes)
-    errors = draw_errors(tolerances, (samples,), rng=rng)  # (samples, n_errors)
-    values = machine.comprehensive_error(poses[:, None, :], errors[None, :, :])
+    sampled = sample_at_poses(machine, tolerances, poses, samples=samples, rng=rng,
+                              distribution="truncated", events=OUTPUTS, fosm=False)
     rows = np.arange(len(OUTPUTS))
-    inside = (np.abs(values[rows, :, rows]) <= machine.limits[:, None]).sum(axis=1)
-    estimate = proportion(inside, samples, names=OUTPUTS)
+    failure = sampled.estimate  # the complement of a Wilson interval is a Wilson interval
     truncated = fosm(machine, tolerances, poses, distribution="truncated")
     frame = pd.DataFrame({"output": list(OUTPUTS)})
     for i, axis in enumerate(machine.axes):
         frame[axis] = poses[:, i]
     frame["fosm_two_sided"] = truncated.two_sided[rows, rows]
-    frame["mc_estimate"] = estimate.estimate
-    frame["mc_lower"] = estimate.lower
-    frame["mc_upper"] = estimate.upper
+    frame["mc_estimate"] = 1.0 - np.asarray(failure.estimate)[rows, rows]
+    frame["mc_lower"] = 1.0 - np.asarray(failure.upper)[rows, rows]
+    frame["mc_upper"] = 1.0 - np.asarray(failure.lower)[rows, rows]
     frame["samples"] = samples
     return frame
 
