@@ -33,7 +33,7 @@ from scipy.stats import multivariate_normal
 from .errors import InputError, InputTypeError
 from .fosm import error_sigma, two_sided_probability
 from .machine import OUTPUTS
-from .poses import workspace_grid
+from .rare import worst_grid_poses
 from .sampling import draw_errors
 from .statistics import proportion
 
@@ -146,11 +146,9 @@ def axis_labels(machine) -> tuple:
 
 def worst_poses(machine, tolerances, *, k: float = 3.0, points_per_axis: int = 5
                 ) -> np.ndarray:
-    """Each output's worst pose on the workspace grid (largest FOSM σ), ``(6, n_axes)``."""
-    t = machine.check_tolerances(tolerances)
-    grid = workspace_grid(machine, points_per_axis)
-    sigma = np.sqrt(np.square(machine.jacobian(grid)) @ np.square(t / k))  # Eq. (20)
-    return grid[np.argmax(sigma, axis=0)]
+    """Each output's worst pose on the workspace grid (largest FOSM σ), ``(6, n_axes)``;
+    see :func:`reliability.rare.worst_grid_poses`."""
+    return worst_grid_poses(machine, tolerances, OUTPUTS, k=k, points_per_axis=points_per_axis)
 
 
 def linear_failure(machine, tolerances, poses, *, k: float = 3.0,

@@ -483,8 +483,9 @@ def worst_grid_pose(machine, tolerances, event: str = "dx", *, k: float = 3.0,
                     points_per_axis: int = 5) -> np.ndarray:
     """The workspace-grid pose where ``event`` is most likely to fail (linear-Gaussian).
 
-    For an output, the pose of largest σ (FOSM's worst pose); for ``'system'``, the pose of
-    largest Σ_o two-sided failure probability (the union bound).
+    For an output, the pose of largest σ (FOSM's worst pose; ranking by σ rather than by
+    the failure probability keeps the order where that probability rounds to 0); for
+    ``'system'``, the pose of largest Σ_o two-sided failure probability (the union bound).
     """
     return worst_grid_poses(machine, tolerances, (event,), k=k,
                             points_per_axis=points_per_axis)[0]
@@ -501,7 +502,7 @@ def worst_grid_poses(machine, tolerances, events=EVENTS, *, k: float = 3.0,
     grid = workspace_grid(machine, points_per_axis)
     sigma = np.sqrt(np.square(machine.jacobian(grid)) @ np.square(t / k))  # Eq. (20)
     failure = 1.0 - two_sided_probability(machine.limits, sigma)
-    scores = np.column_stack([failure, failure.sum(axis=1)])
+    scores = np.column_stack([sigma, failure.sum(axis=1)])
     return grid[np.argmax(scores[:, [EVENTS.index(e) for e in events]], axis=0)]
 
 
