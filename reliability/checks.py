@@ -194,6 +194,14 @@ def poses_in_strokes(machine, poses: np.ndarray, name: str = "poses",
     return poses
 
 
+def independent_errors(machine, what: str) -> None:
+    """Refuse a machine with correlated errors where ``what`` draws them independently."""
+    if getattr(machine, "correlation", None) is not None:
+        raise InputError(f"machine: {what} draws the errors independently, but this machine's "
+                         f"errors are correlated (machine.correlation); use "
+                         f"sample_random_poses or GridExperiment, which use the correlation")
+
+
 def text_name(value, what: str) -> str:
     """A non-empty string without whitespace or control characters."""
     if not isinstance(value, str) or not value:

@@ -30,6 +30,7 @@ import numpy as np
 import pandas as pd
 from scipy.stats import multivariate_normal
 
+from . import checks
 from .errors import InputError, InputTypeError
 from .fosm import error_sigma, two_sided_probability
 from .machine import OUTPUTS
@@ -223,6 +224,7 @@ def sample_at_poses(machine, tolerances, poses=None, *, samples: int = 100_000, 
     -------
     PoseSamplingResult
     """
+    checks.independent_errors(machine, "sample_at_poses")
     t = machine.check_tolerances(tolerances)
     _check_options(t, samples, precision, max_samples, batch, confidence, distribution, k)
     if interval not in INTERVALS:

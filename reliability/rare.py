@@ -44,6 +44,7 @@ import pandas as pd
 from scipy.special import logsumexp
 from scipy.stats import norm
 
+from . import checks
 from .errors import InputError, InputTypeError
 from .fosm import two_sided_probability
 from .kinematics import chain_factors, transports
@@ -200,6 +201,7 @@ def failure_probability(machine, tolerances, pose=None, *, event: str = "dx",
     -------
     RareEventResult
     """
+    checks.independent_errors(machine, "failure_probability")
     t = machine.check_tolerances(tolerances)
     _check_options(event, method, target_cov, max_evaluations, k, distribution, confidence,
                    batch, model, t)
