@@ -89,6 +89,24 @@ def add_points(parser, default: int = 5) -> None:
                         help=f"grid points per axis over each stroke (default {default})")
 
 
+def add_bounds(parser) -> None:
+    parser.add_argument("--bounds", type=positive_float, nargs=2, default=(0.5, 1.5),
+                        metavar=("LO", "HI"),
+                        help="tolerance box as factors of the initial allocation "
+                             "(default 0.5 1.5)")
+
+
+def add_monte_carlo(parser) -> None:
+    """``--repeats``, ``--samples`` and ``--seed`` of the Monte-Carlo verification."""
+    parser.add_argument("--repeats", type=positive_int, default=20, metavar="N",
+                        help="grid experiments per allocation (default 20, as the paper's "
+                             "Table 9)")
+    parser.add_argument("--samples", type=positive_int, default=20_000, metavar="N",
+                        help="random-pose samples and samples per worst pose (default 20000)")
+    parser.add_argument("--seed", type=seed, default=0, metavar="S",
+                        help="random seed (default 0)")
+
+
 # ----- checks done before any work ----------------------------------------------------
 def check_bounds(bounds) -> tuple[float, float]:
     """``--bounds LO HI``: factors of the reference allocation, 0 < LO <= HI."""

@@ -31,10 +31,7 @@ def add_parser(subparsers):
     parser.add_argument("--target", type=_common.probability, metavar="R",
                         help="one reliability target for every output (default: the file's)")
     _common.add_points(parser)
-    parser.add_argument("--bounds", type=_common.positive_float, nargs=2, default=(0.5, 1.5),
-                        metavar=("LO", "HI"),
-                        help="tolerance box as factors of the initial allocation "
-                             "(default 0.5 1.5)")
+    _common.add_bounds(parser)
     parser.add_argument("--lock", nargs="+", default=(), metavar="NAME",
                         help="errors held at their initial tolerance (e.g. X.dx)")
     parser.add_argument("--method", choices=("exact", "gwo"), default="exact",

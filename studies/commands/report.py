@@ -15,18 +15,10 @@ def add_parser(subparsers):
                     "report.html, summary.json and allocation.csv in DIR.")
     _common.add_machine(parser)
     parser.add_argument("--out", required=True, metavar="DIR", help="output folder")
-    parser.add_argument("--seed", type=_common.seed, default=0, metavar="S",
-                        help="random seed (default 0)")
-    parser.add_argument("--repeats", type=_common.positive_int, default=20, metavar="N",
-                        help="grid experiments per allocation (default 20)")
-    parser.add_argument("--samples", type=_common.positive_int, default=20_000, metavar="N",
-                        help="random-pose samples and samples per worst pose (default 20000)")
+    _common.add_monte_carlo(parser)
     _common.add_points(parser)
     _common.add_side(parser)
-    parser.add_argument("--bounds", type=_common.positive_float, nargs=2, default=(0.5, 1.5),
-                        metavar=("LO", "HI"),
-                        help="tolerance box as factors of the initial allocation "
-                             "(default 0.5 1.5)")
+    _common.add_bounds(parser)
     parser.add_argument("--skip", nargs="+", default=(), choices=EXTRAS, metavar="SECTION",
                         help="leave out optional sections: " + ", ".join(EXTRAS)
                              + " (default: include all)")

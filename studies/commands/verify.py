@@ -22,12 +22,7 @@ def add_parser(subparsers):
     _common.add_machine(parser)
     parser.add_argument("--tolerances", required=True, metavar="CSV",
                         help="allocation (columns error, allocated), e.g. from 'allocate'")
-    parser.add_argument("--repeats", type=_common.positive_int, default=20, metavar="N",
-                        help="grid experiments (default 20, as the paper's Table 9)")
-    parser.add_argument("--samples", type=_common.positive_int, default=20_000, metavar="N",
-                        help="random-pose samples and samples per worst pose (default 20000)")
-    parser.add_argument("--seed", type=_common.seed, default=0, metavar="S",
-                        help="random seed (default 0)")
+    _common.add_monte_carlo(parser)
     parser.add_argument("--precision", type=_common.probability, metavar="P",
                         help="also sample each output's worst pose adaptively until the "
                              "interval's relative half-width on the failure probability is "
