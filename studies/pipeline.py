@@ -87,12 +87,13 @@ def run(machine, *, points: int = 5, side: str = "two_sided", bounds=(0.5, 1.5),
     optimum = problem.solve_exact()
     optimal = fosm(machine, optimum.tolerances, problem.poses, jacobian=problem.jacobian)
     checks = {}
-    for (name, t), rng in zip((("initial", problem.reference),
-                               ("optimum", optimum.tolerances)),
-                              np.random.default_rng(seed).spawn(2)):
+    for (name, t, prediction), rng in zip((("initial", problem.reference, initial),
+                                           ("optimum", optimum.tolerances, optimal)),
+                                          np.random.default_rng(seed).spawn(2)):
         progress(f"Monte-Carlo verification of the {name} allocation")
         checks[name] = verify(machine, t, points=points, repeats=repeats, samples=samples,
-                              rng=rng, progress=lambda text: progress(f"  {text}"), bar=bar)
+                              rng=rng, progress=lambda text: progress(f"  {text}"), bar=bar,
+                              prediction=prediction)
     return MachineStudy(machine=machine, points=points, side=side, bounds=tuple(bounds),
                         seed=seed, problem=problem, initial_fosm=initial, optimum=optimum,
                         optimal_fosm=optimal, checks=checks)

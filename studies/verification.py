@@ -53,7 +53,8 @@ class Verification:
 
 
 def verify(machine, tolerances, *, points: int = 5, repeats: int = 20,
-           samples: int = 20_000, rng=None, progress=None, bar=None) -> Verification:
+           samples: int = 20_000, rng=None, progress=None, bar=None,
+           prediction=None) -> Verification:
     """Run the three Monte-Carlo checks of ``tolerances``.
 
     Parameters
@@ -72,12 +73,18 @@ def verify(machine, tolerances, *, points: int = 5, repeats: int = 20,
     bar : callable, optional
         ``bar(total, description)`` returning a progress bar (a context manager with
         ``update(n)``, e.g. ``tqdm``) for the grid experiments and random poses.
+    prediction : FosmResult, optional
+        FOSM of ``tolerances`` on the ``points``-point workspace grid, when the caller has
+        it already; computed otherwise.
     """
     progress = progress or (lambda step: None)
     bar = bar or _NoBar
     grid_rng, random_rng, worst_rng = np.random.default_rng(rng).spawn(3)
     experiment = GridExperiment(machine, points)
-    result = fosm(machine, tolerances, experiment.poses)
+    result = fosm(machine, tolerances, experiment.poses) if prediction is None else prediction
+    if not np.array_equal(result.poses, experiment.poses):
+        raise ValueError("prediction must be FOSM on the same workspace grid as the "
+                         "grid experiments")
     progress(f"{repeats} grid experiments of {experiment.n_poses} poses")
     with bar(repeats, "grid experiments") as counter:
         grid = experiment.run(tolerances, repeats=repeats, rng=grid_rng,
