@@ -37,6 +37,10 @@ This module solves it and certifies the answer on its own terms:
   attained at ``clip(sqrt(w_i / c_i), lo_i, hi_i)``. So the optimum lies in
   ``[dual_bound, fun]``, and the KKT residuals say how well the pair satisfies the
   optimality conditions.
+
+It is a pure numerical core that imports nothing else of the toolkit, so bad shapes or
+entries raise the built-in ``ValueError`` rather than :class:`reliability.errors.InputError`
+(:class:`~allocation.problem.AllocationProblem` checks its inputs before they reach it).
 """
 
 import itertools

@@ -34,6 +34,7 @@ import numpy as np
 import pandas as pd
 
 from reliability import checks
+from reliability.errors import InputError, MachineDescriptionError
 
 __all__ = ["COMPONENTS", "GROUPS", "CostModel", "cost_weights"]
 
@@ -88,9 +89,11 @@ class CostModel:
 
         Raises
         ------
-        ValueError
+        MachineDescriptionError
             If the machine description is inconsistent (the message names the axis,
             joint, coefficient or error name at fault).
+        InputError
+            If a group factor is negative or not finite.
         """
         k = _check_group_factors((k1, k2, k3))
         items = _cost_items(machine)
@@ -195,7 +198,7 @@ class CostModel:
     def _check_single(self, t):
         t = checks.labelled(t, self.names, "tolerances")
         if t.shape != (self.n_errors,):
-            raise ValueError(
+            raise InputError(
                 f"expected one allocation of shape ({self.n_errors},), got shape {t.shape}"
             )
         return t
@@ -203,14 +206,14 @@ class CostModel:
     def _check_tolerances(self, t):
         t = checks.labelled(t, self.names, "tolerances")
         if t.ndim == 0 or t.shape[-1] != self.n_errors:
-            raise ValueError(
+            raise InputError(
                 f"expected tolerances of shape (..., {self.n_errors}), got shape {t.shape}"
             )
         bad = np.argwhere(~(np.isfinite(t) & (t > 0)))
         if bad.size:
             where = tuple(int(i) for i in bad[0])
             batch = f" at batch index {where[:-1]}" if t.ndim > 1 else ""
-            raise ValueError(
+            raise InputError(
                 f"tolerance of {self.names[where[-1]]!r}{batch} is {t[where]}; "
                 "tolerances must be finite and > 0"
             )
@@ -239,7 +242,7 @@ def cost_weights(machine, k=(1.0, 1.0, 1.0)):
     has ``b L_x = 1.5 * 4``, ``C.ez`` has ``c = 1.83`` and ``C.dx`` has ``d D_C = 1.4 * 3``.
     """
     if len(k) != 3:
-        raise ValueError(f"k must hold (k1, k2, k3), got {len(k)} values")
+        raise InputError(f"k must hold (k1, k2, k3), got {len(k)} values")
     return CostModel.from_machine(machine, *k).weights
 
 
@@ -265,21 +268,22 @@ def _axis_coefficients(axis, coefficients):
     main, other = ("a", "b") if axis.kind == "linear" else ("c", "d")
     for field in (main, other):
         if coefficients[field] is None:
-            raise ValueError(f"{axis.kind} axis {axis.name!r} needs cost coefficient {field}")
+            raise MachineDescriptionError(f"{axis.kind} axis {axis.name!r} needs cost "
+                                          f"coefficient {field}")
     return axis.kind, coefficients[main], coefficients[other] * axis.size
 
 
 def _check_axis(axis):
     if axis.kind not in ("linear", "rotary"):
-        raise ValueError(
+        raise MachineDescriptionError(
             f"axis {axis.name!r} has kind {axis.kind!r}; expected 'linear' or 'rotary'"
         )
     if axis.direction not in ("x", "y", "z"):
-        raise ValueError(
+        raise MachineDescriptionError(
             f"axis {axis.name!r} has direction {axis.direction!r}; expected 'x', 'y' or 'z'"
         )
     if not (isfinite(axis.size) and axis.size > 0):
-        raise ValueError(
+        raise MachineDescriptionError(
             f"axis {axis.name!r} has size {axis.size!r}; the guide length or rotation "
             "diameter must be finite and > 0"
         )
@@ -290,20 +294,21 @@ def _check_coefficients(cost_coefficients, joints):
     for field in ("a", "b", "c", "d"):
         value = getattr(cost_coefficients, field)
         coefficients[field] = None if value is None else _nonnegative(
-            value, f"cost coefficient {field}"
+            value, f"cost coefficient {field}", MachineDescriptionError
         )
     assembly = dict(cost_coefficients.assembly)
     missing = [joint for joint in joints if joint not in assembly]
     if missing:
-        raise ValueError(f"no assembly cost coefficient for joint(s) {missing}")
+        raise MachineDescriptionError(f"no assembly cost coefficient for joint(s) {missing}")
     unknown = [joint for joint in assembly if joint not in joints]
     if unknown:
-        raise ValueError(
+        raise MachineDescriptionError(
             f"assembly cost coefficient(s) given for unknown joint(s) {unknown}; "
             f"the machine's joints are {list(joints)}"
         )
     coefficients["assembly"] = {
-        joint: _nonnegative(value, f"assembly cost coefficient of joint {joint!r}")
+        joint: _nonnegative(value, f"assembly cost coefficient of joint {joint!r}",
+                            MachineDescriptionError)
         for joint, value in assembly.items()
     }
     return coefficients
@@ -313,26 +318,27 @@ def _check_group_factors(k):
     return tuple(_nonnegative(value, f"k{i}") for i, value in enumerate(k, start=1))
 
 
-def _nonnegative(value, what):
+def _nonnegative(value, what, error=InputError):
+    """``value`` as a float, finite and >= 0, or ``error`` naming ``what``."""
     value = float(checks.numeric_array(value, what, ndim=0))
     if not (isfinite(value) and value >= 0):
-        raise ValueError(f"{what} is {value!r}; it must be finite and >= 0")
+        raise error(f"{what} is {value!r}; it must be finite and >= 0")
     return value
 
 
 def _check_names_match(names, items):
     unknown = [name for name in names if name not in items]
     if unknown:
-        raise ValueError(
+        raise MachineDescriptionError(
             f"error name {unknown[0]!r} is not a component of any axis in "
             "machine.axis_specs or joint in machine.joints"
         )
     if len(set(names)) != len(names):
         duplicate = next(name for name in names if names.count(name) > 1)
-        raise ValueError(f"error name {duplicate!r} appears more than once")
+        raise MachineDescriptionError(f"error name {duplicate!r} appears more than once")
     missing = [name for name in items if name not in set(names)]
     if missing:
-        raise ValueError(
+        raise MachineDescriptionError(
             f"machine.error_names lacks {missing[0]!r} (and {len(missing) - 1} more) "
             "that the axes and joints define"
         )

@@ -14,6 +14,7 @@ import numpy as np
 import pandas as pd
 
 from reliability import checks
+from reliability.errors import InputError
 
 __all__ = ["FcemResult", "fcem_coefficient"]
 
@@ -71,7 +72,7 @@ def fcem_coefficient(weights, membership, scores=(5, 4, 3, 2, 1)):
 
     Raises
     ------
-    ValueError
+    InputError
         If any input has the wrong shape, a negative or non-finite entry, or a weight
         vector or membership row that does not sum to 1 (the message names it).
 
@@ -97,10 +98,10 @@ def fcem_coefficient(weights, membership, scores=(5, 4, 3, 2, 1)):
 def _check_scores(scores):
     scores = np.array(scores, dtype=float)
     if scores.ndim != 1 or scores.size == 0:
-        raise ValueError(f"scores must be a non-empty 1-D vector, got shape {scores.shape}")
+        raise InputError(f"scores must be a non-empty 1-D vector, got shape {scores.shape}")
     bad = np.flatnonzero(~np.isfinite(scores))
     if bad.size:
-        raise ValueError(f"scores[{bad[0]}] = {scores[bad[0]]} is not finite")
+        raise InputError(f"scores[{bad[0]}] = {scores[bad[0]]} is not finite")
     scores.setflags(write=False)
     return scores
 
@@ -108,31 +109,31 @@ def _check_scores(scores):
 def _check_weights(weights):
     weights = checks.numeric_array(weights, "weights")
     if weights.ndim != 1 or weights.size == 0:
-        raise ValueError(
+        raise InputError(
             f"weights must be a non-empty 1-D vector, got shape {weights.shape}"
         )
     bad = np.flatnonzero(~np.isfinite(weights) | (weights < 0))
     if bad.size:
-        raise ValueError(
+        raise InputError(
             f"weights[{bad[0]}] = {weights[bad[0]]} must be finite and non-negative"
         )
     total = weights.sum()
     if abs(total - 1.0) > SUM_TOLERANCE:
-        raise ValueError(f"weights must sum to 1, they sum to {float(total)!r}")
+        raise InputError(f"weights must sum to 1, they sum to {float(total)!r}")
     return weights
 
 
 def _check_membership(membership, n_factors, n_grades):
     membership = np.asarray(membership, dtype=float)
     if membership.shape != (n_factors, n_grades):
-        raise ValueError(
+        raise InputError(
             "membership must have shape (len(weights), len(scores)) = "
             f"{(n_factors, n_grades)}, got {membership.shape}"
         )
     bad = np.argwhere(~np.isfinite(membership) | (membership < 0))
     if bad.size:
         row, col = bad[0]
-        raise ValueError(
+        raise InputError(
             f"membership[{row}, {col}] = {membership[row, col]} must be finite "
             "and non-negative"
         )
@@ -140,7 +141,7 @@ def _check_membership(membership, n_factors, n_grades):
     bad_rows = np.flatnonzero(np.abs(row_sums - 1.0) > SUM_TOLERANCE)
     if bad_rows.size:
         row = bad_rows[0]
-        raise ValueError(
+        raise InputError(
             f"membership row {row} must sum to 1, it sums to {float(row_sums[row])!r}"
         )
     return membership

@@ -45,7 +45,8 @@ from typing import NamedTuple
 import numpy as np
 import pandas as pd
 
-from reliability import checks
+from reliability import streams
+from reliability.errors import InputError
 
 __all__ = ["GwoResult", "grey_wolf", "grey_wolf_reference"]
 
@@ -125,7 +126,7 @@ def grey_wolf(
     n_iterations : int, optional
         Number of moves of the pack, at least 1 (default 500, as in the paper).
     rng : None, int or numpy.random.Generator, optional
-        Passed to :func:`numpy.random.default_rng`.
+        Passed to :func:`reliability.streams.generator`.
     initial : array_like, shape (m, d) or (d,), optional
         Starting positions inside the box, placed as the first ``m <= n_wolves`` wolves;
         the others start uniformly at random.
@@ -139,7 +140,7 @@ def grey_wolf(
 
     Raises
     ------
-    ValueError
+    InputError
         On a bad box, pack size, iteration count or initial position (named in the
         message), or when ``objective``/``violation`` return a bad shape, NaN or a
         negative violation.
@@ -147,7 +148,7 @@ def grey_wolf(
     problem = _Problem.build(
         objective, lower, upper, violation, n_wolves, n_iterations, initial
     )
-    rng = checks.generator(rng)
+    rng = streams.generator(rng)
     z = _initial_pack(problem, rng)
     leaders = _select_leaders(_Wolves(z, *problem.evaluate(z)))
     history = [leaders.summary()]
@@ -184,7 +185,7 @@ def grey_wolf_reference(
     problem = _Problem.build(
         objective, lower, upper, violation, n_wolves, n_iterations, initial
     )
-    rng = np.random.default_rng(rng)
+    rng = streams.generator(rng)
     n, d = problem.n_wolves, problem.dimension
     pack = [list(row) for row in problem.initial]
     for _ in range(n - len(pack)):
@@ -253,7 +254,7 @@ class _Problem:
         vio = _checked_output(self.violation(x), x.shape[0], "violation")
         negative = np.flatnonzero(vio < 0)
         if negative.size:
-            raise ValueError(
+            raise InputError(
                 f"violation returned {vio[negative[0]]} < 0 for row {negative[0]}; "
                 "it must be >= 0 (0 = feasible)"
             )
@@ -363,13 +364,13 @@ def _report(progress, iteration, row):
 def _checked_output(values, n_rows, what):
     values = np.asarray(values, dtype=float)
     if values.shape != (n_rows,):
-        raise ValueError(
+        raise InputError(
             f"{what} must return shape ({n_rows},) for X of {n_rows} rows, "
             f"got shape {values.shape}"
         )
     nan = np.flatnonzero(np.isnan(values))
     if nan.size:
-        raise ValueError(f"{what} returned NaN for row {nan[0]}")
+        raise InputError(f"{what} returned NaN for row {nan[0]}")
     return values
 
 
@@ -377,18 +378,18 @@ def _check_box(lower, upper):
     lower = np.asarray(lower, dtype=float)
     upper = np.asarray(upper, dtype=float)
     if lower.ndim != 1 or lower.size == 0 or lower.shape != upper.shape:
-        raise ValueError(
+        raise InputError(
             "lower and upper must be non-empty 1-D vectors of one shape, got shapes "
             f"{lower.shape} and {upper.shape}"
         )
     for name, bound in (("lower", lower), ("upper", upper)):
         bad = np.flatnonzero(~np.isfinite(bound))
         if bad.size:
-            raise ValueError(f"{name}[{bad[0]}] = {bound[bad[0]]} is not finite")
+            raise InputError(f"{name}[{bad[0]}] = {bound[bad[0]]} is not finite")
     bad = np.flatnonzero(~(lower < upper))
     if bad.size:
         i = bad[0]
-        raise ValueError(f"lower[{i}] = {lower[i]} must be < upper[{i}] = {upper[i]}")
+        raise InputError(f"lower[{i}] = {lower[i]} must be < upper[{i}] = {upper[i]}")
     return lower, upper
 
 
@@ -396,9 +397,9 @@ def _check_count(value, name, minimum):
     try:
         value = index(value)
     except TypeError:
-        raise ValueError(f"{name} must be an integer, got {value!r}") from None
+        raise InputError(f"{name} must be an integer, got {value!r}") from None
     if value < minimum:
-        raise ValueError(f"{name} must be >= {minimum}, got {value}")
+        raise InputError(f"{name} must be >= {minimum}, got {value}")
     return value
 
 
@@ -408,14 +409,14 @@ def _check_initial(initial, lower, upper, n_wolves):
         return np.empty((0, lower.size))
     initial = np.atleast_2d(np.asarray(initial, dtype=float))
     if initial.ndim != 2 or initial.shape[1] != lower.size or initial.shape[0] > n_wolves:
-        raise ValueError(
+        raise InputError(
             f"initial must have shape (m, {lower.size}) with m <= n_wolves = {n_wolves}, "
             f"got shape {initial.shape}"
         )
     outside = np.argwhere(~((initial >= lower) & (initial <= upper)))
     if outside.size:
         row, col = outside[0]
-        raise ValueError(
+        raise InputError(
             f"initial[{row}, {col}] = {initial[row, col]} is outside the box "
             f"[{lower[col]}, {upper[col]}] (or not finite)"
         )

@@ -41,6 +41,7 @@ from reliability.fosm import error_sigma, fosm, probability, required_index
 from reliability.machine import OUTPUTS
 from reliability.poses import workspace_grid
 
+from . import solve
 from .cost import CostModel
 
 SIDES = ("one_sided", "two_sided", "stack")
@@ -92,6 +93,8 @@ class AllocationProblem:
     rows : ScreenedRows or None
         The linear rows of the worst-case reading (None for the mean reading), in the
         solver's variable (:attr:`variable_power`).
+    memory : int or None
+        Bytes of temporary arrays per chunk of poses (None: the default budget).
     """
 
     machine: object
@@ -177,9 +180,7 @@ class AllocationProblem:
                       workspace=workspace, k=float(k), lower=low, upper=high,
                       reference=reference, cost=CostModel.from_machine(machine, *cost_factors),
                       rows=None, memory=memory)
-        if workspace == "worst":
-            object.__setattr__(problem, "rows", problem._screen())
-        return problem
+        return replace(problem, rows=problem._screen()) if workspace == "worst" else problem
 
     def with_reading(self, side: str) -> "AllocationProblem":
         """The same poses, bounds and costs under another reliability reading.
@@ -195,8 +196,7 @@ class AllocationProblem:
         if self.workspace != "worst":
             return problem
         if "stack" in (side, self.side):  # rows of another kind: screen afresh
-            object.__setattr__(problem, "rows", problem._screen())
-            return problem
+            return replace(problem, rows=problem._screen())
         ratio = np.square(self.allowed_sigma / problem.allowed_sigma)  # new row / old row
         if np.all(ratio <= 1.0):
             scaled = self.rows.matrix * ratio[self.rows.output][:, None]
@@ -208,8 +208,7 @@ class AllocationProblem:
                                 output=self.rows.output[keep], counts=counts)
         else:
             rows = problem._screen()
-        object.__setattr__(problem, "rows", rows)
-        return problem
+        return replace(problem, rows=rows)
 
     def _screen(self) -> ScreenedRows:
         """Screened rows of all poses, built chunk by chunk (:func:`screen_rows`)."""
@@ -353,15 +352,11 @@ class AllocationProblem:
     # ----- solvers -------------------------------------------------------------------
     def solve_exact(self, **options):
         """Certified optimum; see :func:`allocation.solve.solve_exact`."""
-        from .solve import solve_exact
-
-        return solve_exact(self, **options)
+        return solve.solve_exact(self, **options)
 
     def solve_gwo(self, **options):
         """Grey Wolf Optimiser as in the paper; see :func:`allocation.solve.solve_gwo`."""
-        from .solve import solve_gwo
-
-        return solve_gwo(self, **options)
+        return solve.solve_gwo(self, **options)
 
 
 def screen_rows(rows, upper_u) -> ScreenedRows:
@@ -551,7 +546,7 @@ def _bounds(machine, reference, bounds, lower, upper, locked):
     low, high = np.array(low, dtype=float), np.array(high, dtype=float)
     bad = np.flatnonzero(low > high)
     if len(bad):
-        raise ValueError(f"lower bound exceeds upper bound for {machine.error_names[bad[0]]!r}")
+        raise InputError(f"lower bound exceeds upper bound for {machine.error_names[bad[0]]!r}")
     if not isinstance(locked, str) and not hasattr(locked, "__iter__"):
         raise InputTypeError(f"locked must be an error name or names; got {locked!r}")
     for name in (locked,) if isinstance(locked, str) else locked:

@@ -12,6 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from reliability import checks
+from reliability.errors import InputError
 from reliability.worst_case import continuous_worst
 
 
@@ -42,7 +43,7 @@ def solve_over_workspace(problem, *, max_rounds: int = 20, tolerance: float = 1e
     tolerance = checks.finite_float(tolerance, "tolerance", 0.0, 1.0, high_open=True)
     checks.callback(log, "log")
     if problem.workspace != "worst":
-        raise ValueError("pose refinement applies to the worst-case reading only")
+        raise InputError("pose refinement applies to the worst-case reading only")
     grid_size = len(problem.poses)
     for round_ in range(1, max_rounds + 1):
         result = problem.solve_exact()

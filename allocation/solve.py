@@ -20,13 +20,15 @@ import numpy as np
 import pandas as pd
 from scipy.stats import norm
 
-from reliability import checks
+from reliability import checks, streams
 from reliability.errors import InputError
 from reliability.fosm import probability
 from reliability.machine import OUTPUTS
 
 from .convex import InfeasibleAllocationError, largest_fraction, solve_convex_allocation
 from .gwo import grey_wolf
+from .result_files import allocation_summary, allocation_to_csv, load_allocation, \
+    save_allocation
 
 CONVEX_BETA = np.sqrt(3.0)  # Φ(β) and 2Φ(β)−1 are concave in σ² for β ≥ √3
 
@@ -158,8 +160,6 @@ class AllocationResult:
 
     def summary(self, top: int = 5) -> str:
         """Feasibility, cost relative to the reference, what binds, the largest changes."""
-        from .result_files import allocation_summary
-
         return allocation_summary(self, top)
 
     def __repr__(self) -> str:
@@ -167,14 +167,10 @@ class AllocationResult:
 
     def to_csv(self, path, overwrite: bool = False):
         """Write the columns ``error, reference, allocated``, one row per error."""
-        from .result_files import allocation_to_csv
-
         return allocation_to_csv(self, path, overwrite)
 
     def save(self, path, overwrite: bool = False):
         """Save as JSON with its metadata (:mod:`reliability.saved`); returns the path."""
-        from .result_files import save_allocation
-
         return save_allocation(self, path, overwrite)
 
     @classmethod
@@ -182,8 +178,6 @@ class AllocationResult:
         """Reload a result written by :meth:`save`, verifying every field. Without
         ``problem`` the result carries a :class:`~allocation.result_files.SavedProblem`;
         a given problem is checked to be the saved one."""
-        from .result_files import load_allocation
-
         return load_allocation(cls, path, problem)
 
 
@@ -253,7 +247,7 @@ def solve_gwo(problem, *, n_wolves: int = 100, n_iterations: int = 500, rng=None
     if not free.any():
         raise InputError("solve_gwo: every item of the problem is locked (lower == upper), so "
                          "there is nothing to optimise; evaluate problem.lower instead")
-    rng = checks.generator(rng)
+    rng = streams.generator(rng)
     checks.callback(progress, "progress")
 
     def full(x):

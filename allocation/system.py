@@ -26,6 +26,7 @@ from dataclasses import replace
 import numpy as np
 import pandas as pd
 
+from reliability import streams
 from reliability.errors import InputError
 from reliability.fosm import required_index
 from reliability.machine import OUTPUTS
@@ -89,7 +90,7 @@ def system_allocation(machine, target: float, *, steps: int = 12, n_points: int 
     problem = AllocationProblem.build(machine, side="two_sided", workspace="worst",
                                       targets=dict.fromkeys(OUTPUTS, bonferroni),
                                       **build_options)
-    generator = np.random.default_rng(rng)
+    generator = streams.generator(rng)
     solver = CommonTargetSolver(problem, gap_tol)
     certified = []
 

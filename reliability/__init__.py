@@ -8,10 +8,10 @@ at given poses (:mod:`reliability.pose_sampling`) and rare-event estimates
 (:mod:`reliability.rare`).
 """
 
+from .errors import MachineDescriptionError
 from .fosm import FosmResult, fosm
-from .machine import (COMPONENTS, OUTPUTS, Axis, CostCoefficients, Machine,
-                      MachineDescriptionError, hobbing_machine, load_machine,
-                      machine_from_dict)
+from .machine import (COMPONENTS, OUTPUTS, Axis, CostCoefficients, Machine, hobbing_machine,
+                      load_machine, machine_from_dict)
 from . import rare
 from .pose_sampling import PoseSamplingResult, sample_at_poses
 from .poses import random_poses, workspace_grid

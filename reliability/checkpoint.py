@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import InputError, SavedResultError
+from .errors import InputError, InputTypeError, SavedResultError
 from .files import atomic_write_text
 from .saved import toolkit_version
 
@@ -31,13 +31,6 @@ def task_key(parameters, version: str | None = None) -> str:
     version = toolkit_version() if version is None else version
     text = canonical_json({"parameters": parameters, "version": version})
     return hashlib.sha256(text.encode("utf-8")).hexdigest()
-
-
-def seed_sequence(parameters) -> np.random.SeedSequence:
-    """A random stream determined by the task's parameters alone (not by the worker, the
-    order of execution or the toolkit version)."""
-    digest = hashlib.sha256(canonical_json(parameters).encode("utf-8")).digest()
-    return np.random.SeedSequence(int.from_bytes(digest, "little"))
 
 
 def machine_fingerprint(machine) -> str:
@@ -128,4 +121,4 @@ def _plain(value):
         return value.item()
     if isinstance(value, np.ndarray):
         return value.tolist()
-    raise TypeError(f"cannot store {type(value).__name__} in a result file")
+    raise InputTypeError(f"cannot store {type(value).__name__} in a result file")

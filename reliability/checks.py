@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import numbers
 import operator
-import unicodedata
 from collections.abc import Mapping
 
 import numpy as np
@@ -78,20 +77,6 @@ def choice(value, name: str, allowed) -> str:
     if not isinstance(value, str) or value not in allowed:
         raise InputError(f"unknown {name} {value!r}; use one of {tuple(allowed)}")
     return value
-
-
-def generator(rng, name: str = "rng") -> np.random.Generator:
-    """A generator from ``None``, a non-negative int, a SeedSequence or a Generator."""
-    if rng is None or isinstance(rng, (np.random.Generator, np.random.SeedSequence,
-                                       np.random.BitGenerator)):
-        return np.random.default_rng(rng)
-    if isinstance(rng, (bool, np.bool_)) or not isinstance(rng, numbers.Integral):
-        raise InputTypeError(f"{name} must be None, a non-negative integer seed, a "
-                             f"numpy SeedSequence or a Generator; got {rng!r} "
-                             f"({type(rng).__name__})")
-    if rng < 0:
-        raise InputError(f"{name} seed must be a non-negative integer; got {rng}")
-    return np.random.default_rng(int(rng))
 
 
 def instance(value, name: str, kind: type):
@@ -200,17 +185,6 @@ def independent_errors(machine, what: str) -> None:
         raise InputError(f"machine: {what} draws the errors independently, but this machine's "
                          f"errors are correlated (machine.correlation); use "
                          f"sample_random_poses or GridExperiment, which use the correlation")
-
-
-def text_name(value, what: str) -> str:
-    """A non-empty string without whitespace or control characters."""
-    if not isinstance(value, str) or not value:
-        raise InputTypeError(f"{what} must be a non-empty string; got {value!r}")
-    bad = [c for c in value if c.isspace() or unicodedata.category(c).startswith("C")]
-    if bad:
-        raise InputError(f"{what} must not contain whitespace or control characters; "
-                         f"{value!r} contains {bad[0]!r}")
-    return value
 
 
 def _same_names(keys, names, what: str) -> None:

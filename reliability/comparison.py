@@ -18,6 +18,7 @@ import numpy as np
 import pandas as pd
 
 from . import checks
+from .errors import InputError
 from .fosm import FosmResult
 from .machine import OUTPUTS
 from .results import GridExperimentResult
@@ -50,10 +51,10 @@ def fosm_versus_monte_carlo(fosm_result, grid_result, confidence: float = 0.95
     checks.instance(fosm_result, "fosm_result", FosmResult)
     checks.instance(grid_result, "grid_result", GridExperimentResult)
     if len(fosm_result.poses) != grid_result.n_poses:
-        raise ValueError(f"FOSM was computed on {len(fosm_result.poses)} poses but the grid "
+        raise InputError(f"FOSM was computed on {len(fosm_result.poses)} poses but the grid "
                          f"experiment has {grid_result.n_poses}")
     if not np.array_equal(fosm_result.limits, grid_result.limits):
-        raise ValueError(f"FOSM limits {fosm_result.limits} differ from the grid "
+        raise InputError(f"FOSM limits {fosm_result.limits} differ from the grid "
                          f"experiment's {grid_result.limits}")
     mc = grid_result.reliability(confidence)
     frame = pd.DataFrame({

@@ -43,8 +43,8 @@ import numpy as np
 import pandas as pd
 from scipy.special import ndtr, ndtri
 
-from .errors import InputError
-from .machine import MachineDescriptionError
+from . import streams
+from .errors import InputError, MachineDescriptionError
 
 #: Largest asymmetry or negative eigenvalue accepted as rounding.
 ROUNDING = 1e-10
@@ -285,7 +285,7 @@ def draw_correlated(tolerances, size, cholesky, *, k: float = 3.0,
     """Errors ``size + (n,)`` with σ = t/k, the given correlation and the marginal
     ``distribution`` (Gaussian copula)."""
     t = np.asarray(tolerances, dtype=float)
-    rng = np.random.default_rng(rng)
+    rng = streams.generator(rng)
     z = correlate_items(rng.standard_normal(tuple(size) + t.shape[-1:]), cholesky)
     return normal_to_marginal(z, k, distribution) * (t / k)
 
@@ -334,7 +334,7 @@ def draw_grid_errors(machine, tolerances, points: int, *, k: float = 3.0,
     motion_factor, assembly_factor = grid_factors(machine)
     t = np.asarray(tolerances, dtype=float)
     n = len(machine.axis_specs)
-    rng = np.random.default_rng(rng)
+    rng = streams.generator(rng)
     z = rng.standard_normal((n, points, 6))
     if travel is not None:
         z = np.einsum("apq,aqc->apc", travel, z)

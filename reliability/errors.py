@@ -23,3 +23,7 @@ class SizeBudgetError(InputError):
 
 class SavedResultError(ValueError):
     """A saved result is damaged or inconsistent; the message names the file, row and column."""
+
+
+class MachineDescriptionError(ValueError):
+    """A machine description is malformed; the message names the offending item."""

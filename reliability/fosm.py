@@ -27,8 +27,10 @@ from scipy.stats import norm
 
 from . import checks
 from .chunks import chunks, jacobian_bytes
+from .correlation import correlated_sigma, euler_terms
 from .display import axis_units
 from .errors import InputError
+from .fosm_files import fosm_summary, load_fosm, save_fosm
 from .kinematics import output_variance
 from .machine import OUTPUTS
 
@@ -55,15 +57,13 @@ def error_sigma(tolerances, k: float = 3.0, distribution: str = "normal") -> np.
     if distribution == "truncated":
         mass = 2.0 * norm.cdf(k) - 1.0
         return sigma * np.sqrt(1.0 - 2.0 * k * norm.pdf(k) / mass)
-    raise ValueError(f"unknown distribution {distribution!r}; use 'normal' or 'truncated'")
+    raise InputError(f"unknown distribution {distribution!r}; use 'normal' or 'truncated'")
 
 
 def output_variance_terms(jacobian, sigma, correlation=None) -> np.ndarray:
     """Per-error terms ``(∂y/∂x_i)² σ_i²`` of Eq. (20), ``(..., 6, n_errors)``; with a
     correlation matrix, each error's Euler share (:func:`reliability.correlation.euler_terms`)."""
     if correlation is not None:
-        from .correlation import euler_terms
-
         return euler_terms(jacobian, sigma, correlation)
     return np.square(jacobian) * np.square(sigma)[..., None, :]
 
@@ -72,8 +72,6 @@ def output_sigma(jacobian, sigma, correlation=None) -> np.ndarray:
     """σ of each comprehensive error, Eq. (20): ``(..., 6, n) , (n,) -> (..., 6)``; with a
     correlation matrix ``R``, ``sqrt(jᵀ D R D j)`` (:mod:`reliability.correlation`)."""
     if correlation is not None:
-        from .correlation import correlated_sigma
-
         return correlated_sigma(jacobian, sigma, correlation)
     return np.sqrt(np.square(jacobian) @ np.square(sigma))  # Eq. (20)
 
@@ -102,19 +100,19 @@ def probability(limit, sigma, side: str = "two_sided", mean=0.0) -> np.ndarray:
         return one_sided_probability(limit, sigma, mean)
     if side == "two_sided":
         return two_sided_probability(limit, sigma, mean)
-    raise ValueError(f"unknown side {side!r}; use 'one_sided' or 'two_sided'")
+    raise InputError(f"unknown side {side!r}; use 'one_sided' or 'two_sided'")
 
 
 def required_index(target, side: str = "two_sided") -> np.ndarray:
     """β needed at zero mean for probability ``target``: ``Φ⁻¹(R)`` or ``Φ⁻¹((1 + R)/2)``."""
     target = np.asarray(target, dtype=float)
     if np.any(~((target > 0) & (target < 1))):
-        raise ValueError(f"target probabilities must lie in (0, 1); got {target}")
+        raise InputError(f"target probabilities must lie in (0, 1); got {target}")
     if side == "one_sided":
         return norm.ppf(target)
     if side == "two_sided":
         return norm.ppf(0.5 * (1.0 + target))
-    raise ValueError(f"unknown side {side!r}; use 'one_sided' or 'two_sided'")
+    raise InputError(f"unknown side {side!r}; use 'one_sided' or 'two_sided'")
 
 
 @dataclass(frozen=True)
@@ -167,25 +165,28 @@ class FosmResult:
 
     def summary(self, top: int = 3) -> str:
         """Readable verdicts, worst poses as axis positions and the ``top`` contributors."""
-        from .fosm_files import fosm_summary
-
         return fosm_summary(self, top)
 
     def __repr__(self) -> str:
         return self.summary()
 
+    @staticmethod
+    def reliability_fields(limits, sigma, mean) -> dict:
+        """``beta``, ``one_sided`` and ``two_sided`` (Eqs. 21–22 and the exact
+        probability) from the limits and the output means and σ, ``(n_poses, 6)`` each:
+        how :func:`fosm` computes them and what a reloaded result is checked against."""
+        return {"beta": reliability_index(limits, sigma, mean),
+                "one_sided": one_sided_probability(limits, sigma, mean),
+                "two_sided": two_sided_probability(limits, sigma, mean)}
+
     def save(self, path, overwrite: bool = False):
         """Save as JSON with its metadata (:mod:`reliability.saved`); returns the path."""
-        from .fosm_files import save_fosm
-
         return save_fosm(self, path, overwrite)
 
     @classmethod
     def load(cls, path) -> "FosmResult":
         """Reload a result written by :meth:`save`, verifying every field."""
-        from .fosm_files import load_fosm
-
-        return load_fosm(path)
+        return load_fosm(cls, path)
 
     def worst(self, side: str = "two_sided") -> np.ndarray:
         """Lowest probability over the poses, per output (the workspace constraint)."""
@@ -198,7 +199,7 @@ class FosmResult:
     def meets_targets(self, side: str = "two_sided", workspace: str = "worst") -> np.ndarray:
         """Whether each output meets its target, worst case or on the workspace mean."""
         if workspace not in ("worst", "mean"):
-            raise ValueError(f"unknown workspace criterion {workspace!r}; use 'worst' or 'mean'")
+            raise InputError(f"unknown workspace criterion {workspace!r}; use 'worst' or 'mean'")
         value = self.worst(side) if workspace == "worst" else self.workspace_mean(side)
         return value >= self.targets
 
@@ -223,7 +224,7 @@ class FosmResult:
 
     def _probability(self, side: str) -> np.ndarray:
         if side not in SIDES:
-            raise ValueError(f"unknown side {side!r}; use 'one_sided' or 'two_sided'")
+            raise InputError(f"unknown side {side!r}; use 'one_sided' or 'two_sided'")
         return getattr(self, side)
 
 
@@ -268,7 +269,7 @@ def fosm(machine, tolerances, poses, *, k: float = 3.0, means=None,
     """
     t = machine.check_tolerances(tolerances)
     if t.ndim != 1:
-        raise ValueError(f"tolerances must be one allocation of shape ({machine.n_errors},)")
+        raise InputError(f"tolerances must be one allocation of shape ({machine.n_errors},)")
     poses = np.atleast_2d(machine.check_positions(poses))
     if poses.ndim != 2 or len(poses) == 0:
         raise InputError(f"poses must have shape (n_poses, {len(machine.axes)}) with at least "
@@ -282,7 +283,7 @@ def fosm(machine, tolerances, poses, *, k: float = 3.0, means=None,
     if jacobian is not None:
         jacobian = np.asarray(jacobian, dtype=float)
         if jacobian.shape != poses.shape[:-1] + (6, machine.n_errors):
-            raise ValueError(f"jacobian must have shape "
+            raise InputError(f"jacobian must have shape "
                              f"{poses.shape[:-1] + (6, machine.n_errors)}; got {jacobian.shape}")
     error_means = None if means is None else machine.check_errors(means)
     sigma_x = error_sigma(t, k, distribution)
@@ -292,18 +293,16 @@ def fosm(machine, tolerances, poses, *, k: float = 3.0, means=None,
         for part in chunks(len(poses), jacobian_bytes(machine), memory):
             part_means = error_means if error_means.ndim == 1 else error_means[part]
             mean[part] = machine.comprehensive_error(poses[part], part_means)  # Eq. (20)
-    two = two_sided_probability(machine.limits, sigma, mean)
-    worst = np.argmin(two, axis=0)
+    fields = FosmResult.reliability_fields(machine.limits, sigma, mean)
+    worst = np.argmin(fields["two_sided"], axis=0)
     rows = np.arange(len(OUTPUTS))
     worst_jacobian = machine.jacobian(poses[worst]) if jacobian is None else jacobian[worst]
     return FosmResult(
         poses=poses, limits=machine.limits, targets=machine.targets, mean=mean, sigma=sigma,
-        beta=reliability_index(machine.limits, sigma, mean),
-        one_sided=one_sided_probability(machine.limits, sigma, mean), two_sided=two,
         worst_pose=worst,
         contributions=_contributions(machine, worst_jacobian[rows, rows], sigma_x),
         axes=machine.axes, units=axis_units(machine), machine=machine.name, k=float(k),
-        distribution=distribution,
+        distribution=distribution, **fields,
     )
 
 

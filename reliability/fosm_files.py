@@ -1,4 +1,8 @@
-"""A FOSM result printed for reading, saved as JSON and reloaded with every field verified."""
+"""A FOSM result printed for reading, saved as JSON and reloaded with every field verified.
+
+The functions take the result (:class:`reliability.fosm.FosmResult`) or, to reload one,
+its class, so this module sits below :mod:`reliability.fosm` and does not import it.
+"""
 
 from __future__ import annotations
 
@@ -6,8 +10,6 @@ import numpy as np
 import pandas as pd
 
 from .display import OUTPUT_UNITS, output_limits_text, pose_columns
-from .fosm import SIDES, FosmResult, one_sided_probability, reliability_index, \
-    two_sided_probability
 from .machine import OUTPUTS
 from .saved import check_count, encode_frame, load_payload, save_payload
 
@@ -15,7 +17,7 @@ KIND = "precrel.fosm_result"
 CONSISTENCY_RTOL = 1e-9  # saved β and probabilities must follow from limits, μ and σ
 
 
-def fosm_summary(result: FosmResult, top: int = 3) -> str:
+def fosm_summary(result, top: int = 3) -> str:
     """The verdict per output, the worst poses as axis positions, the top contributors."""
     top = check_count(top, "top")
     meets = result.meets_targets("two_sided")
@@ -35,7 +37,7 @@ def fosm_summary(result: FosmResult, top: int = 3) -> str:
     return "\n".join(lines)
 
 
-def _verdict_table(result: FosmResult) -> pd.DataFrame:
+def _verdict_table(result) -> pd.DataFrame:
     rows = np.arange(len(OUTPUTS))
     worst = result.worst_pose
     sigma = [f"{s:.4g} {u}" for s, u in zip(result.sigma[worst, rows], OUTPUT_UNITS)]
@@ -51,7 +53,7 @@ def _verdict_table(result: FosmResult) -> pd.DataFrame:
     }, index=pd.Index(OUTPUTS, name="output"))
 
 
-def _worst_pose_table(result: FosmResult) -> pd.DataFrame:
+def _worst_pose_table(result) -> pd.DataFrame:
     axes = result.axes or tuple(f"q{i}" for i in range(result.poses.shape[1]))
     units = result.units or ("",) * len(axes)
     table = pose_columns(result.poses[result.worst_pose], axes, units)
@@ -60,7 +62,7 @@ def _worst_pose_table(result: FosmResult) -> pd.DataFrame:
     return table
 
 
-def save_fosm(result: FosmResult, path, overwrite: bool = False):
+def save_fosm(result, path, overwrite: bool = False):
     """Write ``result`` as JSON (see :mod:`reliability.saved`)."""
     payload = {"machine": result.machine, "axes": result.axes, "units": result.units,
                "k": result.k, "distribution": result.distribution, "poses": result.poses,
@@ -71,9 +73,14 @@ def save_fosm(result: FosmResult, path, overwrite: bool = False):
     return save_payload(path, KIND, payload, overwrite)
 
 
-def load_fosm(path) -> FosmResult:
-    """Reload a file written by :func:`save_fosm`; a damaged or inconsistent field raises
-    :class:`~reliability.errors.SavedResultError` naming the file and the field."""
+def load_fosm(cls, path):
+    """Reload a file written by :func:`save_fosm` as ``cls`` (a
+    :class:`~reliability.fosm.FosmResult`); a damaged or inconsistent field raises
+    :class:`~reliability.errors.SavedResultError` naming the file and the field.
+
+    The saved β and probabilities are checked against ``cls.reliability_fields`` of the
+    saved limits, means and σ.
+    """
     data = load_payload(path, KIND)
     axes = data.texts("axes", unique=True)
     units = data.texts("units", size=len(axes))
@@ -91,25 +98,21 @@ def load_fosm(path) -> FosmResult:
     fields = {"beta": data.array("beta", (n, 6)),
               "one_sided": data.array("one_sided", (n, 6), low=0.0, high=1.0),
               "two_sided": data.array("two_sided", (n, 6), low=0.0, high=1.0)}
-    _check_consistent(data, fields, limits, sigma, mean)
+    _check_consistent(data, fields, cls.reliability_fields(limits, sigma, mean))
     worst = data.array("worst_pose", (6,), dtype=np.int64, low=0, high=n - 1)
     if not np.array_equal(worst, np.argmin(fields["two_sided"], axis=0)):
         raise data.error("worst_pose", "is not the pose of lowest two-sided probability")
     contributions = data.frame("contributions", columns=OUTPUTS)
     _check_contributions(data, contributions)
-    return FosmResult(poses=poses, limits=limits, targets=targets, mean=mean, sigma=sigma,
-                      worst_pose=worst, contributions=contributions, axes=axes, units=units,
-                      machine=data.text("machine"), k=data.number("k", positive=True),
-                      distribution=data.text("distribution", ("normal", "truncated")),
-                      **fields)
+    return cls(poses=poses, limits=limits, targets=targets, mean=mean, sigma=sigma,
+               worst_pose=worst, contributions=contributions, axes=axes, units=units,
+               machine=data.text("machine"), k=data.number("k", positive=True),
+               distribution=data.text("distribution", ("normal", "truncated")), **fields)
 
 
-def _check_consistent(data, fields, limits, sigma, mean) -> None:
+def _check_consistent(data, fields, expected) -> None:
     """β and both probabilities must be what limits, μ and σ give (Eqs. 21–22)."""
-    expected = {"beta": reliability_index(limits, sigma, mean),
-                "one_sided": one_sided_probability(limits, sigma, mean),
-                "two_sided": two_sided_probability(limits, sigma, mean)}
-    for key in ("beta",) + SIDES:
+    for key in expected:
         if not np.allclose(fields[key], expected[key], rtol=CONSISTENCY_RTOL, atol=0):
             first = np.argwhere(~np.isclose(fields[key], expected[key],
                                             rtol=CONSISTENCY_RTOL, atol=0))[0]

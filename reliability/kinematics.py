@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .errors import InputError
 from .transforms import AXIS_INDEX, adjoint_to_frame, read_pose_error, rotation, skew, translation
 
 
@@ -90,7 +91,7 @@ def segment_deviation(factors, twists) -> np.ndarray:
         ``(..., 4, 4)`` deviation from the identity (last row zero).
     """
     if len(factors) != len(twists) + 1:
-        raise ValueError("a segment needs one more ideal factor than error twists")
+        raise InputError("a segment needs one more ideal factor than error twists")
     return deviation_from_transports(transports(factors), twists)
 
 
@@ -161,7 +162,7 @@ def comprehensive_error(machine, q, x) -> np.ndarray:
     try:
         shape = np.broadcast_shapes(q.shape[:-1], x.shape[:-1])
     except ValueError:
-        raise ValueError(f"positions {q.shape} and errors {x.shape} do not broadcast") from None
+        raise InputError(f"positions {q.shape} and errors {x.shape} do not broadcast") from None
     factors, blocks = chain_factors(machine, q)
     twists = [x[..., 6 * b: 6 * b + 6] for b in blocks]
     deviation = segment_deviation(factors, twists)

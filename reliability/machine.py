@@ -27,8 +27,11 @@ from typing import Mapping
 import numpy as np
 import pandas as pd
 
-from . import checks
-from .errors import InputError, InputTypeError
+from . import checks, kinematics
+from .correlation import (check_correlation_matrix, correlation_to_toml, parse_correlation,
+                          with_correlation)
+from .errors import InputError, InputTypeError, MachineDescriptionError
+from .iso import iso_names
 
 COMPONENTS = ("dx", "dy", "dz", "ex", "ey", "ez")
 OUTPUTS = COMPONENTS
@@ -41,10 +44,6 @@ FULL_TURN = (0.0, 2.0 * math.pi)
 LARGEST_LENGTH = 1e6
 LARGEST_SIZE = 1e3
 LARGEST = 1e12
-
-
-class MachineDescriptionError(ValueError):
-    """A machine description is malformed; the message names the offending item."""
 
 
 @dataclass(frozen=True)
@@ -130,8 +129,6 @@ class Machine:
         index.update({n: i for i, n in enumerate(self.iso_names)})
         object.__setattr__(self, "_index", MappingProxyType(index))
         if self.correlation is not None:
-            from .correlation import check_correlation_matrix
-
             object.__setattr__(self, "correlation",
                                check_correlation_matrix(self.correlation, self.error_names))
 
@@ -178,8 +175,6 @@ class Machine:
     @property
     def iso_names(self) -> tuple[str, ...]:
         """ISO 230-1 symbols aligned with :attr:`error_names` (:mod:`reliability.iso`)."""
-        from .iso import iso_names
-
         return iso_names(self.error_names)
 
     @property
@@ -235,25 +230,19 @@ class Machine:
     def with_correlation(self, pairs) -> "Machine":
         """This machine with correlated errors; see
         :func:`reliability.correlation.with_correlation`."""
-        from .correlation import with_correlation
-
         return with_correlation(self, pairs)
 
     # ----- model -------------------------------------------------------------------
     def comprehensive_error(self, q, x) -> np.ndarray:
         """Exact tool–workpiece pose error, Eqs. (16)–(18); see :mod:`reliability.kinematics`."""
-        from .kinematics import comprehensive_error
-
-        return comprehensive_error(self, q, x)
+        return kinematics.comprehensive_error(self, q, x)
 
     def jacobian(self, q) -> np.ndarray:
         """First-order sensitivities ``(..., 6, n_errors)``; see :mod:`reliability.kinematics`."""
-        from .kinematics import jacobian
-
-        return jacobian(self, q)
+        return kinematics.jacobian(self, q)
 
     def check_positions(self, q) -> np.ndarray:
-        """Return ``q`` as a float array of shape ``(..., n_axes)`` or raise ValueError.
+        """Return ``q`` as a float array of shape ``(..., n_axes)`` or raise InputError.
 
         A DataFrame is aligned to :attr:`axes` by its column names."""
         if isinstance(q, pd.DataFrame):
@@ -262,7 +251,7 @@ class Machine:
         return checks.finite_values(q, "positions", self.axes)
 
     def check_errors(self, x) -> np.ndarray:
-        """Return ``x`` as a float array of shape ``(..., n_errors)`` or raise ValueError.
+        """Return ``x`` as a float array of shape ``(..., n_errors)`` or raise InputError.
 
         A Series or mapping is aligned to :attr:`error_names` by name (every name once)."""
         x = _with_last_axis(checks.labelled(x, self.error_names, "errors"), self.n_errors,
@@ -270,7 +259,7 @@ class Machine:
         return checks.finite_values(x, "errors", self.error_names)
 
     def check_tolerances(self, tolerances) -> np.ndarray:
-        """Return tolerances ``(..., n_errors)``, all finite and > 0, or raise ValueError.
+        """Return tolerances ``(..., n_errors)``, all finite and > 0, or raise InputError.
 
         A Series or mapping is aligned to :attr:`error_names` by name (every name once);
         strings and other non-numbers raise :class:`~reliability.errors.InputTypeError`."""
@@ -295,7 +284,7 @@ def _same(a, b) -> bool:
 
 
 def _with_last_axis(values, size: int, what: str, detail: str = "") -> np.ndarray:
-    """``values`` as floats whose last axis has ``size`` entries, or a ValueError."""
+    """``values`` as floats whose last axis has ``size`` entries, or an InputError."""
     array = checks.numeric_array(values, what)
     if array.ndim < 1 or array.shape[-1] != size:
         raise InputError(f"{what} must have shape (..., {size}){detail}; got {array.shape}")
@@ -363,8 +352,6 @@ def machine_from_dict(data: Mapping, source: str = "machine") -> Machine:
         tool_offset=_vector3(data.get("tool_offset", (0, 0, 0)), f"{source}: tool_offset"),
     )
     if "correlation" in data:
-        from .correlation import parse_correlation
-
         machine = parse_correlation(machine, data["correlation"], source)
     return machine
 
@@ -511,8 +498,6 @@ def _parse_initial(table, names: tuple[str, ...], source: str) -> np.ndarray:
     angular = np.array([n.split(".")[1].startswith("e") for n in names])
     initial = np.where(angular, rotation, translation)
     items = table.get("items", {})
-    from .iso import iso_names
-
     index = {n: i for i, n in enumerate(names)}
     index.update({n: i for i, n in enumerate(iso_names(names))})
     _only_keys(items, set(index), f"{where}.items")
@@ -542,8 +527,6 @@ def machine_to_dict(machine: Machine) -> dict:
     if not any(machine.tool_offset):
         del table["tool_offset"]
     if machine.correlation is not None:
-        from .correlation import correlation_to_toml
-
         table["correlation"] = correlation_to_toml(machine)
     return table
 

@@ -13,7 +13,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.ticker import PercentFormatter
 
-from . import checks
+from .streams import generator
 
 __all__ = [
     "plot_allocation_comparison",
@@ -210,7 +210,7 @@ def _shown_inside(outside, max_points, rng):
     keep = max(int(max_points) - int(outside.sum()), 0)
     if keep >= inside.size:
         return inside
-    return np.sort(checks.generator(rng).choice(inside, size=keep, replace=False))
+    return np.sort(generator(rng).choice(inside, size=keep, replace=False))
 
 
 def plot_comprehensive_error_scatter(

@@ -30,7 +30,7 @@ import numpy as np
 import pandas as pd
 from scipy.stats import multivariate_normal
 
-from . import checks
+from . import checks, streams
 from .errors import InputError, InputTypeError
 from .fosm import error_sigma, two_sided_probability
 from .machine import OUTPUTS
@@ -240,7 +240,7 @@ def sample_at_poses(machine, tolerances, poses=None, *, samples: int = 100_000, 
         labels = tuple(f"pose {i}" for i in range(len(poses)))
         tracked = np.ones((len(poses), len(EVENTS)), bool)
     tracked = tracked & selected
-    rng = np.random.default_rng(rng)
+    rng = streams.generator(rng)
     total = samples if precision is None else max_samples
     failures = np.zeros((len(poses), len(EVENTS)), dtype=np.int64)
     done, reached = 0, None

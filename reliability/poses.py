@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import checks
+from . import checks, streams
 
 
 def axis_grid_points(axis, points: int) -> np.ndarray:
@@ -48,7 +48,7 @@ def workspace_grid(machine, points_per_axis: int = 5, *, budget: int | None = No
 def random_poses(machine, n: int, rng=None, *, budget: int | None = None) -> np.ndarray:
     """``n`` poses drawn uniformly over every axis' stroke, ``(n, n_axes)``."""
     n = checks.positive_int(n, "number of poses n")
-    rng = checks.generator(rng)
+    rng = streams.generator(rng)
     checks.require_size(n, 8 * len(machine.axis_specs), budget, f"{n:,} random poses",
                         "draw fewer poses per call (in chunks)")
     low = np.array([a.stroke[0] for a in machine.axis_specs])

@@ -44,7 +44,7 @@ import pandas as pd
 from scipy.special import logsumexp
 from scipy.stats import norm
 
-from . import checks
+from . import checks, streams
 from .errors import InputError, InputTypeError
 from .fosm import two_sided_probability
 from .kinematics import chain_factors, transports
@@ -205,7 +205,7 @@ def failure_probability(machine, tolerances, pose=None, *, event: str = "dx",
     t = machine.check_tolerances(tolerances)
     _check_options(event, method, target_cov, max_evaluations, k, distribution, confidence,
                    batch, model, t)
-    rng = np.random.default_rng(rng)
+    rng = streams.generator(rng)
     pose = worst_grid_pose(machine, t, event, k=k) if pose is None else \
         _check_pose(machine, pose)
     jacobian = machine.jacobian(pose) if jacobian is None else _check_jacobian(machine,

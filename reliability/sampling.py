@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import checks
+from . import checks, streams
 from .checkpoint import ResultStore, machine_fingerprint
 from .chunks import chunk_size
 from .correlation import correlation_factor, draw_correlated, draw_grid_errors
@@ -68,7 +68,7 @@ def draw_errors(tolerances, size, *, k: float = 3.0, distribution: str = "trunca
     t = checks.numeric_array(tolerances, "tolerances")
     if not np.all(np.isfinite(t) & (t > 0)):
         raise InputError("tolerances must be finite and > 0")
-    rng = checks.generator(rng)
+    rng = streams.generator(rng)
     z = rng.standard_normal(tuple(size) + t.shape)
     if distribution == "truncated":
         outside = np.abs(z) > k
@@ -241,10 +241,10 @@ class GridExperiment:
         assembly = checks.numeric_array(assembly, "assembly errors")
         expected = (n, self.points_per_axis, 6)
         if motion.ndim != 4 or motion.shape[1:] != expected:
-            raise ValueError(f"motion errors must have shape (R, {n}, {self.points_per_axis}, 6);"
+            raise InputError(f"motion errors must have shape (R, {n}, {self.points_per_axis}, 6);"
                              f" got {motion.shape}")
         if assembly.shape != (motion.shape[0], n - 1, 6):
-            raise ValueError(f"assembly errors must have shape ({motion.shape[0]}, {n - 1}, 6);"
+            raise InputError(f"assembly errors must have shape ({motion.shape[0]}, {n - 1}, 6);"
                              f" got {assembly.shape}")
         return motion, assembly
 
@@ -290,7 +290,7 @@ class GridExperiment:
         t = _one_allocation(self.machine, tolerances)
         repeats, batch = _check_run_options(repeats, keep_values, batch, distribution, k)
         checks.callback(progress, "progress")
-        rng = checks.generator(rng)
+        rng = streams.generator(rng)
         batch = min(batch, chunk_size(4 * 6 * 8 * self.n_poses, memory))
         values_kept = {"all": repeats, "first": 1, "none": 0}[keep_values]
         checks.require_size(min(batch, repeats) * self.n_poses, 6 * 8 * 4, self.budget,
@@ -414,7 +414,7 @@ def sample_random_poses(machine, tolerances, n_samples: int, *, rng=None, k: flo
     n_samples, chunk = _check_run_options(n_samples, "none", chunk, distribution, k,
                                           ("n_samples", "chunk"))
     checks.callback(progress, "progress")
-    rng = checks.generator(rng)
+    rng = streams.generator(rng)
     checks.require_size(min(chunk, n_samples), 8 * (3 * 6 * machine.n_errors + 32), budget,
                         f"a chunk of {min(chunk, n_samples):,} samples", "pass a smaller chunk")
     sigma_x = error_sigma(t, k, distribution)  # the spread actually drawn

@@ -28,6 +28,7 @@ import pandas as pd
 from scipy import stats
 
 from . import checks
+from .errors import InputError, InputTypeError
 
 __all__ = [
     "METHODS",
@@ -58,18 +59,18 @@ def _check_confidence(confidence):
 def _check_method(method):
     """Refuse interval methods other than those in :data:`METHODS`."""
     if method not in METHODS:
-        raise ValueError(f"unknown interval method {method!r}; choose one of {METHODS}")
+        raise InputError(f"unknown interval method {method!r}; choose one of {METHODS}")
 
 
 def _integer_array(name, values):
     """Return ``values`` as an int64 array, refusing non-finite or non-integral entries."""
     x = np.asarray(values)
     if x.dtype.kind not in "biuf":
-        raise TypeError(f"{name} must be numeric; got dtype {x.dtype}")
+        raise InputTypeError(f"{name} must be numeric; got dtype {x.dtype}")
     x = x.astype(float)
     bad = ~np.isfinite(x) | (x != np.round(x))
     if bad.any():
-        raise ValueError(f"{name} must be whole numbers; {_index_text(name, bad, x)}")
+        raise InputError(f"{name} must be whole numbers; {_index_text(name, bad, x)}")
     return x.astype(np.int64)
 
 
@@ -78,16 +79,16 @@ def _check_counts(successes, trials):
     k = _integer_array("successes", successes)
     n = _integer_array("trials", trials)
     if (n <= 0).any():
-        raise ValueError(f"trials must be positive; {_index_text('trials', n <= 0, n)}")
+        raise InputError(f"trials must be positive; {_index_text('trials', n <= 0, n)}")
     try:
         k, n = np.broadcast_arrays(k, n)
     except ValueError:
-        raise ValueError(
+        raise InputError(
             f"successes of shape {k.shape} and trials of shape {n.shape} do not broadcast"
         ) from None
     bad = (k < 0) | (k > n)
     if bad.any():
-        raise ValueError(
+        raise InputError(
             "successes must lie in [0, trials]; "
             f"{_index_text('successes', bad, k)} with {_index_text('trials', bad, n)}"
         )
@@ -100,10 +101,10 @@ def _check_names(names, shape):
         return None
     names = (names,) if isinstance(names, str) else tuple(names)
     if len(shape) > 1:
-        raise ValueError(f"names label a 1-d result; this result has shape {shape}")
+        raise InputError(f"names label a 1-d result; this result has shape {shape}")
     size = shape[0] if shape else 1
     if len(names) != size:
-        raise ValueError(f"got {len(names)} names for {size} outputs: {names!r}")
+        raise InputError(f"got {len(names)} names for {size} outputs: {names!r}")
     return names
 
 
@@ -172,9 +173,11 @@ def binomial_interval(successes, trials, confidence=0.95, method="wilson"):
 
     Raises
     ------
-    ValueError
+    InputError
         If a count is negative, non-integral or exceeds its trials, if `confidence` is
         outside (0, 1), or if `method` is unknown.
+    InputTypeError
+        If a count is not numeric.
 
     Notes
     -----
@@ -201,12 +204,12 @@ class _FrameMixin:
 
         Raises
         ------
-        ValueError
+        InputError
             If the estimate has more than one dimension.
         """
         shape = np.shape(self.estimate)
         if len(shape) > 1:
-            raise ValueError(f"to_frame needs a 0-d or 1-d estimate; got shape {shape}")
+            raise InputError(f"to_frame needs a 0-d or 1-d estimate; got shape {shape}")
         size = shape[0] if shape else 1
         columns = {
             f.name: np.broadcast_to(getattr(self, f.name), (size,))
@@ -332,12 +335,12 @@ def _check_fractions(fractions):
     f = checks.numeric_array(fractions, "fractions")
     if f.ndim == 0 or f.shape[0] < 2:
         n = 0 if f.ndim == 0 else f.shape[0]
-        raise ValueError(
+        raise InputError(
             f"need at least 2 experiments along axis 0 to estimate a spread; got {n}"
         )
     bad = ~np.isfinite(f) | (f < 0) | (f > 1)
     if bad.any():
-        raise ValueError(
+        raise InputError(
             f"fractions must be finite and in [0, 1]; {_index_text('fractions', bad, f)}"
         )
     return f
@@ -386,7 +389,7 @@ def between_experiment_interval(fractions, confidence=0.95, *, names=None, poses
 
     Raises
     ------
-    ValueError
+    InputError
         If there are fewer than 2 experiments, or a fraction is non-finite or outside
         [0, 1] (the offending element is named).
 
@@ -437,7 +440,7 @@ def _kish_effective_size(mean, se, n, poses):
     if poses is not None:
         poses = _integer_array("poses", poses)
         if np.any(poses < 1):
-            raise ValueError(f"poses must be >= 1; got {poses!r}")
+            raise InputError(f"poses must be >= 1; got {poses!r}")
     cap = float(n) if poses is None else float(n) * poses
     with np.errstate(divide="ignore", invalid="ignore"):
         n_eff = np.where(se > 0, mean * (1.0 - mean) / np.square(se), cap)
@@ -471,20 +474,20 @@ def machine_yield(all_within, confidence=0.95, method="clopper-pearson", *, tria
 
     Raises
     ------
-    TypeError
+    InputTypeError
         If `all_within` is not boolean and no `trials` is given.
-    ValueError
+    InputError
         If there is no experiment, or as in :func:`binomial_interval`.
     """
     if trials is not None:
         return proportion(all_within, trials, confidence, method)
     ok = np.asarray(all_within)
     if ok.dtype != bool:
-        raise TypeError(
+        raise InputTypeError(
             f"all_within must be a boolean array (n_experiments, ...); got dtype "
             f"{ok.dtype}. To pass a count of all-within experiments, also give trials="
         )
     if ok.ndim == 0:
-        raise ValueError("all_within needs a leading experiment axis; got a scalar")
+        raise InputError("all_within needs a leading experiment axis; got a scalar")
     per_machine = ok.all(axis=tuple(range(1, ok.ndim)))
     return proportion(int(per_machine.sum()), per_machine.size, confidence, method)

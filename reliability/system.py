@@ -34,6 +34,7 @@ import pandas as pd
 from scipy.special import ndtr, ndtri
 from scipy.stats import qmc
 
+from . import streams
 from .errors import InputError
 from .correlation import output_covariance
 from .fosm import two_sided_probability
@@ -186,7 +187,7 @@ def worst_system_reliability(machine, tolerances, poses, *, k: float = 3.0,
     sigma = np.sqrt(np.einsum("pii->pi", covariance))  # Eq. (20)
     product = np.prod(two_sided_probability(machine.limits, sigma), axis=1)
     order = np.argsort(product, kind="stable")
-    generator = np.random.default_rng(rng)
+    generator = streams.generator(rng)
     parts, best = [], np.inf
     for start in range(0, len(order), batch):
         chosen = order[start:start + batch]
@@ -270,7 +271,7 @@ def rectangle_probability(covariance, limits, *, n_points: int = 1024, n_batches
     correlation = np.take_along_axis(np.take_along_axis(correlation, order[:, :, None], 1),
                                      order[:, None, :], 2)
     factor = _cholesky(correlation)
-    children = np.random.default_rng(rng).spawn(n_batches)
+    children = streams.spawn(rng, n_batches)
     chunk = max(1, CHUNK_SIZE // n_points)
     estimates = np.empty((n_batches, len(covariance)))
     for b, child in enumerate(children):

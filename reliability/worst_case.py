@@ -67,7 +67,7 @@ def continuous_worst(machine, tolerances, grid, *, k: float = 3.0, starts: int =
         grid_sigma = pose_sigma(machine, grid, sigma_x, memory=memory)
     grid_sigma = np.asarray(grid_sigma, dtype=float)
     if grid_sigma.shape != (len(grid), len(OUTPUTS)):
-        raise ValueError(f"grid_sigma must have shape ({len(grid)}, {len(OUTPUTS)}); "
+        raise InputError(f"grid_sigma must have shape ({len(grid)}, {len(OUTPUTS)}); "
                          f"got {grid_sigma.shape}")
     bounds = [axis.stroke for axis in machine.axis_specs]
     rows = []

@@ -33,13 +33,14 @@ from threadpoolctl import threadpool_limits
 
 from allocation.problem import AllocationProblem
 from allocation.solve import TargetUnreachableError
-from reliability.checkpoint import ResultStore, machine_fingerprint, seed_sequence
+from reliability.checkpoint import ResultStore, machine_fingerprint
 from reliability.errors import InputError, InputTypeError
 from reliability.files import write_csv
 from reliability.machine import OUTPUTS, hobbing_machine, load_machine
 from reliability.poses import workspace_grid
 from reliability.profiles import profile_model
 from reliability.sampling import GridExperiment
+from reliability.streams import task_stream
 
 PAPER_MACHINE = "hobbing"
 INDEPENDENT = "independent"
@@ -206,7 +207,7 @@ def run_task(task: SweepTask, allocated: dict | None = None) -> dict:
             return {"status": allocated["status"], "relative_cost": None,
                     "certified": False, "fraction": [None] * len(OUTPUTS), "yield": None}
         experiment = _experiment(machine, task.target, task.points_per_axis, task.profile)
-        rng = np.random.default_rng(seed_sequence(stream))
+        rng = task_stream(stream)
         verified = experiment.run(allocated["tolerances"], repeats=task.repeats, rng=rng,
                                   keep_values="none")
     return {"status": "ok", "relative_cost": allocated["relative_cost"],
