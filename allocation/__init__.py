@@ -9,11 +9,13 @@ and its solvers — the Grey Wolf Optimiser as in the paper, and a certified exa
 
 from .convex import ConvexSolution, InfeasibleAllocationError, solve_convex_allocation
 from .cost import CostModel, cost_weights
+from .elasticity import requirement_table
 from .fcem import FcemResult, fcem_coefficient
 from .front import allocation_point, cost_reliability_front
 from .gwo import GwoResult, grey_wolf, grey_wolf_reference
 from .problem import AllocationProblem, ScreenedRows, screen_rows
 from .refine import solve_over_workspace
+from .result_files import read_allocation_csv
 from .solve import AllocationResult, TargetUnreachableError, solve_exact, solve_gwo
 from .system import system_allocation
 
@@ -21,5 +23,6 @@ __all__ = ["AllocationProblem", "AllocationResult", "ConvexSolution", "CostModel
            "FcemResult", "GwoResult", "InfeasibleAllocationError", "ScreenedRows",
            "TargetUnreachableError", "allocation_point", "cost_reliability_front",
            "cost_weights", "fcem_coefficient", "grey_wolf",
-           "grey_wolf_reference", "screen_rows", "solve_convex_allocation", "solve_exact",
-           "solve_gwo", "solve_over_workspace", "system_allocation"]
+           "grey_wolf_reference", "read_allocation_csv", "requirement_table", "screen_rows",
+           "solve_convex_allocation", "solve_exact", "solve_gwo", "solve_over_workspace",
+           "system_allocation"]

@@ -1,5 +1,9 @@
 """An allocation result printed for reading, saved as JSON or CSV and reloaded verified.
 
+The allocation CSV (columns ``error, reference, allocated``, one row per error) has one
+writer, :func:`allocation_to_csv` (its table: :func:`allocation_frame`), and one reader,
+:func:`read_allocation_csv`, used by the library and the command line alike.
+
 The JSON file holds the allocation, its cost, feasibility, certificate, binding
 constraints, GWO history and per-requirement elasticities, and what is needed to read them
 without the machine: the error names, the reference allocation and the bounds, the cost
@@ -16,11 +20,10 @@ import numpy as np
 import pandas as pd
 
 from reliability.display import axis_units, pose_columns
-from reliability.files import write_csv
+from reliability.errors import InputError, InputTypeError
+from reliability.files import check_destination, write_csv
 from reliability.machine import OUTPUTS
-from reliability.errors import InputTypeError
-from reliability.saved import check_count, check_destination, encode_frame, load_payload, \
-    save_payload
+from reliability.saved import check_count, encode_frame, load_payload, save_payload
 
 from .cost import GROUPS, CostModel
 
@@ -160,13 +163,84 @@ def _changes(result, top: int) -> pd.DataFrame:
 
 
 # ----- files ---------------------------------------------------------------------------
-def allocation_to_csv(result, path, overwrite: bool = False):
-    """Columns ``error, reference, allocated``, one row per error."""
-    check_destination(path, overwrite)
+def allocation_frame(result) -> pd.DataFrame:
+    """The allocation CSV's table: columns ``error, reference, allocated``, one row per
+    error in the machine's order."""
     context = _context(result.problem)
-    frame = pd.DataFrame({"error": context.names, "reference": context.reference,
-                          "allocated": result.tolerances}, columns=list(CSV_COLUMNS))
-    return write_csv(frame, path, overwrite, index=False)
+    return pd.DataFrame({"error": context.names, "reference": context.reference,
+                         "allocated": result.tolerances}, columns=list(CSV_COLUMNS))
+
+
+def allocation_to_csv(result, path, overwrite: bool = False, *,
+                      significant: int | None = None):
+    """Write :func:`allocation_frame` to ``path``.
+
+    Parameters
+    ----------
+    result : AllocationResult
+    path : str or Path
+    overwrite : bool
+        Replace an existing file; otherwise an existing file raises FileExistsError.
+    significant : int, optional
+        Significant digits of the numbers; all digits (an exact round trip) by default.
+    """
+    check_destination(path, overwrite)
+    float_format = None if significant is None else \
+        f"%.{check_count(significant, 'significant')}g"
+    return write_csv(allocation_frame(result), path, overwrite, index=False,
+                     float_format=float_format)
+
+
+def read_allocation_csv(path, machine) -> np.ndarray:
+    """Tolerances from an allocation CSV (columns ``error`` and ``allocated``; what
+    :func:`allocation_to_csv` and ``precrel allocate`` write), aligned to the machine's error
+    names. Rows may come in any order and errors may be named by their ISO 230-1 symbols.
+
+    Raises
+    ------
+    InputError
+        An unreadable table, a missing column, a name the machine does not have, a name
+        given twice, a missing name, or a value that is not a finite positive number; the
+        message names the file and the row's error.
+    """
+    try:
+        frame = pd.read_csv(path)
+    except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as exc:
+        raise InputError(f"{path}: not a readable CSV table "
+                         f"({' '.join(str(exc).split())})") from None
+    missing_columns = [c for c in ("error", "allocated") if c not in frame.columns]
+    if missing_columns:
+        raise InputError(f"{path}: missing column(s) {missing_columns}; "
+                         f"expected columns 'error' and 'allocated'")
+    given = frame["error"].astype(str).str.strip()
+    unknown = [n for n in given if not _known(machine, n)]
+    if unknown:
+        raise InputError(f"{path}: unknown error name(s) {unknown[:5]}; "
+                         f"the machine's errors are named like {machine.error_names[0]!r} "
+                         f"(or by their ISO 230-1 symbols, like {machine.iso_names[0]!r})")
+    names = pd.Series([machine.error_names[machine.error_index(n)] for n in given])
+    repeated = sorted(set(names[names.duplicated()]))
+    if repeated:
+        raise InputError(f"{path}: error(s) given twice: {repeated[:5]}")
+    absent = [n for n in machine.error_names if n not in set(names)]
+    if absent:
+        raise InputError(f"{path}: {len(absent)} error(s) missing, e.g. "
+                         f"{absent[:5]}; expected one row per error of the machine")
+    values = pd.to_numeric(frame["allocated"], errors="coerce").to_numpy(dtype=float)
+    bad = np.flatnonzero(~(np.isfinite(values) & (values > 0)))
+    if len(bad):
+        raise InputError(f"{path}: allocated value of {given[bad[0]]!r} is "
+                         f"{frame['allocated'][bad[0]]!r}; expected a number > 0")
+    return pd.Series(values, index=names).reindex(list(machine.error_names)).to_numpy()
+
+
+def _known(machine, name: str) -> bool:
+    """Whether ``name`` is one of the machine's error names or ISO 230-1 symbols."""
+    try:
+        machine.error_index(name)
+    except KeyError:
+        return False
+    return True
 
 
 def save_allocation(result, path, overwrite: bool = False):

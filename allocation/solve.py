@@ -165,9 +165,11 @@ class AllocationResult:
     def __repr__(self) -> str:
         return self.summary()
 
-    def to_csv(self, path, overwrite: bool = False):
-        """Write the columns ``error, reference, allocated``, one row per error."""
-        return allocation_to_csv(self, path, overwrite)
+    def to_csv(self, path, overwrite: bool = False, *, significant: int | None = None):
+        """Write the allocation CSV (columns ``error, reference, allocated``, one row per
+        error) with all digits or ``significant`` digits; returns the path
+        (:func:`allocation.result_files.allocation_to_csv`)."""
+        return allocation_to_csv(self, path, overwrite, significant=significant)
 
     def save(self, path, overwrite: bool = False):
         """Save as JSON with its metadata (:mod:`reliability.saved`); returns the path."""

@@ -35,3 +35,18 @@ def pose_columns(poses, axes, units) -> pd.DataFrame:
 def output_limits_text(limits, digits: int = 4) -> list[str]:
     """Each output's limit with its unit."""
     return [with_unit(float(limit), unit, digits) for limit, unit in zip(limits, OUTPUT_UNITS)]
+
+
+def top_contributors(contributions: pd.DataFrame, output: str, n: int = 3) -> str:
+    """The ``n`` errors contributing most to an output's variance at its worst pose, as
+    ``"X.dx 45%, C.ez 20%, ..."`` (shares in per cent, ties in error order).
+
+    Parameters
+    ----------
+    contributions : DataFrame
+        :attr:`reliability.fosm.FosmResult.contributions` (errors × outputs, per cent).
+    output : str
+    n : int
+    """
+    column = contributions[output].sort_values(ascending=False, kind="stable").head(n)
+    return ", ".join(f"{name} {share:.0f}%" for name, share in column.items())

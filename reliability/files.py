@@ -1,7 +1,10 @@
 """Writing result files safely: never over an existing file unless asked, and atomically.
 
-A save writes to a temporary file in the destination folder and renames it into place, so
-an interrupted save leaves either the old file or the new one, never half of one.
+:func:`check_destination` is the one check of where a file or a report folder may be
+written; every save calls it before writing, and the command line calls it before any work
+(rewording its refusals in terms of its options). A save writes to a temporary file in the
+destination folder and renames it into place, so an interrupted save leaves either the old
+file or the new one, never half of one.
 """
 
 from __future__ import annotations
@@ -11,6 +14,59 @@ import tempfile
 from pathlib import Path
 
 import pandas as pd
+
+from .errors import InputError, InputTypeError
+
+
+def check_destination(path, overwrite: bool = False, *, folder: bool = False,
+                      markers=()) -> Path:
+    """Where a result may be written: refused before any work, or returned as a Path.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        A file to write, or with ``folder=True`` a folder to write into (it may not exist
+        yet; its parent must).
+    overwrite : bool
+        Whether an existing file (or, for a folder, an earlier result in it) may be replaced.
+    folder : bool
+        ``path`` names a folder rather than a file.
+    markers : iterable of str
+        With ``folder=True``: file names whose presence in the folder marks an earlier result
+        (e.g. ``report.md``); the folder is refused when one exists and not ``overwrite``.
+
+    Raises
+    ------
+    InputTypeError
+        ``path`` is not a str or path, or ``overwrite`` is not a bool.
+    InputError
+        ``path`` is empty.
+    IsADirectoryError, NotADirectoryError
+        A file is asked for where a folder is, or a folder where a file is.
+    FileExistsError
+        The file (or a marker file of the folder) exists and ``overwrite`` is false.
+    FileNotFoundError
+        The folder that should hold ``path`` does not exist.
+    """
+    if not isinstance(path, (str, os.PathLike)):
+        raise InputTypeError(f"path must be a file name (str or Path); got "
+                             f"{type(path).__name__}")
+    if str(path) == "":
+        raise InputError("path must not be empty")
+    if not isinstance(overwrite, bool):
+        raise InputTypeError(f"overwrite must be True or False; got {overwrite!r}")
+    path = Path(path)
+    if folder and path.exists() and not path.is_dir():
+        raise NotADirectoryError(f"{path} is a file; expected a folder")
+    if not folder and path.is_dir():
+        raise IsADirectoryError(f"{path} is a folder; give a file name")
+    existing = [path / name for name in markers if (path / name).exists()] if folder else \
+        [path] if path.exists() else []
+    if existing and not overwrite:
+        raise FileExistsError(f"{existing[0]} exists; pass overwrite=True to replace it")
+    if not path.parent.is_dir():
+        raise FileNotFoundError(f"folder {path.parent} does not exist")
+    return path
 
 
 def atomic_write_bytes(path, data: bytes, overwrite: bool = False) -> Path:
@@ -23,13 +79,7 @@ def atomic_write_bytes(path, data: bytes, overwrite: bool = False) -> Path:
     overwrite : bool
         Replace an existing file; otherwise an existing file raises FileExistsError.
     """
-    path = Path(path)
-    if path.is_dir():
-        raise IsADirectoryError(f"{path} is a folder; give a file name")
-    if path.exists() and not overwrite:
-        raise FileExistsError(f"{path} exists; pass overwrite=True to replace it")
-    if not path.parent.is_dir():
-        raise FileNotFoundError(f"folder {path.parent} does not exist")
+    path = check_destination(path, overwrite)
     handle, temporary = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.",
                                          suffix=".tmp")
     try:

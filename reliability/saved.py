@@ -25,7 +25,7 @@ import numpy as np
 import pandas as pd
 
 from .errors import InputError, InputTypeError, SavedResultError
-from .files import atomic_write_text
+from .files import atomic_write_text, check_destination
 
 FORMAT_VERSION = 1
 DISTRIBUTION = "precision-reliability"
@@ -88,13 +88,6 @@ def load_payload(path, kind: str) -> "PayloadReader":
                                f"by this toolkit (reads {FORMAT_VERSION})")
     top.text("toolkit_version")
     return top.table("payload")
-
-
-def check_destination(path, overwrite) -> None:
-    """Refuse a ``path`` that is not a file name and an ``overwrite`` that is not a bool."""
-    _check_path(path)
-    if not isinstance(overwrite, bool):
-        raise InputTypeError(f"overwrite must be True or False; got {overwrite!r}")
 
 
 def check_count(value, name: str) -> int:

@@ -34,7 +34,7 @@ from reliability.checks import require_size
 from reliability.errors import InputError, InputTypeError, SavedResultError, SizeBudgetError
 from reliability.comparison import fosm_versus_monte_carlo
 from reliability.fosm import error_sigma
-from reliability.plots import plot_comprehensive_error_scatter
+from studies.report.plots import plot_comprehensive_error_scatter
 from reliability.sampling import draw_errors
 from reliability.statistics import binomial_interval, proportion
 from reliability.worst_case import continuous_worst

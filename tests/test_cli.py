@@ -15,7 +15,9 @@ import pytest
 from allocation import AllocationProblem
 from reliability import workspace_grid
 from studies import cli
-from studies.machine_report import markdown_to_html, rounded
+from studies.cli import program
+from studies.report.markdown import markdown_to_html
+from studies.report.writer import rounded
 
 MILL = str(Path(__file__).parent / "machines" / "mill3.toml")
 QUICK = ["--repeats", "3", "--samples", "1000", "--points", "3"]
@@ -215,13 +217,13 @@ def test_python_m_studies_help():
     done = subprocess.run([sys.executable, "-m", "studies", "--help"], capture_output=True,
                           text=True, cwd=Path(__file__).parent.parent, timeout=120)
     assert done.returncode == 0
-    for command in cli.COMMANDS:
+    for command in program.COMMANDS:
         assert command in done.stdout
 
 
 def test_writer_takes_extra_sections(tmp_path):
-    from studies.machine_report import write_report
-    from studies.section import Section
+    from studies.report.writer import write_report
+    from studies.report.section import Section
     extra = Section("Extra", "| a |\n| --- |\n| 1 |", tables={"extra.csv": pd.DataFrame(
         {"a": [1.0 / 3]})}, summary={"extra_key": 2.0 / 3})
     written = write_report(tmp_path, [Section("First", "text"), extra], {"machine": "m"},

@@ -14,10 +14,10 @@ import pandas as pd  # noqa: E402
 import pytest  # noqa: E402
 
 from allocation import AllocationProblem, allocation_point, cost_reliability_front  # noqa: E402
-from allocation.plots import plot_front  # noqa: E402
+from studies.report.plots import plot_front  # noqa: E402
 from reliability.errors import InputError  # noqa: E402
 from reliability.fosm import required_index  # noqa: E402
-from reliability.paper_tables import TABLE6  # noqa: E402
+from studies.paper.tables import TABLE6  # noqa: E402
 from reliability.poses import workspace_grid  # noqa: E402
 
 TARGETS = np.array([0.999, 0.9, 0.99, 1 - 1e-6, 0.95])  # deliberately unsorted
@@ -111,7 +111,7 @@ def test_figure(hobbing, grid, front):
 def _parse(argv):
     import argparse
 
-    from studies.commands import front as command
+    from studies.cli import front as command
 
     parser = argparse.ArgumentParser()
     command.add_parser(parser.add_subparsers(dest="command"))
@@ -156,7 +156,7 @@ def test_command_refuses_bad_options_before_any_work(argv, words, capsys):
 
 
 def test_front_section(mill3):
-    from studies.tradeoff_section import front_section
+    from studies.report.tradeoff import front_section
 
     section = front_section(mill3, targets=[0.9, 0.999], poses=workspace_grid(mill3, 3))
     summary = section.summary

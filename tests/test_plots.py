@@ -1,4 +1,4 @@
-"""Tests for reliability.plots: artists drawn, limit lines, refusals."""
+"""Tests for studies.report.plots: artists drawn, limit lines, refusals."""
 
 import matplotlib
 
@@ -11,7 +11,7 @@ import pytest  # noqa: E402
 from matplotlib.axes import Axes  # noqa: E402
 from matplotlib.colors import to_rgba  # noqa: E402
 
-from reliability.plots import (  # noqa: E402
+from studies.report.plots import (  # noqa: E402
     plot_allocation_comparison,
     plot_comprehensive_error_scatter,
     plot_convergence,

@@ -17,7 +17,7 @@ from scipy.stats import norm
 
 from allocation import AllocationProblem, screen_rows
 from reliability.fosm import fosm
-from reliability.paper_tables import TABLE6
+from studies.paper.tables import TABLE6
 from reliability.poses import workspace_grid
 
 SIDES = ("one_sided", "two_sided")

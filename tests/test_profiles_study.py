@@ -11,11 +11,12 @@ import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
 from reliability.measured import SystematicErrors, measured_profile  # noqa: E402
-from reliability.paper_tables import TABLE6  # noqa: E402
-from studies.profiles_section import (consistent_profiles, plot_yield_against_length,  # noqa: E402
+from studies.paper.tables import TABLE6  # noqa: E402
+from studies.report.profiles import (consistent_profiles, plot_yield_against_length,  # noqa: E402
                                       profiles_section)
-from studies.profiles_study import (ProfilesStudy, main, paper_spread_check,  # noqa: E402
-                                    profile_comparison, profile_length, systematic_effect)
+from studies.paper.profiles_study import main, paper_spread_check  # noqa: E402
+from studies.workflows.profiles import (ProfilesStudy, profile_comparison,  # noqa: E402
+                                        profile_length, systematic_effect)
 
 
 @pytest.fixture(scope="module")

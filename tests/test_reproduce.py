@@ -1,10 +1,10 @@
-"""studies.reproduce_paper: files, determinism, refusal to overwrite, paper regressions."""
+"""studies.paper.reproduce (python -m studies.reproduce_paper): files, determinism, refusal to overwrite, paper regressions."""
 
 import numpy as np
 import pandas as pd
 import pytest
 
-from studies import reproduce_paper as rp
+from studies.paper import reproduce as rp
 
 
 @pytest.fixture(scope="module")

@@ -34,7 +34,7 @@ from scipy import stats
 import reliability
 from reliability import OUTPUTS, machine_from_dict
 from reliability.fosm import fosm
-from reliability.paper_tables import TABLE6, TABLE9
+from studies.paper.tables import TABLE6, TABLE9
 from reliability.poses import random_poses, workspace_grid
 from reliability.sampling import GridExperiment, draw_errors, sample_random_poses
 

@@ -8,7 +8,7 @@ import pytest
 from matplotlib import image
 
 from studies import cli
-from studies.screenshot import find_browser, screenshot
+from studies.benchmarks.screenshot import find_browser, screenshot
 
 MILL = str(Path(__file__).parent / "machines" / "mill3.toml")
 

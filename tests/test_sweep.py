@@ -22,8 +22,8 @@ from allocation import AllocationProblem
 from reliability.errors import InputError, InputTypeError, SavedResultError
 from reliability.machine import load_machine
 from reliability.poses import workspace_grid
-from studies.commands import sweep as command
-from studies.sweep import SweepSpec, SweepTask, run_sweep, run_task
+from studies.cli import sweep as command
+from studies.workflows.sweep import SweepSpec, SweepTask, run_sweep, run_task
 
 MACHINES = Path(__file__).parent / "machines"
 

@@ -1,0 +1,175 @@
+"""Argument types, shared options, input files and printing of the ``precrel`` subcommands.
+
+Everything here is about the command line itself: parsing, rewording the library's refusals
+in terms of options, and printing. The computations live in the library."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from allocation.result_files import read_allocation_csv
+from reliability import display
+from reliability.errors import InputError
+from reliability.files import check_destination
+from reliability.machine import load_machine
+
+SIDE_CHOICES = ("one_sided", "two_sided")
+
+
+# ----- argument types (argparse reports their errors as one line, exit 2) ---------------
+def positive_int(text: str) -> int:
+    """An integer >= 1."""
+    value = _integer(text)
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"expected an integer >= 1, got {text!r}")
+    return value
+
+
+def grid_points(text: str) -> int:
+    """Grid points per axis: an integer >= 2 (both stroke ends)."""
+    value = _integer(text)
+    if value < 2:
+        raise argparse.ArgumentTypeError(f"expected at least 2 points per axis, got {text!r}")
+    return value
+
+
+def seed(text: str) -> int:
+    """A random seed: an integer >= 0."""
+    value = _integer(text)
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"expected a seed >= 0, got {text!r}")
+    return value
+
+
+def probability(text: str) -> float:
+    """A reliability target strictly between 0 and 1."""
+    value = _float(text)
+    if not 0.0 < value < 1.0:
+        raise argparse.ArgumentTypeError(f"expected a probability in (0, 1), got {text!r}")
+    return value
+
+
+def positive_float(text: str) -> float:
+    """A finite number > 0."""
+    value = _float(text)
+    if not value > 0.0:
+        raise argparse.ArgumentTypeError(f"expected a number > 0, got {text!r}")
+    return value
+
+
+def _integer(text: str) -> int:
+    try:
+        return int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
+
+
+def _float(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not np.isfinite(value):
+        raise argparse.ArgumentTypeError(f"expected a finite number, got {text!r}")
+    return value
+
+
+def add_machine(parser) -> None:
+    parser.add_argument("machine", metavar="MACHINE.toml", help="machine description file")
+
+
+def add_side(parser) -> None:
+    parser.add_argument("--side", choices=SIDE_CHOICES, default="two_sided",
+                        help="probability reading: exact two-sided P(|y| < I) (default) or "
+                             "the paper's one-sided Phi(beta)")
+
+
+def add_points(parser, default: int = 5) -> None:
+    parser.add_argument("--points", type=grid_points, default=default, metavar="P",
+                        help=f"grid points per axis over each stroke (default {default})")
+
+
+def add_bounds(parser) -> None:
+    parser.add_argument("--bounds", type=positive_float, nargs=2, default=(0.5, 1.5),
+                        metavar=("LO", "HI"),
+                        help="tolerance box as factors of the initial allocation "
+                             "(default 0.5 1.5)")
+
+
+def add_monte_carlo(parser) -> None:
+    """``--repeats``, ``--samples`` and ``--seed`` of the Monte-Carlo verification."""
+    parser.add_argument("--repeats", type=positive_int, default=20, metavar="N",
+                        help="grid experiments per allocation (default 20, as the paper's "
+                             "Table 9)")
+    parser.add_argument("--samples", type=positive_int, default=20_000, metavar="N",
+                        help="random-pose samples and samples per worst pose (default 20000)")
+    parser.add_argument("--seed", type=seed, default=0, metavar="S",
+                        help="random seed (default 0)")
+
+
+# ----- checks done before any work ----------------------------------------------------
+def check_bounds(bounds) -> tuple[float, float]:
+    """``--bounds LO HI``: factors of the reference allocation, 0 < LO <= HI."""
+    low, high = bounds
+    if low > high:
+        raise InputError(f"--bounds: LO = {low:g} exceeds HI = {high:g}; expected "
+                         f"0 < LO <= HI (factors of the initial allocation)")
+    return float(low), float(high)
+
+
+def destination(path, overwrite: bool, option: str = "--out", *, folder: bool = False,
+                markers=()) -> Path:
+    """:func:`reliability.files.check_destination`, its refusals reworded for ``option``."""
+    try:
+        return check_destination(path, overwrite, folder=folder, markers=markers)
+    except FileExistsError:
+        earlier = [name for name in markers if (Path(path) / name).exists()]
+        held = f"holds an earlier report ({earlier[0]})" if folder else "exists"
+        raise InputError(f"{option} {path}: {held}; pass --overwrite to replace it") from None
+    except IsADirectoryError:
+        raise InputError(f"{option} {path}: is a folder; expected a file name") from None
+    except NotADirectoryError:
+        raise InputError(f"{option} {path}: is a file; expected a folder") from None
+    except FileNotFoundError:
+        raise InputError(f"{option} {path}: folder {Path(path).parent} does not "
+                         f"exist") from None
+
+
+def machine(args):
+    """Load ``args.machine`` (a MachineDescriptionError or OSError names the file)."""
+    return load_machine(args.machine)
+
+
+def read_tolerances(path, machine) -> np.ndarray:
+    """``--tolerances CSV``: :func:`allocation.read_allocation_csv`, its refusals naming the
+    option."""
+    try:
+        return read_allocation_csv(path, machine)
+    except InputError as exc:
+        raise InputError(f"--tolerances {exc}") from None
+
+
+# ----- printing ------------------------------------------------------------------------
+def pose_text(machine, pose) -> str:
+    """A pose as axis positions with units, e.g. ``X=-300 mm, C=1.571 rad``."""
+    return display.pose_text(pose, machine.axes, display.axis_units(machine), digits=6)
+
+
+def percent(value: float) -> str:
+    return f"{100.0 * value:.4f} %"
+
+
+def progress_bar(total: int, description: str):
+    """A tqdm progress bar on stderr, hidden when stderr is not a terminal."""
+    from tqdm import tqdm
+    return tqdm(total=total, desc=description, file=sys.stderr, leave=False,
+                disable=None)
+
+
+def say(text: str) -> None:
+    """A progress line on stderr."""
+    print(text, file=sys.stderr, flush=True)

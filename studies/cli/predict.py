@@ -1,0 +1,66 @@
+"""``precrel predict MACHINE.toml``: FOSM reliability of an allocation over the grid."""
+
+from __future__ import annotations
+
+import pandas as pd
+
+from reliability.display import OUTPUT_UNITS, top_contributors
+from reliability.fosm import fosm
+from reliability.machine import OUTPUTS
+from reliability.poses import workspace_grid
+
+from . import options
+
+
+def add_parser(subparsers):
+    parser = subparsers.add_parser(
+        "predict", help="FOSM reliability of an allocation (Eqs. 19-23)",
+        description="FOSM per output over the workspace grid: the worst pose as axis "
+                    "positions, the reliability index beta, the one- and two-sided "
+                    "probabilities and the errors contributing most there.")
+    options.add_machine(parser)
+    parser.add_argument("--tolerances", metavar="CSV",
+                        help="allocation to assess (columns error, allocated, as written by "
+                             "'allocate'); default the file's initial allocation")
+    options.add_points(parser)
+    options.add_side(parser)
+    return parser
+
+
+def run(args) -> int:
+    machine = options.machine(args)
+    t = machine.initial_allocation if args.tolerances is None else \
+        options.read_tolerances(args.tolerances, machine)
+    result = fosm(machine, t, workspace_grid(machine, args.points))
+    source = "initial allocation" if args.tolerances is None else args.tolerances
+    print(f"FOSM of the {source} of {machine.name!r} over the {args.points}-point grid "
+          f"({len(result.poses)} poses); target judged {args.side.replace('_', '-')}\n")
+    print(prediction_table(machine, result, args.side).to_string())
+    failing = [o for o, met in zip(OUTPUTS, result.meets_targets(args.side))
+               if not met]
+    print("\nevery output meets its target" if not failing else
+          f"\ntarget NOT met by: {', '.join(failing)}")
+    return 0
+
+
+def prediction_table(machine, result, side: str) -> pd.DataFrame:
+    """One row per output: limit with unit, target, worst pose, β, probabilities, top
+    contributors."""
+    frame = result.to_frame()
+    rows = []
+    for i, output in enumerate(frame.index):
+        row = frame.loc[output]
+        pose = result.poses[result.worst_pose[i]]
+        rows.append({
+            "output": output,
+            "limit": f"{row['limit']:g} {OUTPUT_UNITS[i]}",
+            "target": f"{row['target']:g}",
+            "worst pose": options.pose_text(machine, pose),
+            "beta": f"{row['beta']:.4f}",
+            "P one-sided": options.percent(row["worst_one_sided"]),
+            "P two-sided": options.percent(row["worst_two_sided"]),
+            "meets": "yes" if row[f"meets_{side}"] else "NO",
+            "top contributors (% of variance)": top_contributors(
+                result.contributions, output),
+        })
+    return pd.DataFrame(rows).set_index("output")

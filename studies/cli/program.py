@@ -1,0 +1,85 @@
+"""The ``precrel`` command line: precision reliability and allocation of your own machine.
+
+Each subcommand is a module ``studies.cli.<name>`` with ``add_parser(subparsers)``
+(registers the command, its options and help) and ``run(args) -> int`` (the exit code).
+Results go to stdout, progress to stderr. Bad input and the toolkit's own errors end the
+program with one line ``precrel: error: ...`` on stderr and exit code 2.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+
+from studies.workflows.timing import limit_blas_threads
+
+#: Subcommand modules under ``studies.cli``, in the order ``--help`` lists them.
+COMMANDS = ("check", "predict", "allocate", "verify", "report", "front", "sweep")
+PROG = "precrel"
+#: Exit code of bad input (argparse's own convention).
+USAGE_ERROR = 2
+
+
+class ArgumentParser(argparse.ArgumentParser):
+    """An argparse parser whose errors are one line on stderr, exit code 2."""
+
+    def error(self, message):
+        self.exit(USAGE_ERROR, f"{PROG}: error: {message} (see {self.prog} --help)\n")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The parser with every subcommand of :data:`COMMANDS` registered."""
+    parser = ArgumentParser(
+        prog=PROG,
+        description="Precision reliability and precision allocation of a multi-axis "
+                    "machine tool described in a TOML file.")
+    subparsers = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    for name in COMMANDS:
+        module = importlib.import_module(f"studies.cli.{name}")
+        sub = module.add_parser(subparsers)
+        sub.set_defaults(run=module.run)
+    return parser
+
+
+def _toolkit_errors() -> tuple[type[BaseException], ...]:
+    from allocation import InfeasibleAllocationError
+    from reliability.errors import InputError, InputTypeError, SavedResultError
+    from reliability.machine import MachineDescriptionError
+    return (InputError, InputTypeError, SavedResultError, MachineDescriptionError,
+            InfeasibleAllocationError, OSError)
+
+
+def main(argv=None) -> int:
+    """Run ``precrel`` with ``argv`` (default ``sys.argv[1:]``); return the exit code."""
+    limit_blas_threads()
+    from threadpoolctl import threadpool_limits
+
+    try:
+        args = build_parser().parse_args(argv)
+    except SystemExit as exit_:  # --help, or a usage error already printed
+        return int(exit_.code or 0)
+    try:
+        with threadpool_limits(limits=1):
+            return int(args.run(args))
+    except _toolkit_errors() as exc:
+        print(f"{PROG}: error: {_one_line(exc)}", file=sys.stderr)
+        return USAGE_ERROR
+    except KeyboardInterrupt:
+        print(f"{PROG}: interrupted", file=sys.stderr)
+        return 130
+
+
+def _one_line(exc: BaseException) -> str:
+    from allocation import TargetUnreachableError
+
+    text = " ".join(str(exc).split()) or type(exc).__name__
+    if isinstance(exc, OSError) and exc.filename and str(exc.filename) not in text:
+        text = f"{exc.filename}: {text}"
+    if isinstance(exc, TargetUnreachableError):
+        text += "; a wider box (--bounds LO HI, e.g. 0.1 1.5) may reach it"
+    return text
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,49 @@
+"""``precrel report MACHINE.toml --out DIR``: the whole study of a machine, as a report."""
+
+from __future__ import annotations
+
+from studies.report import machine_sections
+from studies.report.extras import EXTRAS, builders
+from studies.report.writer import REPORT_MARKERS, write_report
+from studies.workflows import machine_study
+
+from . import options
+
+
+def add_parser(subparsers):
+    parser = subparsers.add_parser(
+        "report", help="full study of a machine into a folder (tables, figures, report)",
+        description="FOSM of the initial allocation, the certified optimum, Monte-Carlo "
+                    "verification, CSV tables, figures, report.md, a self-contained "
+                    "report.html, summary.json and allocation.csv in DIR.")
+    options.add_machine(parser)
+    parser.add_argument("--out", required=True, metavar="DIR", help="output folder")
+    options.add_monte_carlo(parser)
+    options.add_points(parser)
+    options.add_side(parser)
+    options.add_bounds(parser)
+    parser.add_argument("--skip", nargs="+", default=(), choices=EXTRAS, metavar="SECTION",
+                        help="leave out optional sections: " + ", ".join(EXTRAS)
+                             + " (default: include all)")
+    parser.add_argument("--overwrite", action="store_true",
+                        help="replace an earlier report in DIR (other files are left alone)")
+    return parser
+
+
+def run(args) -> int:
+    bounds = options.check_bounds(args.bounds)
+    out = options.destination(args.out, args.overwrite, folder=True, markers=REPORT_MARKERS)
+    machine = options.machine(args)
+    study = machine_study.run(machine, points=args.points, side=args.side, bounds=bounds,
+                              seed=args.seed, repeats=args.repeats, samples=args.samples,
+                              progress=options.say, bar=options.progress_bar)
+    included = [name for name in EXTRAS if name not in args.skip]
+    options.say("optional sections: " + (", ".join(included) or "none"))
+    sections = machine_sections.sections(study, extra=builders(included))
+    options.say("drawing figures and writing the report")
+    written = write_report(out, sections, machine_study.summary(study),
+                           title=f"Precision allocation and reliability of {machine.name}",
+                           overwrite=args.overwrite)
+    print(machine_sections.answers(study))
+    print(f"\n{len(written)} files written to {out}/ (open report.html)")
+    return 0

@@ -1,0 +1,133 @@
+"""``precrel verify MACHINE.toml --tolerances CSV``: Monte-Carlo beside FOSM."""
+
+from __future__ import annotations
+
+import pandas as pd
+
+from reliability.pose_sampling import EVENTS, sample_at_poses
+from reliability.streams import extra_stream
+from reliability.verification import rare_event_table, reachable_events, verify
+
+from . import options
+
+
+def add_parser(subparsers):
+    parser = subparsers.add_parser(
+        "verify", help="Monte-Carlo verification of an allocation, FOSM beside it",
+        description="Repeated grid experiments (Wilson interval on the effective sample size "
+                    "from the spread between experiments), "
+                    "random poses (Wilson interval) and Monte-Carlo at each output's worst "
+                    "pose (Wilson interval), each beside the FOSM prediction. Errors are "
+                    "drawn normal, sigma = t/3, truncated at +-t.")
+    options.add_machine(parser)
+    parser.add_argument("--tolerances", required=True, metavar="CSV",
+                        help="allocation (columns error, allocated), e.g. from 'allocate'")
+    options.add_monte_carlo(parser)
+    parser.add_argument("--precision", type=options.probability, metavar="P",
+                        help="also sample each output's worst pose adaptively until the "
+                             "interval's relative half-width on the failure probability is "
+                             "at most P (e.g. 0.1), or --max-samples is reached")
+    parser.add_argument("--max-samples", type=options.positive_int, default=2_000_000,
+                        metavar="N", help="sample cap of --precision (default 2000000)")
+    parser.add_argument("--rare", action="store_true",
+                        help="also estimate each output's and the system's failure "
+                             "probability at its worst pose by importance sampling (or "
+                             "--rare-method subset) on the exact model")
+    parser.add_argument("--rare-method", choices=("importance", "subset"),
+                        default="importance", help="rare-event method (default importance)")
+    parser.add_argument("--target-cov", type=options.probability, default=0.1, metavar="C",
+                        help="coefficient of variation --rare stops at (default 0.1)")
+    parser.add_argument("--max-evaluations", type=options.positive_int, default=20_000,
+                        metavar="N", help="exact-model evaluations --rare may use "
+                                          "(default 20000)")
+    options.add_points(parser)
+    return parser
+
+
+def run(args) -> int:
+    machine = options.machine(args)
+    t = options.read_tolerances(args.tolerances, machine)
+    result = verify(machine, t, points=args.points, repeats=args.repeats,
+                    samples=args.samples, rng=args.seed, progress=options.say,
+                    bar=options.progress_bar)
+    print(f"Monte-Carlo verification of {args.tolerances} on {machine.name!r} "
+          f"(seed {args.seed}); probabilities in %\n")
+    print(report_tables(machine, result))
+    worst = result.worst_poses
+    short = worst[worst["mc_upper"] < machine.targets]["output"].tolist()
+    print("\nat every output's worst pose the Monte-Carlo interval reaches the target"
+          if not short else
+          f"\nMonte-Carlo significantly below target at the worst pose: {', '.join(short)}")
+    if args.precision is not None:
+        options.say(f"adaptive Monte-Carlo at the worst poses to relative precision "
+                    f"{args.precision:g}")
+        print("\n" + precision_text(machine, t, args.precision, args.max_samples,
+                                    rng=extra_stream(args.seed, 0)))
+    if args.rare:
+        options.say(f"rare-event estimates at the worst poses ({args.rare_method})")
+        print("\n" + rare_text(machine, t, args, rng=extra_stream(args.seed, 1)))
+    return 0
+
+
+def precision_text(machine, tolerances, precision: float, max_samples: int, *, rng) -> str:
+    """``--precision P``: adaptive Monte-Carlo at the worst poses of the events crude
+    sampling can resolve within ``max_samples``; the others are named, for ``--rare``."""
+    events = reachable_events(machine, tolerances, precision, max_samples)
+    skipped = [e for e in EVENTS if e not in events]
+    note = (f"\nNot sampled (failure probability too small for {max_samples} samples to reach "
+            f"the precision; use --rare): {', '.join(skipped)}" if skipped else "")
+    if not events:
+        return note.lstrip("\n")
+    result = sample_at_poses(machine, tolerances, precision=precision,
+                             max_samples=max_samples, events=events, rng=rng)
+    return result.summary() + note
+
+
+def rare_text(machine, tolerances, args, *, rng) -> str:
+    """``--rare``: failure probabilities at each event's worst grid pose."""
+    table = rare_event_table(machine, tolerances, method=args.rare_method,
+                             target_cov=args.target_cov,
+                             max_evaluations=args.max_evaluations, rng=rng)
+    return (f"Failure probability at each event's worst grid pose ({args.rare_method}, exact "
+            f"model, normal errors):\n"
+            + table.drop(columns=["distribution"]).to_string(float_format="{:.4g}".format))
+
+
+def report_tables(machine, result) -> str:
+    """The three comparisons as text tables."""
+    grid = result.grid_comparison
+    grid_table = pd.DataFrame({
+        "FOSM grid mean": _pct(grid["fosm_two_sided"]),
+        "MC mean": _pct(grid["mc_estimate"]),
+        "95% Wilson (Kish n_eff)": _interval(grid["mc_lower"], grid["mc_upper"]),
+        "FOSM worst pose": _pct(grid["fosm_worst_two_sided"]),
+    }, index=pd.Index(grid["output"], name="output"))
+    random = result.random_poses
+    random_table = pd.DataFrame({
+        "FOSM": _pct(random["fosm_two_sided"]),
+        "MC": _pct(random["estimate"]),
+        "95% Wilson": _interval(random["lower"], random["upper"]),
+    }, index=pd.Index(random["output"], name="output"))
+    worst = result.worst_poses
+    worst_table = pd.DataFrame({
+        "worst pose": [options.pose_text(machine, row) for row in
+                       worst[list(machine.axes)].to_numpy()],
+        "FOSM": _pct(worst["fosm_two_sided"]),
+        "MC": _pct(worst["mc_estimate"]),
+        "95% Wilson": _interval(worst["mc_lower"], worst["mc_upper"]),
+    }, index=pd.Index(worst["output"], name="output"))
+    return "\n\n".join([
+        f"grid experiments ({result.grid.repeats} x {result.grid.n_poses} poses), two-sided:",
+        grid_table.to_string(),
+        f"random poses ({int(random['n'].iloc[0])} independent samples), two-sided:",
+        random_table.to_string(),
+        f"at each output's worst grid pose ({int(worst['samples'].iloc[0])} samples):",
+        worst_table.to_string()])
+
+
+def _pct(values) -> list[str]:
+    return [f"{100 * v:.3f}" for v in values]
+
+
+def _interval(lower, upper) -> list[str]:
+    return [f"[{100 * lo:.3f}, {100 * hi:.3f}]" for lo, hi in zip(lower, upper)]

@@ -1,1 +1,0 @@
-"""Subcommands of ``precrel``: one module each, with ``add_parser`` and ``run``."""

@@ -1,0 +1,70 @@
+"""Optional sections of a machine report beyond FOSM, allocation and verification.
+
+Each builder takes the :class:`studies.workflows.machine_study.MachineStudy` and returns a
+:class:`~studies.report.section.Section`:
+
+- ``front``: the certified cost–reliability front and the worst-case stack
+  (:func:`studies.report.tradeoff.front_section`);
+- ``system``: the probability that all six outputs are inside at once, at the worst pose, for
+  the initial and the optimal allocation (:func:`studies.report.tradeoff.system_section`);
+- ``rare``: Monte-Carlo at each output's worst pose and rare-event estimates of the optimal
+  allocation's failure probabilities (:func:`studies.report.rare.rare_section`);
+- ``profiles``: machine-level yield and Table 9's spread as the motion errors' correlation
+  along travel runs from independent to constant
+  (:func:`studies.report.profiles.profiles_section`).
+"""
+
+from __future__ import annotations
+
+from reliability.streams import extra_stream
+from studies.workflows.profiles import ProfilesStudy, profile_comparison
+
+from .profiles import profiles_section
+from .rare import rare_section
+from .tradeoff import front_section, system_section
+
+#: Every optional section, in report order.
+EXTRAS = ("front", "system", "rare", "profiles")
+#: Profiles compared in a machine report, from independent to constant (lengths in mm).
+REPORT_PROFILES = ("independent", "gp:100", "gp:1000", "constant")
+
+
+def front(study):
+    """Cost against reliability, with the stack and the optimum marked."""
+    return front_section(study.machine, poses=study.problem.poses,
+                         marks={"optimum": study.optimum.tolerances})
+
+
+def system(study):
+    """System reliability at the worst pose for the initial and the optimal allocation."""
+    allocations = {"initial": study.machine.initial_allocation,
+                   "optimum": study.optimum.tolerances}
+    return system_section(study.machine, allocations, poses=study.problem.poses,
+                          rng=extra_stream(study.seed, 0))
+
+
+def rare(study, samples: int = 100_000):
+    """Worst-pose Monte-Carlo and rare-event estimates of the optimal allocation."""
+    return rare_section(study.machine, study.optimum.tolerances, label="optimum",
+                        samples=samples, rng=extra_stream(study.seed, 1))
+
+
+def profiles(study, repeats: int = 200):
+    """Yield and spread between experiments against the correlation length."""
+    allocations = {"initial": study.machine.initial_allocation,
+                   "optimum": study.optimum.tolerances}
+    comparison = profile_comparison(study.machine, allocations, REPORT_PROFILES,
+                                    repeats=(repeats,), seed=study.seed)
+    # wall times would make the same seed write different files
+    return profiles_section(ProfilesStudy(comparison=comparison.drop(columns="seconds")))
+
+
+BUILDERS = {"front": front, "system": system, "rare": rare, "profiles": profiles}
+
+
+def builders(names=EXTRAS):
+    """The section builders for ``names`` (a subset of :data:`EXTRAS`), in report order."""
+    unknown = sorted(set(names) - set(EXTRAS))
+    if unknown:
+        raise ValueError(f"unknown report section {unknown[0]!r}; choose from {EXTRAS}")
+    return [BUILDERS[name] for name in EXTRAS if name in names]

@@ -1,0 +1,73 @@
+"""The small markdown the reports use: pipe tables from DataFrames, and its HTML rendering.
+
+:func:`markdown_table` writes a GitHub-flavoured table; :func:`markdown_to_html` renders the
+subset the report sections use (paragraphs, ``-`` lists, pipe tables, ``###`` headings,
+``**bold**`` and ``code``) for the self-contained ``report.html``.
+"""
+
+from __future__ import annotations
+
+import html
+import re
+
+import numpy as np
+import pandas as pd
+
+
+def markdown_table(frame: pd.DataFrame, formats: dict | None = None,
+                   index: bool = True) -> str:
+    """A GitHub-flavoured markdown table; ``formats`` maps column -> formatter."""
+    formats = formats or {}
+    frame = frame.reset_index() if index else frame
+    header = "| " + " | ".join(str(c) for c in frame.columns) + " |"
+    rule = "| " + " | ".join("---" for _ in frame.columns) + " |"
+    rows = []
+    for _, row in frame.iterrows():
+        cells = [formats.get(c, format_cell)(row[c]) for c in frame.columns]
+        rows.append("| " + " | ".join(cells) + " |")
+    return "\n".join([header, rule, *rows])
+
+
+def format_cell(value) -> str:
+    """A table cell: yes/no for booleans, 5 significant digits for floats (– for NaN)."""
+    if isinstance(value, (bool, np.bool_)):
+        return "yes" if value else "no"
+    if isinstance(value, (float, np.floating)):
+        return "–" if np.isnan(value) else f"{value:.5g}"
+    return str(value)
+
+
+def markdown_to_html(text: str) -> str:
+    """The markdown the report sections use: paragraphs, ``-`` lists, pipe tables,
+    ``###`` headings, ``**bold**`` and ``code``."""
+    blocks, out = re.split(r"\n\s*\n", text.strip()), []
+    for block in blocks:
+        lines = block.strip().splitlines()
+        if all(line.lstrip().startswith("|") for line in lines):
+            out.append(_table(lines))
+        elif all(line.lstrip().startswith("- ") for line in lines):
+            out.append("<ul>" + "".join(f"<li>{_inline(line.lstrip()[2:])}</li>"
+                                        for line in lines) + "</ul>")
+        elif lines[0].startswith("#"):
+            level = min(6, len(lines[0]) - len(lines[0].lstrip("#")) + 2)
+            out.append(f"<h{level}>{_inline(lines[0].lstrip('#').strip())}</h{level}>")
+            if lines[1:]:
+                out.append(f"<p>{_inline(' '.join(lines[1:]))}</p>")
+        else:
+            out.append(f"<p>{_inline(' '.join(lines))}</p>")
+    return "\n".join(out)
+
+
+def _table(lines) -> str:
+    rows = [[cell.strip() for cell in line.strip().strip("|").split("|")] for line in lines
+            if not re.fullmatch(r"\|?[\s:|-]+\|?", line.strip())]
+    head = "".join(f"<th>{_inline(c)}</th>" for c in rows[0])
+    body = "".join("<tr>" + "".join(f"<td>{_inline(c)}</td>" for c in row) + "</tr>"
+                   for row in rows[1:])
+    return f"<table><thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>"
+
+
+def _inline(text: str) -> str:
+    text = html.escape(text)
+    text = re.sub(r"\*\*(.+?)\*\*", r"<strong>\1</strong>", text)
+    return re.sub(r"`(.+?)`", r"<code>\1</code>", text)

@@ -1,0 +1,540 @@
+"""Figures for precision allocation and precision reliability (the paper's Figs. 8-15) and
+the cost–reliability front.
+
+Every function draws onto a given :class:`matplotlib.axes.Axes` (or a new figure when
+``ax=None``), labels titles, axes (with units) and legends so the figure reads without the
+code, and returns the axes. Nothing here opens a window or picks a backend.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+import matplotlib.pyplot as plt
+import numpy as np
+from matplotlib.ticker import PercentFormatter
+
+from reliability.streams import generator
+
+__all__ = [
+    "plot_allocation_comparison",
+    "plot_comprehensive_error_scatter",
+    "plot_convergence",
+    "plot_front",
+    "plot_reliability_comparison",
+    "plot_repeats",
+]
+
+#: Units of the six comprehensive errors, by the design's component names.
+UNITS = {"dx": "mm", "dy": "mm", "dz": "mm", "ex": "rad", "ey": "rad", "ez": "rad"}
+INSIDE_COLOR, OUTSIDE_COLOR = "tab:blue", "tab:red"
+
+
+# --------------------------------------------------------------------------- helpers
+def _axes(ax, figsize):
+    """Return ``ax``, or the axes of a new figure of ``figsize`` inches."""
+    if ax is None:
+        _, ax = plt.subplots(figsize=figsize, layout="constrained")
+    return ax
+
+
+def _finite_1d(name, values):
+    """Return ``values`` as a finite 1-d float array."""
+    x = np.asarray(values, dtype=float)
+    if x.ndim != 1:
+        raise ValueError(f"{name} must be 1-dimensional; got shape {x.shape}")
+    bad = np.flatnonzero(~np.isfinite(x))
+    if bad.size:
+        raise ValueError(f"{name} must be finite; {name}[{bad[0]}] = {x[bad[0]]}")
+    return x
+
+
+def _positive(name, value):
+    """Return ``value`` as a finite positive float."""
+    v = float(value)
+    if not (np.isfinite(v) and v > 0):
+        raise ValueError(f"{name} must be finite and positive; got {value!r}")
+    return v
+
+
+def _require_columns(frame, columns):
+    """Refuse a frame that lacks any of ``columns``, naming the missing ones."""
+    missing = [c for c in columns if c not in frame.columns]
+    if missing:
+        raise ValueError(f"frame lacks column(s) {missing}; it has {list(frame.columns)}")
+
+
+def _target_line(ax, target):
+    """Draw a horizontal target-probability line, if a target is given."""
+    if target is None:
+        return
+    if not 0.0 < target < 1.0:
+        raise ValueError(f"target must lie in (0, 1); got {target!r}")
+    ax.axhline(target, color="k", ls=":", lw=1.2, label=f"target {100 * target:g} %")
+
+
+# --------------------------------------------------------------------------- Figs. 8-9
+def _allocations(before, after, labels):
+    """Return the allocations as an ordered dict label -> values, reference first."""
+    if isinstance(before, Mapping):
+        if after is not None:
+            raise TypeError("give either a mapping label -> values, or before and after")
+        allocations = dict(before)
+    else:
+        if after is None:
+            raise TypeError("after is required unless before is a mapping label -> values")
+        if len(labels) != 2:
+            raise ValueError(f"labels must hold 2 labels for before/after; got {labels!r}")
+        allocations = dict(zip(labels, (before, after)))
+    if len(allocations) < 2:
+        raise ValueError(f"need at least 2 allocations to compare; got {list(allocations)}")
+    return allocations
+
+
+def _tolerances(label, values, names):
+    """Return one allocation as a positive finite array aligned with ``names``."""
+    t = np.asarray(values, dtype=float)
+    if t.shape != (len(names),):
+        raise ValueError(
+            f"allocation {label!r} has shape {t.shape}; expected ({len(names)},) to match names"
+        )
+    bad = np.flatnonzero(~(np.isfinite(t) & (t > 0)))
+    if bad.size:
+        i = bad[0]
+        raise ValueError(f"allocation {label!r}: tolerance of {names[i]!r} is {t[i]}")
+    return t
+
+
+def _group_separators(ax, names):
+    """Faint vertical lines between items of different axes or joints ("X" in "X.dx")."""
+    groups = [name.split(".")[0] for name in names]
+    for i in range(1, len(groups)):
+        if groups[i] != groups[i - 1]:
+            ax.axvline(i - 0.5, color="0.85", lw=0.8, zorder=0)
+
+
+def plot_allocation_comparison(
+    before,
+    after=None,
+    *,
+    names,
+    ax=None,
+    title=None,
+    labels=("reference", "optimised"),
+):
+    """Grouped bars comparing tolerance allocations item by item (Figs. 8 and 9).
+
+    Translational tolerances (mm) and angular ones (rad) differ by about 200 times, so
+    the bars show each allocation **relative to the reference** (the first allocation):
+    a bar of height ``t / t_reference`` drawn from the reference line at 1. A bar above
+    the line is a looser (cheaper) tolerance, below it a tighter one; the right-hand
+    axis reads the same bar as a percentage change, Table 6's "optimisation rate".
+
+    Parameters
+    ----------
+    before : array_like or Mapping[str, array_like]
+        Reference tolerances, one per name; or a mapping label -> tolerances holding
+        two or more allocations (e.g. initial, paper, gwo, exact), the first of which
+        is the reference.
+    after : array_like, optional
+        Compared tolerances; required unless `before` is a mapping.
+    names : sequence of str
+        Error-item names in the design's notation (``"X.dx"``, ``"C-X.ez"``).
+    ax : matplotlib.axes.Axes, optional
+        Axes to draw on; a new figure if None.
+    title : str, optional
+        Title; a description of the comparison if None.
+    labels : tuple of 2 str
+        Legend labels of `before` and `after` (ignored for a mapping).
+
+    Returns
+    -------
+    matplotlib.axes.Axes
+
+    Raises
+    ------
+    TypeError
+        If `after` is missing for array input, or given together with a mapping.
+    ValueError
+        If an allocation's length differs from `names`, or a tolerance is non-positive or
+        non-finite (allocation and item named).
+    """
+    names = [str(n) for n in names]
+    allocations = {
+        label: _tolerances(label, values, names)
+        for label, values in _allocations(before, after, labels).items()
+    }
+    (ref_label, ref), *others = allocations.items()
+    ax = _axes(ax, (max(6.0, 0.3 * len(names) + 2), 4.5))
+    x = np.arange(len(names))
+    width = 0.8 / len(others)
+    for j, (label, t) in enumerate(others):
+        offset = (j - (len(others) - 1) / 2) * width
+        ax.bar(x + offset, t / ref - 1.0, width, bottom=1.0, label=label)
+    ax.axhline(1.0, color="k", lw=1.0, label=f"{ref_label} = 1")
+    _group_separators(ax, names)
+    ax.set_xticks(x, names, rotation=90)
+    ax.set_xlim(-0.6, len(names) - 0.4)
+    ax.set_xlabel("error item (axis.component or joint.component)")
+    ax.set_ylabel(f"tolerance / {ref_label} tolerance")
+    change = ax.secondary_yaxis(
+        "right", functions=(lambda r: 100 * (r - 1), lambda c: 1 + c / 100)
+    )
+    change.set_ylabel(f"change from {ref_label} (%)")
+    ax.set_title(title or f"Tolerance allocation relative to {ref_label} ({len(names)} items)")
+    ax.legend(loc="best", fontsize="small")
+    return ax
+
+
+# --------------------------------------------------------------------------- Figs. 10-15
+def _unit(output_label, unit):
+    """Return the unit to print, from `unit` or the component name in `output_label`."""
+    if unit is not None:
+        return unit
+    if output_label in UNITS:
+        return UNITS[output_label]
+    raise ValueError(
+        f"cannot infer the unit of {output_label!r}; pass unit= (e.g. 'mm' or 'rad')"
+    )
+
+
+def _shown_inside(outside, max_points, rng):
+    """Indices of inside points to draw: all, or a random subset so the total fits.
+
+    Outside points are never dropped, so the subset holds ``max_points - n_outside``
+    inside points (none if the outside points alone exceed `max_points`).
+    """
+    inside = np.flatnonzero(~outside)
+    if max_points is None:
+        return inside
+    if int(max_points) != max_points or max_points < 1:
+        raise ValueError(f"max_points must be a positive integer; got {max_points!r}")
+    keep = max(int(max_points) - int(outside.sum()), 0)
+    if keep >= inside.size:
+        return inside
+    return np.sort(generator(rng).choice(inside, size=keep, replace=False))
+
+
+def plot_comprehensive_error_scatter(
+    values, limit, *, output_label, unit=None, ax=None, max_points=None, rng=None
+):
+    """Scatter of one comprehensive error over the poses of a grid experiment (Figs. 10-15).
+
+    Points with ``|value| > limit`` are red, the others blue; dashed lines mark
+    ``+-limit``. The legend and title count the poses outside, over all of `values` even
+    when only a subset is drawn.
+
+    Parameters
+    ----------
+    values : array_like, shape (n_poses,)
+        The comprehensive error at each pose (e.g. 15 625 for 5 points on six axes).
+    limit : float
+        Design limit ``I`` of this error, > 0 (e.g. 0.02 mm, 4.8e-5 rad; Eq. 35).
+    output_label : str
+        Name of the error, printed on the axes (``"dx"`` ... ``"ez"`` or e.g. ``"δx"``).
+    unit : str, optional
+        Unit of `values` and `limit`; inferred for the names ``dx dy dz`` (mm) and
+        ``ex ey ez`` (rad), required otherwise.
+    ax : matplotlib.axes.Axes, optional
+        Axes to draw on; a new figure if None.
+    max_points : int, optional
+        Draw at most this many points: all outside points, plus a random subset of the
+        inside ones. All points if None.
+    rng : None, int or numpy.random.Generator
+        Seed or generator for that subset (through :func:`reliability.streams.generator`).
+
+    Returns
+    -------
+    matplotlib.axes.Axes
+
+    Raises
+    ------
+    ValueError
+        If `values` is not a finite 1-d array, `limit` is not positive, `max_points` is
+        not a positive integer, or the unit cannot be inferred.
+    """
+    values = _finite_1d("values", values)
+    limit = _positive("limit", limit)
+    unit = _unit(output_label, unit)
+    outside = np.abs(values) > limit
+    n_out, n_in = int(outside.sum()), int((~outside).sum())
+    inside = _shown_inside(outside, max_points, rng)
+    shown = "" if inside.size == n_in else f", {inside.size} drawn"
+    ax = _axes(ax, (8.0, 4.0))
+    ax.scatter(inside, values[inside], s=3, color=INSIDE_COLOR, linewidths=0,
+               label=f"within limit: {n_in} poses{shown}")
+    out_idx = np.flatnonzero(outside)
+    ax.scatter(out_idx, values[out_idx], s=8, color=OUTSIDE_COLOR, linewidths=0,
+               label=f"outside limit: {n_out} poses")
+    ax.axhline(limit, color="k", ls="--", lw=1.0, label=f"limit ±{limit:g} {unit}")
+    ax.axhline(-limit, color="k", ls="--", lw=1.0)
+    span = 1.15 * max(limit, float(np.abs(values).max()))
+    ax.set_ylim(-span, span)  # both limit lines in view, symmetric about zero
+    ax.set_xlabel("pose index in the grid experiment")
+    ax.set_ylabel(f"{output_label} ({unit})")
+    ax.set_title(f"Comprehensive error {output_label}: {n_out} of {values.size} poses "
+                 f"outside ±{limit:g} {unit}")
+    ax.legend(loc="upper right", fontsize="small", markerscale=2)
+    return ax
+
+
+# --------------------------------------------------------------------------- convergence
+def _yscale(yscale, values):
+    """Resolve ``"auto"`` to log when positive values span more than two decades."""
+    if yscale not in ("auto", "linear", "log"):
+        raise ValueError(f"unknown yscale {yscale!r}; choose 'auto', 'linear' or 'log'")
+    if yscale != "auto":
+        return yscale
+    positive = np.all(values > 0)
+    return "log" if positive and values.max() / values.min() > 100 else "linear"
+
+
+def plot_convergence(history, *, optimum=None, ax=None, yscale="auto"):
+    """Best objective per GWO iteration, against the certified optimum.
+
+    Parameters
+    ----------
+    history : pandas.DataFrame
+        One row per iteration, indexed by iteration, with column ``best_objective`` (or
+        ``cost``, as in the history of :func:`allocation.solve_gwo`) and
+        optionally a boolean column ``feasible`` (is the best wolf feasible); infeasible
+        iterations are marked with red crosses.
+    optimum : float, optional
+        Certified global optimum (the exact convex solution), drawn as a dashed line
+        with its value in the legend; the final relative gap goes in the title.
+    ax : matplotlib.axes.Axes, optional
+        Axes to draw on; a new figure if None.
+    yscale : {"auto", "linear", "log"}
+        ``"auto"`` uses a log scale when the positive values span more than a factor 100.
+
+    Returns
+    -------
+    matplotlib.axes.Axes
+
+    Raises
+    ------
+    ValueError
+        If the column ``best_objective`` is missing, empty or non-finite, if ``feasible``
+        is not boolean, or if `yscale` is unknown.
+    """
+    if "best_objective" not in history.columns and "cost" in history.columns:
+        history = history.rename(columns={"cost": "best_objective"})  # solve_gwo's history
+    _require_columns(history, ["best_objective"])
+    best = _finite_1d("best_objective", history["best_objective"])
+    if best.size == 0:
+        raise ValueError("history has no iterations")
+    it = history.index.to_numpy()
+    ax = _axes(ax, (7.0, 4.0))
+    ax.plot(it, best, color="tab:blue", lw=1.5, label="GWO best objective")
+    if "feasible" in history.columns:
+        feasible = history["feasible"].to_numpy()
+        if feasible.dtype != bool:
+            raise ValueError(f"column 'feasible' must be boolean; got dtype {feasible.dtype}")
+        ax.plot(it[~feasible], best[~feasible], "x", color=OUTSIDE_COLOR, ms=4,
+                label=f"best infeasible ({int((~feasible).sum())} iterations)")
+    title = "GWO convergence"
+    scaled = best
+    if optimum is not None:
+        optimum = float(optimum)
+        ax.axhline(optimum, color="k", ls="--", lw=1.0, label=f"certified optimum = {optimum:.6g}")
+        title += f": final gap {100 * (best[-1] - optimum) / abs(optimum):.3g} %"
+        scaled = np.append(best, optimum)
+    ax.set_yscale(_yscale(yscale, scaled))
+    ax.set_xlabel("iteration")
+    ax.set_ylabel("best objective (manufacturing cost, Eq. 28)")
+    ax.set_title(title)
+    ax.legend(loc="best", fontsize="small")
+    return ax
+
+
+# --------------------------------------------------------------------------- FOSM vs MC
+RELIABILITY_COLUMNS = ("output", "fosm_one_sided", "fosm_two_sided", "mc_estimate",
+                       "mc_lower", "mc_upper")
+
+
+def _check_reliability_frame(frame):
+    """Refuse missing columns, probabilities outside [0, 1] and inverted intervals."""
+    _require_columns(frame, RELIABILITY_COLUMNS)
+    for column in RELIABILITY_COLUMNS[1:]:
+        _finite_1d(column, frame[column])
+    for column in RELIABILITY_COLUMNS[1:4]:
+        bad = frame[(frame[column] < 0) | (frame[column] > 1)]
+        if len(bad):
+            output, value = bad["output"].iloc[0], bad[column].iloc[0]
+            raise ValueError(f"{column} must lie in [0, 1]; output {output!r} has {value}")
+    est = frame["mc_estimate"]
+    inverted = frame.loc[(frame["mc_lower"] > est) | (est > frame["mc_upper"]), "output"]
+    if len(inverted):
+        raise ValueError(
+            f"mc_lower <= mc_estimate <= mc_upper fails for output {inverted.iloc[0]!r}"
+        )
+
+
+def plot_reliability_comparison(frame, *, target=None, ax=None):
+    """Per output: FOSM-predicted probabilities beside the Monte-Carlo estimate.
+
+    The FOSM values (Eqs. 19-23) are drawn as markers, one-sided ``Φ(I/σ)`` as in the
+    paper and two-sided ``P(|y| < I)``; the Monte-Carlo estimate carries its interval as
+    an error bar. For a like-with-like comparison the FOSM columns should be computed on
+    the same poses as the Monte-Carlo estimate (e.g. averaged over the grid).
+
+    Parameters
+    ----------
+    frame : pandas.DataFrame
+        One row per output with columns ``output``, ``fosm_one_sided``,
+        ``fosm_two_sided``, ``mc_estimate``, ``mc_lower``, ``mc_upper``. The bounds are
+        drawn as given; a t-interval may reach above 1.
+    target : float, optional
+        Reliability target (e.g. 0.99), drawn as a dotted line.
+    ax : matplotlib.axes.Axes, optional
+        Axes to draw on; a new figure if None.
+
+    Returns
+    -------
+    matplotlib.axes.Axes
+
+    Raises
+    ------
+    ValueError
+        If a column is missing, a probability is outside [0, 1] or non-finite, an interval
+        does not contain its estimate (the output is named), or `target` is outside (0, 1).
+    """
+    _check_reliability_frame(frame)
+    x = np.arange(len(frame))
+    est = frame["mc_estimate"].to_numpy(float)
+    yerr = np.vstack([est - frame["mc_lower"], frame["mc_upper"] - est])
+    ax = _axes(ax, (7.0, 4.0))
+    ax.plot(x - 0.2, frame["fosm_one_sided"], "v", color="tab:orange",
+            label="FOSM one-sided Φ(I/σ) (paper)")
+    ax.plot(x, frame["fosm_two_sided"], "^", color="tab:green",
+            label="FOSM two-sided P(|y| < I)")
+    ax.errorbar(x + 0.2, est, yerr=yerr, fmt="o", color=INSIDE_COLOR, capsize=3,
+                label="Monte Carlo, with interval")
+    _target_line(ax, target)
+    ax.set_xticks(x, frame["output"].astype(str))
+    ax.set_xlabel("comprehensive error")
+    ax.set_ylabel("probability within limit")
+    ax.yaxis.set_major_formatter(PercentFormatter(xmax=1.0))
+    ax.set_title("Precision reliability: FOSM prediction vs Monte Carlo")
+    ax.legend(loc="best", fontsize="small")
+    return ax
+
+
+# --------------------------------------------------------------------------- Table 9
+def _repeat_groups(frame, outputs, by):
+    """Validate the repeats frame; return (outputs, [(group label, sub-frame), ...])."""
+    frame = frame[~frame.index.isin(SUMMARY_ROWS)]
+    if by is not None:
+        _require_columns(frame, [by])
+    if outputs is None:
+        outputs = [c for c in frame.columns if c not in (by, "repeat")]
+    outputs = list(outputs)
+    if not outputs:
+        raise ValueError("no output columns to plot")
+    _require_columns(frame, outputs)
+    for column in outputs:
+        f = _finite_1d(column, frame[column])
+        bad = np.flatnonzero((f < 0) | (f > 1))
+        if bad.size:
+            raise ValueError(f"fractions must lie in [0, 1]; {column}[{bad[0]}] = {f[bad[0]]}")
+    groups = list(frame.groupby(by, sort=False)) if by is not None else [(None, frame)]
+    return outputs, groups
+
+
+#: Summary rows of :meth:`GridExperimentResult.table9`, which are not experiments.
+SUMMARY_ROWS = ("Avg", "Min", "Max")
+
+
+def plot_repeats(frame, *, outputs=None, by=None, target=0.99, ax=None):
+    """Per-experiment fractions within limit, per output (the paper's Table 9 as a figure).
+
+    For each output a box (quartiles, whiskers to the extremes) summarises the repeated
+    grid experiments, and every experiment is drawn as a point, spread sideways in
+    experiment order so that equal values (many experiments sit at exactly 100 %) stay
+    visible.
+
+    Parameters
+    ----------
+    frame : pandas.DataFrame
+        One row per experiment, one column per output, values in [0, 1] (e.g. the rows of
+        ``table9_repeats.csv``, or :meth:`GridExperimentResult.table9`, whose rows
+        labelled Avg, Min and Max are left out).
+    outputs : sequence of str, optional
+        Columns to plot; by default every column except `by` and ``"repeat"``.
+    by : str, optional
+        Column splitting the rows into groups drawn side by side (e.g. ``"allocation"``).
+    target : float or None, default 0.99
+        Reliability target drawn as a dotted line; None for no line.
+    ax : matplotlib.axes.Axes, optional
+        Axes to draw on; a new figure if None.
+
+    Returns
+    -------
+    matplotlib.axes.Axes
+
+    Raises
+    ------
+    ValueError
+        If a named column is missing, a fraction is non-finite or outside [0, 1] (column
+        and row named), or `target` is outside (0, 1).
+    """
+    outputs, groups = _repeat_groups(frame, outputs, by)
+    ax = _axes(ax, (max(6.0, 0.7 * len(outputs) * len(groups) + 2), 4.0))
+    width = 0.8 / len(groups)
+    x = np.arange(len(outputs))
+    for j, (label, sub) in enumerate(groups):
+        pos = x + (j - (len(groups) - 1) / 2) * width
+        data = [sub[c].to_numpy(float) for c in outputs]
+        ax.boxplot(data, positions=pos, widths=0.8 * width, whis=(0, 100),
+                   manage_ticks=False, medianprops={"color": "k"})
+        spread = np.linspace(-0.3, 0.3, len(sub)) * width
+        xs = np.concatenate([p + spread for p in pos])
+        ys = np.concatenate(data)
+        name = "one grid experiment" if label is None else f"{label} (n = {len(sub)})"
+        ax.scatter(xs, ys, s=12, alpha=0.7, color=f"C{j}", linewidths=0, label=name, zorder=3)
+    _target_line(ax, target)
+    ax.set_xticks(x, outputs)
+    ax.set_xlabel("comprehensive error")
+    ax.set_ylabel("fraction of poses within limit")
+    ax.yaxis.set_major_formatter(PercentFormatter(xmax=1.0))
+    ax.set_title("Fraction within limit, per repeated grid experiment")
+    ax.legend(loc="best", fontsize="small")
+    return ax
+
+
+def plot_front(front, *, marks=None, ax=None):
+    """Relative cost against the failure probability 1 − R (log axis), with the stack.
+
+    Parameters
+    ----------
+    front : pandas.DataFrame
+        From :func:`allocation.front.cost_reliability_front`.
+    marks : mapping, optional
+        ``{label: (reliability, relative_cost)}`` of allocations to mark, e.g. the initial
+        allocation and the paper's Table 6 from :func:`allocation.front.allocation_point`.
+    ax : matplotlib.axes.Axes, optional
+
+    Returns
+    -------
+    matplotlib.axes.Axes
+    """
+    ax = _axes(ax, (6.4, 4.2))
+    feasible = front[front["feasible"]].sort_values("target")
+    failure = 1.0 - feasible["target"].to_numpy()
+    ax.plot(failure, feasible["relative_cost"], "o-", ms=3,
+            label=f"certified optimum ({front.attrs.get('side', '')})")
+    stack = front.attrs.get("stack") or {}
+    if "relative_cost" in stack:
+        ax.axhline(stack["relative_cost"], color="k", ls="--",
+                   label=f"worst-case stack ({stack['relative_cost']:.3g}×)")
+    for (label, (reliability, cost)), marker in zip((marks or {}).items(), "s^vD"):
+        ax.plot([max(1.0 - reliability, np.finfo(float).tiny)], [cost], marker, ms=8,
+                label=f"{label} (worst R = {reliability:.6g})")
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.invert_xaxis()
+    ax.set_xlabel("1 − R (worst output, worst pose)")
+    ax.set_ylabel("cost relative to the reference allocation")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize="small")
+    return ax

@@ -1,0 +1,138 @@
+"""Write a report: a list of :class:`~studies.report.section.Section` into a folder.
+
+The folder receives every section's tables as CSV and figures as PNG, ``report.md``,
+``report.html`` (self-contained: figures embedded as base64 PNG, no network access
+needed) and ``summary.json`` (the sections' summary entries merged). Numbers in the CSV,
+markdown and JSON files are written to :data:`SIGNIFICANT` significant digits, so that a
+rerun with the same seed, on this or another computer, gives the same files.
+"""
+
+from __future__ import annotations
+
+import base64
+import html
+import io
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+
+from reliability.files import atomic_write_bytes, atomic_write_text, check_destination
+
+from .markdown import markdown_to_html
+
+#: Significant digits of every number written to CSV, markdown and JSON.
+SIGNIFICANT = 6
+#: Files whose presence marks a folder as holding an earlier report.
+REPORT_MARKERS = ("summary.json", "report.md", "report.html")
+FIGURE_DPI = 100
+
+
+def check_output_folder(out, overwrite: bool) -> Path:
+    """The report folder, checked before any work by
+    :func:`reliability.files.check_destination`: refused if it is a file, if its parent
+    does not exist, or if it holds an earlier report (:data:`REPORT_MARKERS`) and
+    ``overwrite`` is false. :func:`write_report` creates it."""
+    return check_destination(out, overwrite, folder=True, markers=REPORT_MARKERS)
+
+
+def write_report(out, sections, summary: dict, *, title: str, overwrite: bool = False
+                 ) -> list[Path]:
+    """Write ``sections`` into ``out``; return the paths written.
+
+    Parameters
+    ----------
+    out : str or Path
+        Folder, created if absent (check it first with :func:`check_output_folder`).
+    sections : list of Section
+        In report order; their tables, figures and summary entries are written too.
+    summary : dict
+        Entries of ``summary.json`` (the sections' entries are merged into it).
+    title : str
+        Heading of the report.
+    overwrite : bool
+        Replace files of an earlier report; files the report does not write are never
+        touched.
+    """
+    out = Path(out)
+    out.mkdir(exist_ok=True)
+    written, merged = [], dict(summary)
+    for section in sections:
+        merged.update(section.summary)
+        for name, frame in section.tables.items():
+            index = frame.index.name is not None or any(frame.index.names)
+            written.append(atomic_write_text(out / name, frame.to_csv(
+                index=index, float_format=f"%.{SIGNIFICANT}g"), overwrite))
+    images = {}
+    for section in sections:
+        for name, figure in section.figures.items():
+            images[name] = _png(figure)
+            written.append(atomic_write_bytes(out / name, images[name], overwrite))
+    markdown = render_markdown(title, sections)
+    written.append(atomic_write_text(out / "report.md", markdown, overwrite))
+    written.append(atomic_write_text(out / "report.html",
+                                     render_html(title, sections, images), overwrite))
+    written.append(atomic_write_text(out / "summary.json",
+                                     json.dumps(rounded(merged), indent=2) + "\n", overwrite))
+    return written
+
+
+def rounded(value):
+    """``value`` with every float rounded to :data:`SIGNIFICANT` significant digits and
+    numpy scalars made plain Python (for JSON)."""
+    if isinstance(value, dict):
+        return {str(k): rounded(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple, np.ndarray)):
+        return [rounded(v) for v in value]
+    if isinstance(value, (bool, np.bool_)):
+        return bool(value)
+    if isinstance(value, (int, np.integer)):
+        return int(value)
+    if isinstance(value, (float, np.floating)):
+        value = float(value)
+        return value if not math.isfinite(value) or value == 0 else \
+            float(f"{value:.{SIGNIFICANT}g}")
+    return value
+
+
+def _png(figure) -> bytes:
+    """The figure as PNG bytes, without a creation-software stamp (stable bytes)."""
+    import matplotlib.pyplot as plt
+    buffer = io.BytesIO()
+    figure.savefig(buffer, format="png", dpi=FIGURE_DPI, metadata={"Software": None})
+    plt.close(figure)
+    return buffer.getvalue()
+
+
+# ----- markdown ------------------------------------------------------------------------
+def render_markdown(title: str, sections) -> str:
+    """``report.md``: the title, then each section's text and its figures."""
+    parts = [f"# {title}"]
+    for section in sections:
+        parts.append(f"## {section.title}\n\n{section.text.strip()}")
+        parts += [f"![{name}]({name})" for name in section.figures]
+    return "\n\n".join(parts) + "\n"
+
+
+# ----- HTML ----------------------------------------------------------------------------
+STYLE = ("body{font-family:sans-serif;max-width:1100px;margin:2em auto;padding:0 1em;"
+         "line-height:1.45;color:#222}table{border-collapse:collapse;margin:1em 0;"
+         "font-size:90%}td,th{border:1px solid #bbb;padding:3px 8px;text-align:right}"
+         "th{background:#eee}img{max-width:100%;display:block;margin:1em 0}"
+         "code{background:#f3f3f3;padding:0 3px}")
+
+
+def render_html(title: str, sections, images: dict[str, bytes]) -> str:
+    """``report.html``: the sections' markdown as HTML, figures inline as data URIs."""
+    body = [f"<h1>{html.escape(title)}</h1>"]
+    for section in sections:
+        body.append(f"<h2>{html.escape(section.title)}</h2>")
+        body.append(markdown_to_html(section.text))
+        for name in section.figures:
+            data = base64.b64encode(images[name]).decode("ascii")
+            body.append(f'<img alt="{html.escape(name)}" '
+                        f'src="data:image/png;base64,{data}">')
+    return ("<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">"
+            f"<title>{html.escape(title)}</title><style>{STYLE}</style></head>\n<body>\n"
+            + "\n".join(body) + "\n</body></html>\n")

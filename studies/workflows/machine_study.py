@@ -1,0 +1,122 @@
+"""A machine's study: the same steps for any machine, as results (no text).
+
+machine → FOSM of the initial allocation (Eqs. 19–23) → the certified cheapest allocation
+meeting the targets at every grid pose (Eq. 34) → Monte-Carlo verification of both
+allocations (Sec. 5.3, :func:`reliability.verification.verify`). The report's sections are
+made from the result by :mod:`studies.report.machine_sections`.
+
+Defaults are the report's contract: the exact two-sided probability, the worst case over
+the 5-point grid, bounds [0.5, 1.5] × the initial allocation, limits and targets from the
+machine file.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import pandas as pd
+
+from allocation import AllocationProblem
+from reliability.fosm import fosm
+from reliability.poses import workspace_grid
+from reliability.streams import spawn
+from reliability.verification import verify
+
+#: Relative change of a tolerance below which it counts as unchanged.
+UNCHANGED = 0.01
+
+
+@dataclass(frozen=True)
+class MachineStudy:
+    """Everything a machine report is made from (see :func:`run`)."""
+
+    machine: object
+    points: int
+    side: str
+    bounds: tuple
+    seed: int
+    problem: object
+    initial_fosm: object
+    optimum: object
+    optimal_fosm: object
+    checks: dict  # allocation name -> reliability.verification.Verification
+
+
+def run(machine, *, points: int = 5, side: str = "two_sided", bounds=(0.5, 1.5),
+        seed: int = 0, repeats: int = 20, samples: int = 20_000, progress=None,
+        bar=None) -> MachineStudy:
+    """Run the study of ``machine``.
+
+    Parameters
+    ----------
+    machine : Machine
+    points : int
+        Grid points per axis (the allocation constraint holds at every grid pose).
+    side : {'two_sided', 'one_sided'}
+    bounds : (float, float)
+        Tolerance box as factors of the initial allocation.
+    seed : int
+        Seed of the Monte-Carlo verification: ``spawn(seed, 2)`` gives the streams of the
+        initial and the optimal allocation (:mod:`reliability.streams`).
+    repeats, samples : int
+        Grid experiments, and random-pose / worst-pose samples, per allocation.
+    progress : callable, optional
+        ``progress(text)`` before each step.
+    bar : callable, optional
+        Progress-bar factory passed to :func:`reliability.verification.verify`.
+
+    Raises
+    ------
+    allocation.TargetUnreachableError
+        No allocation inside the bounds meets the targets.
+    """
+    progress = progress or (lambda text: None)
+    progress(f"FOSM of the initial allocation on the {points}-point grid")
+    problem = AllocationProblem.build(machine, workspace_grid(machine, points), side=side,
+                                      bounds=bounds)
+    initial = fosm(machine, problem.reference, problem.poses, jacobian=problem.jacobian)
+    progress("certified cheapest allocation (convex solver)")
+    optimum = problem.solve_exact()
+    optimal = fosm(machine, optimum.tolerances, problem.poses, jacobian=problem.jacobian)
+    checks = {}
+    for (name, t, prediction), rng in zip((("initial", problem.reference, initial),
+                                           ("optimum", optimum.tolerances, optimal)),
+                                          spawn(seed, 2)):
+        progress(f"Monte-Carlo verification of the {name} allocation")
+        checks[name] = verify(machine, t, points=points, repeats=repeats, samples=samples,
+                              rng=rng, progress=lambda text: progress(f"  {text}"), bar=bar,
+                              prediction=prediction)
+    return MachineStudy(machine=machine, points=points, side=side, bounds=tuple(bounds),
+                        seed=seed, problem=problem, initial_fosm=initial, optimum=optimum,
+                        optimal_fosm=optimal, checks=checks)
+
+
+def summary(study: MachineStudy) -> dict:
+    """The ``summary.json`` entries (the report's contract plus a few more)."""
+    initial_cost = float(study.problem.cost.total(study.problem.reference))
+    return {
+        "machine": study.machine.name,
+        "points_per_axis": study.points,
+        "side": study.side,
+        "bounds": list(study.bounds),
+        "initial_cost": initial_cost,
+        "optimal_cost": study.optimum.cost,
+        "relative_cost": study.optimum.cost / initial_cost,
+        "certified": bool(study.optimum.certificate["certified"]),
+        "relative_gap": float(study.optimum.certificate["relative_gap"]),
+        "initial_meets_targets": bool(study.initial_fosm.meets_targets(study.side).all()),
+        "optimal_meets_targets": bool(study.optimal_fosm.meets_targets(study.side).all()),
+        "seed": study.seed,
+        "repeats": study.checks["optimum"].grid.repeats,
+        "samples": int(study.checks["optimum"].worst_poses["samples"].iloc[0]),
+    }
+
+
+def tolerance_changes(study: MachineStudy) -> tuple[pd.Series, pd.Series]:
+    """The errors the optimum tightens and relaxes by more than :data:`UNCHANGED`, as
+    relative changes (allocated / initial − 1), largest first (ties in error order)."""
+    rate = pd.Series(study.optimum.tolerances / study.problem.reference - 1.0,
+                     index=study.machine.error_names)
+    tighten = rate[rate < -UNCHANGED].sort_values(kind="stable")
+    relax = rate[rate > UNCHANGED].sort_values(ascending=False, kind="stable")
+    return tighten, relax

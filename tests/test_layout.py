@@ -1,0 +1,197 @@
+"""The house rules of the code base, checked on the source itself.
+
+- Imports run one way: ``reliability`` <- ``allocation`` <- ``studies.workflows`` <-
+  ``studies.report`` <- ``studies.cli``; ``studies.paper`` and ``studies.benchmarks`` (and the
+  two entry points ``studies.reproduce_paper`` and ``studies.__main__``) may import anything
+  and nothing else imports them.
+- No two modules import each other, directly or through a cycle (imports inside functions
+  count too).
+- Importing any installed module changes neither the matplotlib backend nor the BLAS
+  threads.
+"""
+
+from __future__ import annotations
+
+import ast
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+PACKAGES = ("reliability", "allocation", "studies")
+#: Rank of each floor; a module may import only modules of its own rank or lower.
+FLOORS = {"reliability": 0, "allocation": 1, "studies.workflows": 2, "studies.report": 3,
+          "studies.cli": 4}
+#: Rooms that may import anything and that nothing outside them imports.
+TOP_ROOMS = ("studies.paper", "studies.benchmarks", "studies.reproduce_paper",
+             "studies.__main__")
+
+
+def module_files() -> dict[str, Path]:
+    """Every module of the installed packages, by dotted name."""
+    modules = {}
+    for package in PACKAGES:
+        for path in sorted((ROOT / package).rglob("*.py")):
+            parts = path.relative_to(ROOT).with_suffix("").parts
+            name = ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+            modules[name] = path
+    return modules
+
+
+MODULES = module_files()
+
+
+def imported_modules(name: str, path: Path) -> set[str]:
+    """Our modules ``name`` imports anywhere in its file (resolved to the deepest module)."""
+    package = name if path.name == "__init__.py" else name.rpartition(".")[0]
+    found = set()
+    for node in ast.walk(ast.parse(path.read_text(), filename=str(path))):
+        if isinstance(node, ast.Import):
+            targets = [alias.name for alias in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            base = node.module or ""
+            if node.level:
+                anchor = package.split(".")[:len(package.split(".")) - (node.level - 1)]
+                base = ".".join(anchor + ([node.module] if node.module else []))
+            targets = [f"{base}.{alias.name}" if f"{base}.{alias.name}" in MODULES else base
+                       for alias in node.names]
+        else:
+            continue
+        found.update(t for t in targets if t.split(".")[0] in PACKAGES)
+    return found - {name}
+
+
+GRAPH = {name: imported_modules(name, path) for name, path in MODULES.items()}
+
+
+def room(name: str) -> str | None:
+    """The floor or top room a module belongs to (None for the bare ``studies`` package)."""
+    for prefix in (*TOP_ROOMS, *sorted(FLOORS, key=len, reverse=True)):
+        if name == prefix or name.startswith(prefix + "."):
+            return prefix
+    return None
+
+
+def test_every_module_lives_in_a_room():
+    homeless = [name for name in MODULES if room(name) is None and name != "studies"]
+    assert not homeless, f"modules outside the rooms: {homeless}"
+
+
+def test_imports_run_one_way():
+    upward = []
+    for name, targets in GRAPH.items():
+        here = room(name)
+        for target in targets:
+            there = room(target)
+            if there in TOP_ROOMS and there != here and here not in TOP_ROOMS:
+                upward.append(f"{name} -> {target} (nothing imports {there})")
+            elif here in FLOORS and there in FLOORS and FLOORS[there] > FLOORS[here]:
+                upward.append(f"{name} -> {target} ({here} is below {there})")
+    assert not upward, "imports against the one-way rule:\n" + "\n".join(upward)
+
+
+def strongly_connected(graph: dict[str, set[str]]) -> list[list[str]]:
+    """Tarjan's strongly connected components of ``graph``."""
+    index, low, stack, on_stack, components = {}, {}, [], set(), []
+
+    def visit(node):
+        index[node] = low[node] = len(index)
+        stack.append(node)
+        on_stack.add(node)
+        for target in sorted(graph.get(node, ())):
+            if target not in index:
+                visit(target)
+                low[node] = min(low[node], low[target])
+            elif target in on_stack:
+                low[node] = min(low[node], index[target])
+        if low[node] == index[node]:
+            component = []
+            while True:
+                member = stack.pop()
+                on_stack.discard(member)
+                component.append(member)
+                if member == node:
+                    break
+            components.append(sorted(component))
+
+    for node in sorted(graph):
+        if node not in index:
+            visit(node)
+    return components
+
+
+def test_no_import_cycles():
+    cycles = [component for component in strongly_connected(GRAPH) if len(component) > 1]
+    assert not cycles, f"modules importing each other: {cycles}"
+
+
+def test_the_cycle_finder_finds_cycles():
+    graph = {"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}
+    assert [c for c in strongly_connected(graph) if len(c) > 1] == [["a", "b", "c"]]
+
+
+def test_the_room_check_sees_an_upward_import():
+    assert room("reliability.fosm") == "reliability"
+    assert room("studies.report.writer") == "studies.report"
+    assert room("studies.paper.tables") == "studies.paper"
+    assert FLOORS[room("studies.cli.verify")] > FLOORS[room("studies.workflows.sweep")]
+
+
+PROBE = r"""
+import json, os, sys, importlib
+import numpy, pandas, matplotlib, threadpoolctl
+import scipy.linalg, scipy.optimize, scipy.sparse, scipy.special, scipy.stats
+
+BLAS = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
+
+def state():
+    return {"backend": repr(dict.__getitem__(matplotlib.rcParams, "backend")),
+            "env": {v: os.environ.get(v) for v in BLAS},
+            "threads": sorted((i["internal_api"], i["num_threads"])
+                              for i in threadpoolctl.threadpool_info())}
+
+before = state()
+for name in json.loads(sys.argv[1]):
+    importlib.import_module(name)
+print(json.dumps({"before": before, "after": state()}))
+"""
+
+
+def probe(names, extra_path=None) -> dict:
+    """The backend and BLAS state before and after importing ``names`` in a fresh
+    interpreter, with no backend or thread variables set by the caller."""
+    environment = {k: v for k, v in os.environ.items()
+                   if k not in ("MPLBACKEND", "OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS",
+                                "MKL_NUM_THREADS")}
+    if extra_path is not None:
+        environment["PYTHONPATH"] = os.pathsep.join([str(extra_path), str(ROOT)])
+    done = subprocess.run([sys.executable, "-c", PROBE, json.dumps(names)], cwd=ROOT,
+                          env=environment, capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr
+    return json.loads(done.stdout.strip().splitlines()[-1])
+
+
+def test_importing_changes_no_backend_and_no_blas_threads():
+    report = probe(sorted(n for n in MODULES if not n.endswith("__main__")))
+    assert report["after"] == report["before"]
+
+
+@pytest.mark.parametrize("side_effect", ['import matplotlib; matplotlib.use("pdf")',
+                                         'import os; os.environ["OMP_NUM_THREADS"] = "1"'])
+def test_the_probe_sees_a_module_that_changes_them(tmp_path, side_effect):
+    (tmp_path / "noisy_module.py").write_text(side_effect + "\n")
+    report = probe(["noisy_module"], extra_path=tmp_path)
+    assert report["after"] != report["before"]
+
+
+@pytest.mark.parametrize("command", [["studies", "--help"],
+                                     ["studies.reproduce_paper", "--help"]])
+def test_stable_entry_points_run(command):
+    done = subprocess.run([sys.executable, "-m", *command], cwd=ROOT, capture_output=True,
+                          text=True, timeout=120)
+    assert done.returncode == 0, done.stderr
+    assert "usage:" in done.stdout
