@@ -147,10 +147,6 @@ class PayloadReader:
         field = ".".join(p for p in (self.where, key) if p) or "(top level)"
         return SavedResultError(f"{self.path}: field {field!r}: {problem}")
 
-    def has(self, key: str) -> bool:
-        """Whether ``key`` is present and not null."""
-        return self.data.get(key) is not None
-
     def raw(self, key: str):
         if key not in self.data:
             raise self.error(key, "missing")

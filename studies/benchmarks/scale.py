@@ -32,10 +32,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from studies.workflows.timing import one_blas_thread
-
 HERE = Path(__file__).resolve().parents[2]
-MEASURES = ("fosm", "fosm_reference", "allocation", "allocation_reference")
 SWEEP_MACHINES = ("hobbing",)
 
 
@@ -204,7 +201,6 @@ def sweep_efficiency(n_tasks: int, workers: int = 2) -> None:
           "the allocations it meets once)")
 
 
-@one_blas_thread
 def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--points", type=int, nargs="*", default=[5, 7, 9, 11],
@@ -217,6 +213,12 @@ def main(argv=None) -> None:
     parser.add_argument("--sweep-tasks", type=int, default=200,
                         help="tasks of the sweep (0: skip the sweep)")
     args = parser.parse_args(argv)
+    # The measurements run this file in subprocesses that may import an older copy of the
+    # toolkit (--code): nothing of studies/ is imported at module level, and BLAS is pinned
+    # through the environment the subprocesses inherit.
+    from studies.workflows.timing import limit_blas_threads
+
+    limit_blas_threads()
     print(f"BLAS threads: {os.environ['OPENBLAS_NUM_THREADS']}; CPUs: {os.cpu_count()}")
     if args.points:
         scaling_table(args.points, args.code.resolve(), args.timeout, args.memory_limit)

@@ -28,7 +28,7 @@ import pandas as pd
 
 from reliability.machine import hobbing_machine
 from studies.report.correlation import correlation_section
-from studies.report.writer import write_report
+from studies.report.writer import check_output_folder, write_section
 from studies.workflows.correlation import VALUES, correlation_sweep
 from studies.workflows.timing import one_blas_thread
 
@@ -49,6 +49,8 @@ def main(argv=None) -> int:
     parser.add_argument("--overwrite", action="store_true",
                         help="replace an earlier report in DIR")
     args = parser.parse_args(argv)
+    if args.out is not None:
+        check_output_folder(args.out, args.overwrite)
     machine = hobbing_machine()
     index = [machine.error_index(n) for n in args.pair]
     a, b = (f"{machine.error_names[i]} ({machine.iso_names[i]})" for i in index)
@@ -61,8 +63,7 @@ def main(argv=None) -> int:
         print(frame.to_string())
     if args.out is not None:
         section = correlation_section(machine, args.pair, side=args.side, sweep=frame)
-        written = write_report(args.out, [section], {}, title=section.title,
-                               overwrite=args.overwrite)
+        written = write_section(args.out, section, overwrite=args.overwrite)
         print(f"wrote {len(written)} files to {args.out}", file=sys.stderr)
     return 0
 

@@ -28,7 +28,7 @@ import allocation
 import reliability
 from reliability.measured import SystematicErrors, read_profile_csv
 from studies.report.profiles import profiles_section
-from studies.report.writer import write_report
+from studies.report.writer import check_output_folder, write_section
 from studies.workflows.profiles import (PROFILES, SPREAD_OUTPUTS, ProfilesStudy,
                                         profile_comparison, systematic_effect)
 from studies.workflows.timing import one_blas_thread
@@ -138,6 +138,8 @@ def main(argv=None) -> int:
     if any(r < 2 for r in args.repeats):
         print("--repeats: every count must be >= 2", file=sys.stderr)
         return 2
+    if args.out is not None:
+        check_output_folder(args.out, args.overwrite)
     study = run_profiles_study(tuple(args.repeats), args.seed,
                                log=lambda message: print(message, file=sys.stderr))
     with pd.option_context("display.width", 200, "display.max_columns", 30,
@@ -151,9 +153,7 @@ def main(argv=None) -> int:
         print("\nMeasured straightness profile (X.dz, made up): two-sided reliability")
         print(study.systematic.to_string())
     if args.out is not None:
-        section = profiles_section(study)
-        written = write_report(args.out, [section], {}, title=section.title,
-                               overwrite=args.overwrite)
+        written = write_section(args.out, profiles_section(study), overwrite=args.overwrite)
         print(f"\nwrote {len(written)} files to {args.out}", file=sys.stderr)
     return 0
 

@@ -16,6 +16,7 @@ Each builder takes the :class:`studies.workflows.machine_study.MachineStudy` and
 
 from __future__ import annotations
 
+from reliability.errors import InputError
 from reliability.streams import extra_stream
 from studies.workflows.profiles import ProfilesStudy, profile_comparison
 
@@ -66,5 +67,5 @@ def builders(names=EXTRAS):
     """The section builders for ``names`` (a subset of :data:`EXTRAS`), in report order."""
     unknown = sorted(set(names) - set(EXTRAS))
     if unknown:
-        raise ValueError(f"unknown report section {unknown[0]!r}; choose from {EXTRAS}")
+        raise InputError(f"unknown report section {unknown[0]!r}; choose from {EXTRAS}")
     return [BUILDERS[name] for name in EXTRAS if name in names]

@@ -14,6 +14,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.ticker import PercentFormatter
 
+from reliability.errors import InputError, InputTypeError
 from reliability.streams import generator
 
 __all__ = [
@@ -42,10 +43,10 @@ def _finite_1d(name, values):
     """Return ``values`` as a finite 1-d float array."""
     x = np.asarray(values, dtype=float)
     if x.ndim != 1:
-        raise ValueError(f"{name} must be 1-dimensional; got shape {x.shape}")
+        raise InputError(f"{name} must be 1-dimensional; got shape {x.shape}")
     bad = np.flatnonzero(~np.isfinite(x))
     if bad.size:
-        raise ValueError(f"{name} must be finite; {name}[{bad[0]}] = {x[bad[0]]}")
+        raise InputError(f"{name} must be finite; {name}[{bad[0]}] = {x[bad[0]]}")
     return x
 
 
@@ -53,7 +54,7 @@ def _positive(name, value):
     """Return ``value`` as a finite positive float."""
     v = float(value)
     if not (np.isfinite(v) and v > 0):
-        raise ValueError(f"{name} must be finite and positive; got {value!r}")
+        raise InputError(f"{name} must be finite and positive; got {value!r}")
     return v
 
 
@@ -61,7 +62,7 @@ def _require_columns(frame, columns):
     """Refuse a frame that lacks any of ``columns``, naming the missing ones."""
     missing = [c for c in columns if c not in frame.columns]
     if missing:
-        raise ValueError(f"frame lacks column(s) {missing}; it has {list(frame.columns)}")
+        raise InputError(f"frame lacks column(s) {missing}; it has {list(frame.columns)}")
 
 
 def _target_line(ax, target):
@@ -69,7 +70,7 @@ def _target_line(ax, target):
     if target is None:
         return
     if not 0.0 < target < 1.0:
-        raise ValueError(f"target must lie in (0, 1); got {target!r}")
+        raise InputError(f"target must lie in (0, 1); got {target!r}")
     ax.axhline(target, color="k", ls=":", lw=1.2, label=f"target {100 * target:g} %")
 
 
@@ -78,16 +79,16 @@ def _allocations(before, after, labels):
     """Return the allocations as an ordered dict label -> values, reference first."""
     if isinstance(before, Mapping):
         if after is not None:
-            raise TypeError("give either a mapping label -> values, or before and after")
+            raise InputTypeError("give either a mapping label -> values, or before and after")
         allocations = dict(before)
     else:
         if after is None:
-            raise TypeError("after is required unless before is a mapping label -> values")
+            raise InputTypeError("after is required unless before is a mapping label -> values")
         if len(labels) != 2:
-            raise ValueError(f"labels must hold 2 labels for before/after; got {labels!r}")
+            raise InputError(f"labels must hold 2 labels for before/after; got {labels!r}")
         allocations = dict(zip(labels, (before, after)))
     if len(allocations) < 2:
-        raise ValueError(f"need at least 2 allocations to compare; got {list(allocations)}")
+        raise InputError(f"need at least 2 allocations to compare; got {list(allocations)}")
     return allocations
 
 
@@ -95,13 +96,13 @@ def _tolerances(label, values, names):
     """Return one allocation as a positive finite array aligned with ``names``."""
     t = np.asarray(values, dtype=float)
     if t.shape != (len(names),):
-        raise ValueError(
+        raise InputError(
             f"allocation {label!r} has shape {t.shape}; expected ({len(names)},) to match names"
         )
     bad = np.flatnonzero(~(np.isfinite(t) & (t > 0)))
     if bad.size:
         i = bad[0]
-        raise ValueError(f"allocation {label!r}: tolerance of {names[i]!r} is {t[i]}")
+        raise InputError(f"allocation {label!r}: tolerance of {names[i]!r} is {t[i]}")
     return t
 
 
@@ -153,9 +154,9 @@ def plot_allocation_comparison(
 
     Raises
     ------
-    TypeError
+    InputTypeError
         If `after` is missing for array input, or given together with a mapping.
-    ValueError
+    InputError
         If an allocation's length differs from `names`, or a tolerance is non-positive or
         non-finite (allocation and item named).
     """
@@ -193,7 +194,7 @@ def _unit(output_label, unit):
         return unit
     if output_label in UNITS:
         return UNITS[output_label]
-    raise ValueError(
+    raise InputError(
         f"cannot infer the unit of {output_label!r}; pass unit= (e.g. 'mm' or 'rad')"
     )
 
@@ -208,7 +209,7 @@ def _shown_inside(outside, max_points, rng):
     if max_points is None:
         return inside
     if int(max_points) != max_points or max_points < 1:
-        raise ValueError(f"max_points must be a positive integer; got {max_points!r}")
+        raise InputError(f"max_points must be a positive integer; got {max_points!r}")
     keep = max(int(max_points) - int(outside.sum()), 0)
     if keep >= inside.size:
         return inside
@@ -249,7 +250,7 @@ def plot_comprehensive_error_scatter(
 
     Raises
     ------
-    ValueError
+    InputError
         If `values` is not a finite 1-d array, `limit` is not positive, `max_points` is
         not a positive integer, or the unit cannot be inferred.
     """
@@ -282,7 +283,7 @@ def plot_comprehensive_error_scatter(
 def _yscale(yscale, values):
     """Resolve ``"auto"`` to log when positive values span more than two decades."""
     if yscale not in ("auto", "linear", "log"):
-        raise ValueError(f"unknown yscale {yscale!r}; choose 'auto', 'linear' or 'log'")
+        raise InputError(f"unknown yscale {yscale!r}; choose 'auto', 'linear' or 'log'")
     if yscale != "auto":
         return yscale
     positive = np.all(values > 0)
@@ -313,7 +314,7 @@ def plot_convergence(history, *, optimum=None, ax=None, yscale="auto"):
 
     Raises
     ------
-    ValueError
+    InputError
         If the column ``best_objective`` is missing, empty or non-finite, if ``feasible``
         is not boolean, or if `yscale` is unknown.
     """
@@ -322,14 +323,14 @@ def plot_convergence(history, *, optimum=None, ax=None, yscale="auto"):
     _require_columns(history, ["best_objective"])
     best = _finite_1d("best_objective", history["best_objective"])
     if best.size == 0:
-        raise ValueError("history has no iterations")
+        raise InputError("history has no iterations")
     it = history.index.to_numpy()
     ax = _axes(ax, (7.0, 4.0))
     ax.plot(it, best, color="tab:blue", lw=1.5, label="GWO best objective")
     if "feasible" in history.columns:
         feasible = history["feasible"].to_numpy()
         if feasible.dtype != bool:
-            raise ValueError(f"column 'feasible' must be boolean; got dtype {feasible.dtype}")
+            raise InputError(f"column 'feasible' must be boolean; got dtype {feasible.dtype}")
         ax.plot(it[~feasible], best[~feasible], "x", color=OUTSIDE_COLOR, ms=4,
                 label=f"best infeasible ({int((~feasible).sum())} iterations)")
     title = "GWO convergence"
@@ -361,11 +362,11 @@ def _check_reliability_frame(frame):
         bad = frame[(frame[column] < 0) | (frame[column] > 1)]
         if len(bad):
             output, value = bad["output"].iloc[0], bad[column].iloc[0]
-            raise ValueError(f"{column} must lie in [0, 1]; output {output!r} has {value}")
+            raise InputError(f"{column} must lie in [0, 1]; output {output!r} has {value}")
     est = frame["mc_estimate"]
     inverted = frame.loc[(frame["mc_lower"] > est) | (est > frame["mc_upper"]), "output"]
     if len(inverted):
-        raise ValueError(
+        raise InputError(
             f"mc_lower <= mc_estimate <= mc_upper fails for output {inverted.iloc[0]!r}"
         )
 
@@ -395,7 +396,7 @@ def plot_reliability_comparison(frame, *, target=None, ax=None):
 
     Raises
     ------
-    ValueError
+    InputError
         If a column is missing, a probability is outside [0, 1] or non-finite, an interval
         does not contain its estimate (the output is named), or `target` is outside (0, 1).
     """
@@ -430,13 +431,13 @@ def _repeat_groups(frame, outputs, by):
         outputs = [c for c in frame.columns if c not in (by, "repeat")]
     outputs = list(outputs)
     if not outputs:
-        raise ValueError("no output columns to plot")
+        raise InputError("no output columns to plot")
     _require_columns(frame, outputs)
     for column in outputs:
         f = _finite_1d(column, frame[column])
         bad = np.flatnonzero((f < 0) | (f > 1))
         if bad.size:
-            raise ValueError(f"fractions must lie in [0, 1]; {column}[{bad[0]}] = {f[bad[0]]}")
+            raise InputError(f"fractions must lie in [0, 1]; {column}[{bad[0]}] = {f[bad[0]]}")
     groups = list(frame.groupby(by, sort=False)) if by is not None else [(None, frame)]
     return outputs, groups
 
@@ -474,7 +475,7 @@ def plot_repeats(frame, *, outputs=None, by=None, target=0.99, ax=None):
 
     Raises
     ------
-    ValueError
+    InputError
         If a named column is missing, a fraction is non-finite or outside [0, 1] (column
         and row named), or `target` is outside (0, 1).
     """

@@ -78,6 +78,12 @@ def write_report(out, sections, summary: dict, *, title: str, overwrite: bool = 
     return written
 
 
+def write_section(out, section, *, overwrite: bool = False) -> list[Path]:
+    """One section as a report of its own in ``out`` (titled by the section; its summary
+    entries make ``summary.json``); see :func:`write_report`."""
+    return write_report(out, [section], {}, title=section.title, overwrite=overwrite)
+
+
 def rounded(value):
     """``value`` with every float rounded to :data:`SIGNIFICANT` significant digits and
     numpy scalars made plain Python (for JSON)."""
