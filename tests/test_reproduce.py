@@ -1,4 +1,5 @@
-"""studies.paper.reproduce (python -m studies.reproduce_paper): files, determinism, refusal to overwrite, paper regressions."""
+"""studies.paper.reproduce (``python -m studies.reproduce_paper``): files, determinism,
+refusal to overwrite, paper regressions."""
 
 import numpy as np
 import pandas as pd

@@ -57,7 +57,7 @@ VERIFIED = ("paper", "exact", "exact_two_sided")
 #: The two-sided optimum refined until its target holds between grid points too.
 REFINED = "exact_two_sided_workspace"
 SIDES = {"": "one_sided", "_two_sided": "two_sided"}
-#: Subfolder holding the paper's machine run through the generic pipeline (the report
+#: Subfolder holding the paper's machine run through the generic machine study (the report
 #: ``precrel report`` writes for any machine), for the exact two-sided optimum.
 MACHINE_REPORT = "machine"
 #: Samples at each output's worst pose, for the generic report.
@@ -157,7 +157,7 @@ def run_study(seed: int = 2023, repeats: int = 20, wolves: int = 100,
 
 
 def machine_study(study: Study) -> MachineStudy:
-    """The study's two-sided pieces as the generic pipeline's result (nothing recomputed)."""
+    """The study's two-sided pieces as the generic machine study's result (nothing recomputed)."""
     name = "exact_two_sided"
     grid, result = study.grid[name], study.fosm[name]
     check = Verification(fosm=result, grid=grid,
