@@ -1,0 +1,1 @@
+"""Benchmark scripts against simple references and real peers, and the screenshot helper."""
