@@ -21,7 +21,7 @@ import pandas as pd
 
 from reliability.display import axis_units, pose_columns
 from reliability.errors import InputError, InputTypeError
-from reliability.files import check_destination, write_csv
+from reliability.files import write_csv
 from reliability.machine import OUTPUTS
 from reliability.saved import check_count, encode_frame, load_payload, save_payload
 
@@ -184,7 +184,6 @@ def allocation_to_csv(result, path, overwrite: bool = False, *,
     significant : int, optional
         Significant digits of the numbers; all digits (an exact round trip) by default.
     """
-    check_destination(path, overwrite)
     float_format = None if significant is None else \
         f"%.{check_count(significant, 'significant')}g"
     return write_csv(allocation_frame(result), path, overwrite, index=False,

@@ -18,6 +18,24 @@ import pandas as pd
 from .errors import InputError, InputTypeError
 
 
+def check_path(path) -> Path:
+    """``path`` as a Path: refused unless it is a non-empty str or path (to read or write).
+
+    Raises
+    ------
+    InputTypeError
+        ``path`` is not a str or path.
+    InputError
+        ``path`` is empty.
+    """
+    if not isinstance(path, (str, os.PathLike)):
+        raise InputTypeError(f"path must be a file name (str or Path); got "
+                             f"{type(path).__name__}")
+    if str(path) == "":
+        raise InputError("path must not be empty")
+    return Path(path)
+
+
 def check_destination(path, overwrite: bool = False, *, folder: bool = False,
                       markers=()) -> Path:
     """Where a result may be written: refused before any work, or returned as a Path.
@@ -48,14 +66,9 @@ def check_destination(path, overwrite: bool = False, *, folder: bool = False,
     FileNotFoundError
         The folder that should hold ``path`` does not exist.
     """
-    if not isinstance(path, (str, os.PathLike)):
-        raise InputTypeError(f"path must be a file name (str or Path); got "
-                             f"{type(path).__name__}")
-    if str(path) == "":
-        raise InputError("path must not be empty")
+    path = check_path(path)
     if not isinstance(overwrite, bool):
         raise InputTypeError(f"overwrite must be True or False; got {overwrite!r}")
-    path = Path(path)
     if folder and path.exists() and not path.is_dir():
         raise NotADirectoryError(f"{path} is a file; expected a folder")
     if not folder and path.is_dir():

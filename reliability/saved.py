@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import json
 import math
-import os
 from importlib import metadata
 from pathlib import Path
 
@@ -25,7 +24,7 @@ import numpy as np
 import pandas as pd
 
 from .errors import InputError, InputTypeError, SavedResultError
-from .files import atomic_write_text, check_destination
+from .files import atomic_write_text, check_destination, check_path
 
 FORMAT_VERSION = 1
 DISTRIBUTION = "precision-reliability"
@@ -67,7 +66,7 @@ def load_payload(path, kind: str) -> "PayloadReader":
     SavedResultError
         The file is missing, not JSON, of another format or version; names the file.
     """
-    path = Path(_check_path(path))
+    path = check_path(path)
     try:
         text = path.read_text(encoding="utf-8")
     except FileNotFoundError:
@@ -97,15 +96,6 @@ def check_count(value, name: str) -> int:
     if value < 1:
         raise InputError(f"{name} must be >= 1; got {value}")
     return int(value)
-
-
-def _check_path(path):
-    if not isinstance(path, (str, os.PathLike)):
-        raise InputTypeError(f"path must be a file name (str or Path); got "
-                             f"{type(path).__name__}")
-    if str(path) == "":
-        raise InputError("path must not be empty")
-    return path
 
 
 # ----- encoding ----------------------------------------------------------------------

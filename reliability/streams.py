@@ -1,4 +1,4 @@
-"""Where every random draw comes from: one door for ``rng=`` and one rule for extra streams.
+"""Where every random draw comes from: one door for ``rng=``, three rules for extra streams.
 
 Every function of the toolkit that draws takes ``rng=None`` and passes it through
 :func:`generator`, the only place an argument becomes a :class:`numpy.random.Generator`.
