@@ -1,4 +1,11 @@
-"""Units and poses for printed results: lengths in mm, angles in rad, poses by axis name."""
+"""Units and poses for printed results: poses by axis name, lengths in mm, rotary positions
+in degrees.
+
+Results hold rotary positions in rad (the model's unit); everything printed for people,
+and every pose column of a table meant for people, shows them in degrees, with the unit in
+the heading (``"A [deg]"``, or ``A_deg`` in a CSV column name). Output errors keep their
+model units (mm and rad), always named.
+"""
 
 from __future__ import annotations
 
@@ -14,22 +21,48 @@ def axis_units(machine) -> tuple[str, ...]:
     return tuple("mm" if axis.kind == "linear" else "rad" for axis in machine.axis_specs)
 
 
+def shown_positions(positions, units):
+    """Positions as shown to people, and their units: rad converted to degrees."""
+    positions = np.asarray(positions, dtype=float)
+    rotary = np.array([unit == "rad" for unit in units])
+    shown = np.where(rotary, np.degrees(positions), positions)
+    return shown, tuple("deg" if unit == "rad" else unit for unit in units)
+
+
+def pose_frame(poses, axes, units, *, style: str = "bracket") -> pd.DataFrame:
+    """Poses as a table for people: one column per axis, rotary positions in degrees,
+    headed ``"A [deg]"`` (``style="bracket"``) or ``"A_deg"`` (``style="csv"``)."""
+    shown, shown_units = shown_positions(np.atleast_2d(poses), units)
+    heading = "{axis} [{unit}]" if style == "bracket" else "{axis}_{unit}"
+    return pd.DataFrame({heading.format(axis=axis, unit=unit): shown[:, i]
+                         for i, (axis, unit) in enumerate(zip(axes, shown_units))})
+
+
+def bound_text(value: float, digits: int = 6) -> str:
+    """A probability bound, clipped to [0, 1]; a bound at 0 or 1 says nothing and is marked
+    ``(trivial)``."""
+    value = min(max(float(value), 0.0), 1.0)
+    text = f"{value:.{digits}f}"
+    return f"{text} (trivial)" if value in (0.0, 1.0) else text
+
+
 def with_unit(value: float, unit: str, digits: int = 4) -> str:
     """``value`` to ``digits`` significant digits followed by its unit."""
     return f"{value:.{digits}g} {unit}"
 
 
 def pose_text(positions, axes, units, digits: int = 4) -> str:
-    """A pose as ``"C=0 rad, X=400 mm, …"``."""
+    """A pose as ``"C=90 deg, X=400 mm, …"`` (positions in ``units``, rad shown in
+    degrees)."""
+    shown, shown_units = shown_positions(positions, units)
     return ", ".join(f"{axis}={with_unit(float(q), unit, digits)}"
-                     for axis, q, unit in zip(axes, positions, units))
+                     for axis, q, unit in zip(axes, shown, shown_units))
 
 
 def pose_columns(poses, axes, units) -> pd.DataFrame:
-    """Poses as a table with one column per axis, headed ``"<axis> [<unit>]"``."""
-    poses = np.atleast_2d(poses)
-    return pd.DataFrame({f"{axis} [{unit}]": poses[:, i]
-                         for i, (axis, unit) in enumerate(zip(axes, units))})
+    """Poses as a table with one column per axis, headed ``"<axis> [<unit>]"``, rotary
+    positions in degrees (:func:`pose_frame`)."""
+    return pose_frame(poses, axes, units)
 
 
 def output_limits_text(limits, digits: int = 4) -> list[str]:

@@ -4,7 +4,8 @@
 written; every save calls it before writing, and the command line calls it before any work
 (rewording its refusals in terms of its options). A save writes to a temporary file in the
 destination folder and renames it into place, so an interrupted save leaves either the old
-file or the new one, never half of one.
+file or the new one, never half of one. Files and folders get the permissions the user's umask
+gives a new file or folder (0644 and 0755 under umask 022), as ``open`` and ``mkdir`` would.
 """
 
 from __future__ import annotations
@@ -16,6 +17,25 @@ from pathlib import Path
 import pandas as pd
 
 from .errors import InputError, InputTypeError
+
+#: Permissions asked for a new file and a new folder, before the umask (as ``open``/``mkdir``).
+NEW_FILE_MODE, NEW_FOLDER_MODE = 0o666, 0o777
+
+
+def current_umask() -> int:
+    """The process's umask (read by setting it and setting it back)."""
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
+def make_temporary_folder(beside: Path) -> Path:
+    """A new, empty folder next to ``beside`` (same file system, so it can be renamed onto
+    it), with the permissions ``mkdir`` would give under the user's umask."""
+    folder = Path(tempfile.mkdtemp(dir=beside.parent, prefix=f".{beside.name}.",
+                                   suffix=".partial"))
+    folder.chmod(NEW_FOLDER_MODE & ~current_umask())
+    return folder
 
 
 def check_path(path) -> Path:
@@ -96,6 +116,7 @@ def atomic_write_bytes(path, data: bytes, overwrite: bool = False) -> Path:
     handle, temporary = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.",
                                          suffix=".tmp")
     try:
+        os.chmod(handle, NEW_FILE_MODE & ~current_umask())
         with os.fdopen(handle, "wb") as stream:
             stream.write(data)
             stream.flush()

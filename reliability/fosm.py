@@ -33,6 +33,7 @@ from .errors import InputError
 from .fosm_files import fosm_summary, load_fosm, save_fosm
 from .kinematics import output_variance
 from .machine import OUTPUTS
+from .ties import worst_rows
 
 SIDES = ("one_sided", "two_sided")
 
@@ -91,6 +92,18 @@ def two_sided_probability(limit, sigma, mean=0.0) -> np.ndarray:
     upper = norm.cdf((limit - mean) / sigma)
     lower = norm.cdf((-limit - mean) / sigma)
     return upper - lower
+
+
+def two_sided_failure(limit, sigma, mean=0.0) -> np.ndarray:
+    """``P(|y| ≥ I)`` for ``y ~ N(μ, σ²)``, accurate when it is tiny (no ``1 − P``)."""
+    return norm.sf((limit - mean) / sigma) + norm.cdf((-limit - mean) / sigma)
+
+
+def worst_poses(limits, sigma, mean, poses) -> np.ndarray:
+    """Each output's worst pose, ``(6,)`` rows: the highest two-sided failure probability,
+    ties (within :data:`reliability.ties.TIE_RTOL`) broken by the first pose
+    (:func:`reliability.ties.worst_rows`)."""
+    return worst_rows(two_sided_failure(limits, sigma, mean), poses)
 
 
 def probability(limit, sigma, side: str = "two_sided", mean=0.0) -> np.ndarray:
@@ -178,6 +191,12 @@ class FosmResult:
         return {"beta": reliability_index(limits, sigma, mean),
                 "one_sided": one_sided_probability(limits, sigma, mean),
                 "two_sided": two_sided_probability(limits, sigma, mean)}
+
+    @staticmethod
+    def worst_rows(limits, sigma, mean, poses) -> np.ndarray:
+        """Each output's worst pose, ``(6,)`` rows: :func:`worst_poses` (how :func:`fosm`
+        picks them and what a reloaded result is checked against)."""
+        return worst_poses(limits, sigma, mean, poses)
 
     def save(self, path, overwrite: bool = False):
         """Save as JSON with its metadata (:mod:`reliability.saved`); returns the path."""
@@ -294,7 +313,7 @@ def fosm(machine, tolerances, poses, *, k: float = 3.0, means=None,
             part_means = error_means if error_means.ndim == 1 else error_means[part]
             mean[part] = machine.comprehensive_error(poses[part], part_means)  # Eq. (20)
     fields = FosmResult.reliability_fields(machine.limits, sigma, mean)
-    worst = np.argmin(fields["two_sided"], axis=0)
+    worst = worst_poses(machine.limits, sigma, mean, poses)
     rows = np.arange(len(OUTPUTS))
     worst_jacobian = machine.jacobian(poses[worst]) if jacobian is None else jacobian[worst]
     return FosmResult(

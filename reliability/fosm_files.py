@@ -100,8 +100,9 @@ def load_fosm(cls, path):
               "two_sided": data.array("two_sided", (n, 6), low=0.0, high=1.0)}
     _check_consistent(data, fields, cls.reliability_fields(limits, sigma, mean))
     worst = data.array("worst_pose", (6,), dtype=np.int64, low=0, high=n - 1)
-    if not np.array_equal(worst, np.argmin(fields["two_sided"], axis=0)):
-        raise data.error("worst_pose", "is not the pose of lowest two-sided probability")
+    if not np.array_equal(worst, cls.worst_rows(limits, sigma, mean, poses)):
+        raise data.error("worst_pose", "is not the pose of lowest two-sided probability "
+                                       "(first pose among ties)")
     contributions = data.frame("contributions", columns=OUTPUTS)
     _check_contributions(data, contributions)
     return cls(poses=poses, limits=limits, targets=targets, mean=mean, sigma=sigma,

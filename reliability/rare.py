@@ -46,10 +46,11 @@ from scipy.stats import norm
 
 from . import checks, streams
 from .errors import InputError, InputTypeError
-from .fosm import two_sided_probability
+from .fosm import two_sided_failure, two_sided_probability
 from .kinematics import chain_factors, transports
 from .machine import OUTPUTS
 from .poses import workspace_grid
+from .ties import worst_rows
 
 EVENTS = OUTPUTS + ("system",)
 METHODS = ("importance", "subset")
@@ -503,9 +504,9 @@ def worst_grid_poses(machine, tolerances, events=EVENTS, *, k: float = 3.0,
     t = machine.check_tolerances(tolerances)
     grid = workspace_grid(machine, points_per_axis)
     sigma = np.sqrt(np.square(machine.jacobian(grid)) @ np.square(t / k))  # Eq. (20)
-    failure = 1.0 - two_sided_probability(machine.limits, sigma)
+    failure = two_sided_failure(machine.limits, sigma)
     scores = np.column_stack([sigma, failure.sum(axis=1)])
-    return grid[np.argmax(scores[:, [EVENTS.index(e) for e in events]], axis=0)]
+    return grid[worst_rows(scores[:, [EVENTS.index(e) for e in events]], grid)]
 
 
 # ----- input checks -----------------------------------------------------------------------

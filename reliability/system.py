@@ -35,10 +35,12 @@ from scipy.special import ndtr, ndtri
 from scipy.stats import qmc
 
 from . import streams
+from .display import axis_units, bound_text, pose_text
 from .errors import InputError
 from .correlation import output_covariance
 from .fosm import two_sided_probability
 from .machine import OUTPUTS
+from .ties import worst_rows
 
 #: Poses × points evaluated at once (bounds memory to a few arrays of this many floats).
 CHUNK_SIZE = 2 ** 21
@@ -62,12 +64,15 @@ class SystemReliability:
     product : ndarray (n_poses,)
         Product of the six two-sided marginals (Šidák's lower bound).
     bonferroni : ndarray (n_poses,)
-        ``1 − Σ (1 − P_o)``, the Bonferroni lower bound (may be negative).
+        ``max(0, 1 − Σ (1 − P_o))``, the Bonferroni lower bound, clipped at 0 (a bound of
+        0 says nothing: printed as trivial).
     marginal : ndarray (n_poses, 6)
         Two-sided FOSM probability of each output.
     n_points : int
         Sobol' points per batch; ``n_batches`` batches.
     n_batches : int
+    units : tuple of str
+        Unit of each axis' position (``mm`` or ``rad``).
     """
 
     poses: np.ndarray
@@ -80,11 +85,13 @@ class SystemReliability:
     marginal: np.ndarray
     n_points: int
     n_batches: int
+    units: tuple = ()
 
     @property
     def worst(self) -> int:
-        """Row (in this result) of the pose with the lowest system probability."""
-        return int(np.argmin(self.probability))
+        """Row (in this result) of the pose with the lowest system probability (ties by the
+        first pose, :func:`reliability.ties.worst_rows`)."""
+        return worst_rows(self.probability, self.poses, largest=False)
 
     @property
     def worst_pose(self) -> np.ndarray:
@@ -116,14 +123,14 @@ class SystemReliability:
     def summary(self) -> str:
         """Worst pose and the bounds beside it, one line each."""
         w = self.worst
-        positions = ", ".join(f"{a}={q:.6g}" for a, q in zip(self.axes, self.poses[w]))
+        positions = pose_text(self.poses[w], self.axes, self.units, digits=6)
         return "\n".join([
             f"system reliability over {len(self.probability)} pose(s) "
             f"({self.n_batches} × {self.n_points} scrambled Sobol' points per pose)",
             f"worst pose {int(self.index[w])} ({positions})",
             f"  all six inside  {self.probability[w]:.8f} ± {self.error[w]:.2g} (std. error)",
             f"  product         {self.product[w]:.8f} (Šidák lower bound)",
-            f"  Bonferroni      {self.bonferroni[w]:.8f}",
+            f"  Bonferroni      {bound_text(self.bonferroni[w], 8)}",
             f"  least output    {self.min_marginal[w]:.8f} "
             f"({OUTPUTS[int(np.argmin(self.marginal[w]))]})",
         ])
@@ -235,8 +242,9 @@ def _evaluate(machine, poses, index, covariance, n_points, n_batches, rng):
     error = estimates.std(axis=0, ddof=1) / np.sqrt(n_batches)
     return SystemReliability(
         poses=poses, index=np.asarray(index), axes=tuple(machine.axes),
+        units=axis_units(machine),
         probability=probability, error=error, product=np.prod(marginal, axis=1),
-        bonferroni=1.0 - np.sum(1.0 - marginal, axis=1), marginal=marginal,
+        bonferroni=np.maximum(0.0, 1.0 - np.sum(1.0 - marginal, axis=1)), marginal=marginal,
         n_points=n_points, n_batches=n_batches)
 
 
@@ -332,5 +340,5 @@ def _concatenate(parts) -> SystemReliability:
     joined = {name: np.concatenate([getattr(p, name) for p in parts])
               for name in ("poses", "index", "probability", "error", "product", "bonferroni",
                            "marginal")}
-    return SystemReliability(axes=first.axes, n_points=first.n_points,
+    return SystemReliability(axes=first.axes, units=first.units, n_points=first.n_points,
                              n_batches=first.n_batches, **joined)

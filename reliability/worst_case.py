@@ -22,6 +22,10 @@ from .errors import InputError
 from .fosm import error_sigma, one_sided_probability, pose_sigma, two_sided_probability
 from .kinematics import jacobian_and_derivative
 from .machine import OUTPUTS
+from .ties import SEARCH_RTOL, worst_rows
+
+#: Resolution of a searched pose, as a fraction of each axis' stroke.
+POSE_RESOLUTION = 1e-4
 
 
 def continuous_worst(machine, tolerances, grid, *, k: float = 3.0, starts: int = 3,
@@ -49,8 +53,12 @@ def continuous_worst(machine, tolerances, grid, *, k: float = 3.0, starts: int =
     -------
     pandas.DataFrame
         Per output: ``grid_beta`` and ``beta`` (continuous), the two-sided and one-sided
-        probabilities at each, and the continuous worst pose (one column per axis). The
-        search is local, so ``beta`` is an upper bound on the true continuous worst β.
+        probabilities at each, and the continuous worst pose (one column per axis),
+        rounded to :data:`POSE_RESOLUTION` of each stroke (:func:`snap_to_resolution`);
+        poses whose σ is within :data:`reliability.ties.SEARCH_RTOL` of the largest are
+        tied and the first in lexicographic order is reported
+        (:func:`reliability.ties.worst_rows`). The search is local, so ``beta`` is an
+        upper bound on the true continuous worst β.
     """
     starts = checks.positive_int(starts, "starts")
     t = machine.check_tolerances(tolerances)
@@ -71,18 +79,45 @@ def continuous_worst(machine, tolerances, grid, *, k: float = 3.0, starts: int =
                          f"got {grid_sigma.shape}")
     bounds = [axis.stroke for axis in machine.axis_specs]
     rows = []
-    for o, output in enumerate(OUTPUTS):
+    for o in range(len(OUTPUTS)):
         def negative_sigma(q, o=o):
             return _negative_sigma_and_gradient(machine, q, sigma_x, o)
 
-        best_q, best_sigma = grid[np.argmax(grid_sigma[:, o])], grid_sigma[:, o].max()
-        for start in grid[np.argsort(grid_sigma[:, o])[::-1][:starts]]:
-            result = minimize(negative_sigma, start, jac=True, method="L-BFGS-B",
-                              bounds=bounds)
-            if -result.fun > best_sigma:
-                best_q, best_sigma = result.x, -result.fun
-        rows.append(_row(machine, o, grid_sigma[:, o].max(), best_sigma, best_q))
+        found = [minimize(negative_sigma, start, jac=True, method="L-BFGS-B",
+                          bounds=bounds).x
+                 for start in grid[worst_first(grid_sigma[:, o], grid, starts)]]
+        found = snap_to_resolution(machine, np.array(found))
+        found_sigma = -np.array([negative_sigma(q)[0] for q in found])
+        best = grid_sigma[:, o].max()
+        candidates = np.vstack([grid[worst_rows(grid_sigma[:, o], grid)], found])
+        values = np.concatenate([[best], found_sigma])
+        choice = worst_rows(values, candidates, rtol=SEARCH_RTOL)
+        rows.append(_row(machine, o, best, values[choice], candidates[choice]))
     return pd.DataFrame(rows, index=pd.Index(OUTPUTS, name="output"))
+
+
+def worst_first(values, poses, count: int) -> list[int]:
+    """The ``count`` rows of largest value, each chosen by the tie rule among the rest."""
+    remaining = np.array(values, dtype=float)
+    rows = []
+    for _ in range(min(count, len(remaining))):
+        rows.append(worst_rows(remaining, poses))
+        remaining[rows[-1]] = np.nan
+    return rows
+
+
+def snap_to_resolution(machine, poses) -> np.ndarray:
+    """Poses found by a search, rounded to :data:`POSE_RESOLUTION` of each stroke's span.
+
+    A local search fixes the position of a smooth maximum only to about the square root of
+    its tolerance, so the digits beyond this resolution differ between computers; σ at the
+    rounded pose differs from σ at the found one only to second order.
+    """
+    low = np.array([axis.stroke[0] for axis in machine.axis_specs])
+    high = np.array([axis.stroke[1] for axis in machine.axis_specs])
+    step = POSE_RESOLUTION * (high - low)
+    safe = np.where(step > 0, step, 1.0)
+    return np.clip(low + np.round((poses - low) / safe) * safe, low, high)
 
 
 def _negative_sigma_and_gradient(machine, q, sigma_x, output: int):

@@ -120,13 +120,14 @@ def test_fosm_save_refuses_to_overwrite_unless_asked(fosm_trunnion, tmp_path):
 def test_fosm_summary_shows_poses_as_axis_positions_with_units(fosm_trunnion, trunnion5):
     text = repr(fosm_trunnion)
     assert text == fosm_trunnion.summary()
-    assert "C [rad]" in text and "A [rad]" in text and "X [mm]" in text
+    assert "C [deg]" in text and "A [deg]" in text and "X [mm]" in text
     assert "0.015 mm" in text and "5e-05 rad" in text
     worst = fosm_trunnion.worst_pose[0]
     row = next(line for line in text.splitlines()[text.splitlines().index(
         "Worst pose of each output (axis positions)"):] if line.startswith("dx"))
-    assert [float(v) for v in row.split()[2:]] == pytest.approx(
-        fosm_trunnion.poses[worst], rel=1e-5, abs=1e-6)
+    rotary = [axis.kind == "rotary" for axis in trunnion5.axis_specs]
+    shown = np.where(rotary, np.degrees(fosm_trunnion.poses[worst]), fosm_trunnion.poses[worst])
+    assert [float(v) for v in row.split()[2:]] == pytest.approx(shown, rel=1e-5, abs=1e-6)
     meets = fosm_trunnion.meets_targets("two_sided")
     assert f"{int(meets.sum())} of 6 targets met" in text
 

@@ -22,10 +22,17 @@ USAGE_ERROR = 2
 
 
 class ArgumentParser(argparse.ArgumentParser):
-    """An argparse parser whose errors are one line on stderr, exit code 2."""
+    """An argparse parser whose errors are one line on stderr, exit code 2.
+
+    The line starts with ``name:``, the program's name (``precrel`` for every subcommand).
+    """
+
+    def __init__(self, *args, name: str = PROG, **kwargs):
+        super().__init__(*args, **kwargs)
+        self.name = name
 
     def error(self, message):
-        self.exit(USAGE_ERROR, f"{PROG}: error: {message} (see {self.prog} --help)\n")
+        self.exit(USAGE_ERROR, f"{self.name}: error: {message} (see {self.prog} --help)\n")
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -35,6 +35,7 @@ from reliability.statistics import machine_yield
 from reliability.streams import spawn
 from reliability.verification import Verification, worst_pose_monte_carlo
 from reliability.worst_case import continuous_worst
+from studies.cli import options, program
 from studies.report import machine_sections, plots
 from studies.report.section import Section
 from studies.report.writer import SIGNIFICANT
@@ -339,35 +340,45 @@ def write_outputs(study: Study, out: Path, log) -> None:
 
 
 def parse_arguments(argv=None) -> argparse.Namespace:
-    parser = argparse.ArgumentParser(
-        prog="python -m studies.reproduce_paper",
+    parser = program.ArgumentParser(
+        prog="python -m studies.reproduce_paper", name="reproduce_paper",
         description="Reproduce Tables 4-9 and Figs. 8-15 of Hu, Wang & Ma (2023).")
     parser.add_argument("--out", default="figures", help="output folder (default figures/)")
-    parser.add_argument("--seed", type=int, default=2023, help="random seed (default 2023)")
-    parser.add_argument("--repeats", type=int, default=20,
+    parser.add_argument("--seed", type=options.seed, default=2023,
+                        help="random seed, an integer >= 0 (default 2023)")
+    parser.add_argument("--repeats", type=options.positive_int, default=20,
                         help="grid experiments per allocation (default 20, as Table 9)")
-    parser.add_argument("--wolves", type=int, default=100,
+    parser.add_argument("--wolves", type=options.positive_int, default=100,
                         help="GWO pack size (default 100, the paper's)")
-    parser.add_argument("--iterations", type=int, default=500,
+    parser.add_argument("--iterations", type=options.positive_int, default=500,
                         help="GWO iterations (default 500, the paper's)")
     parser.add_argument("--overwrite", action="store_true",
                         help="replace files a previous run left in the output folder")
     parser.add_argument("--quiet", action="store_true", help="no progress output")
-    return parser.parse_args(argv)
+    args = parser.parse_args(argv)
+    out = Path(args.out)
+    if out.exists() and not out.is_dir():
+        parser.error(f"--out {out}: is a file; expected a folder")
+    if not out.parent.is_dir():
+        parser.error(f"--out {out}: folder {out.parent} does not exist")
+    existing = [name for name in OUTPUT_FILES if (out / name).exists()]
+    if existing and not args.overwrite:
+        parser.error(f"--out {out}: already holds {len(existing)} of this study's files "
+                     f"(e.g. {existing[0]}); pass --overwrite to replace them")
+    return args
 
 
 @one_blas_thread
 def main(argv=None) -> int:
-    args = parse_arguments(argv)
+    """Run the case study; return the exit code (2 with one ``error:`` line for bad options)."""
+    try:
+        args = parse_arguments(argv)
+    except SystemExit as exit_:  # --help, or a refusal already printed
+        return int(exit_.code or 0)
     import matplotlib
     matplotlib.use("Agg")
     out = Path(args.out)
-    existing = [name for name in OUTPUT_FILES if (out / name).exists()]
-    if existing and not args.overwrite:
-        print(f"{out}/ already holds {len(existing)} of this study's files (e.g. "
-              f"{existing[0]}); rerun with --overwrite to replace them", file=sys.stderr)
-        return 2
-    out.mkdir(parents=True, exist_ok=True)
+    out.mkdir(exist_ok=True)
     log = Progress(args.quiet)
     study = run_study(seed=args.seed, repeats=args.repeats, wolves=args.wolves,
                       iterations=args.iterations, log=log)

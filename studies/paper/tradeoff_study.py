@@ -29,6 +29,7 @@ from scipy.stats import norm
 import allocation
 import reliability
 from allocation.convex import solve_convex_allocation
+from reliability.display import bound_text
 from reliability.fosm import required_index
 from reliability.machine import OUTPUTS
 from reliability.poses import workspace_grid
@@ -112,7 +113,7 @@ def system_numbers(machine, rng):
         z = (inside - result.probability[w]) / np.hypot(se, result.error[w])
         print(f"   {name:18s} pose {pose:5d}: system {result.probability[w]:.6f} ± "
               f"{result.error[w]:.1g}; product {result.product[w]:.6f}; Bonferroni "
-              f"{result.bonferroni[w]:.6f}; least output {result.min_marginal[w]:.6f}; "
+              f"{bound_text(result.bonferroni[w])}; least output {result.min_marginal[w]:.6f}; "
               f"{len(result.index)} poses evaluated exactly")
         print(f"   {'':18s} Monte-Carlo of the linear model ({MC_SAMPLES} draws): "
               f"{inside:.6f} ± {se:.1g}, z = {z:+.2f} (|z| ≤ {Z:g}: "

@@ -12,6 +12,7 @@ import numpy as np
 import pandas as pd
 
 from allocation.front import allocation_point, cost_reliability_front
+from reliability.display import bound_text
 from reliability.poses import workspace_grid
 from reliability.streams import spawn
 from reliability.system import worst_system_reliability
@@ -108,7 +109,7 @@ def system_section(machine, allocations, *, poses=None, rng=None) -> Section:
                      "least_output": result.min_marginal[w]})
     table = pd.DataFrame(rows).set_index("allocation")
     lines = [f"| {label} | {row['worst_pose']:.0f} | {row['system']:.6f} ± "
-             f"{row['error']:.1g} | {row['product']:.6f} | {row['bonferroni']:.6f} | "
+             f"{row['error']:.1g} | {row['product']:.6f} | {bound_text(row['bonferroni'])} | "
              f"{row['least_output']:.6f} |" for label, row in table.iterrows()]
     text = ("A part is good only when all six outputs are inside their limits at once. "
             "For the linearised model this is a six-dimensional normal rectangle "

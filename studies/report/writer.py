@@ -14,11 +14,13 @@ import html
 import io
 import json
 import math
+import shutil
 from pathlib import Path
 
 import numpy as np
 
-from reliability.files import atomic_write_bytes, atomic_write_text, check_destination
+from reliability.files import (atomic_write_bytes, atomic_write_text, check_destination,
+                              make_temporary_folder)
 
 from .markdown import markdown_to_html
 
@@ -41,6 +43,10 @@ def write_report(out, sections, summary: dict, *, title: str, overwrite: bool = 
                  ) -> list[Path]:
     """Write ``sections`` into ``out``; return the paths written.
 
+    The report is assembled in a temporary folder beside ``out`` and moved into place only
+    when every file is written, so an interrupted run leaves no partial report (and a rerun
+    works without replacing anything).
+
     Parameters
     ----------
     out : str or Path
@@ -54,28 +60,52 @@ def write_report(out, sections, summary: dict, *, title: str, overwrite: bool = 
     overwrite : bool
         Replace files of an earlier report; files the report does not write are never
         touched.
+
+    Raises
+    ------
+    FileExistsError
+        ``out`` already holds a file the report writes and ``overwrite`` is false (checked
+        before anything is moved; the assembled report is removed).
     """
-    out = Path(out)
-    out.mkdir(exist_ok=True)
-    written, merged = [], dict(summary)
+    out = check_output_folder(out, overwrite)
+    staging = make_temporary_folder(out)
+    try:
+        names = _assemble(staging, sections, summary, title)
+        clashes = [name for name in names if (out / name).exists()]
+        if clashes and not overwrite:
+            raise FileExistsError(f"{out / clashes[0]} exists; allow overwriting to "
+                                  f"replace it")
+        if not out.exists():
+            staging.rename(out)
+        else:
+            for name in names:
+                (staging / name).replace(out / name)
+            staging.rmdir()
+    finally:
+        if staging.exists():
+            shutil.rmtree(staging)
+    return [out / name for name in names]
+
+
+def _assemble(folder: Path, sections, summary: dict, title: str) -> list[str]:
+    """Write every file of the report into the empty ``folder``; return their names."""
+    names, merged, images = [], dict(summary), {}
     for section in sections:
         merged.update(section.summary)
         for name, frame in section.tables.items():
             index = frame.index.name is not None or any(frame.index.names)
-            written.append(atomic_write_text(out / name, frame.to_csv(
-                index=index, float_format=f"%.{SIGNIFICANT}g"), overwrite))
-    images = {}
+            atomic_write_text(folder / name, frame.to_csv(
+                index=index, float_format=f"%.{SIGNIFICANT}g"))
+            names.append(name)
     for section in sections:
         for name, figure in section.figures.items():
             images[name] = _png(figure)
-            written.append(atomic_write_bytes(out / name, images[name], overwrite))
-    markdown = render_markdown(title, sections)
-    written.append(atomic_write_text(out / "report.md", markdown, overwrite))
-    written.append(atomic_write_text(out / "report.html",
-                                     render_html(title, sections, images), overwrite))
-    written.append(atomic_write_text(out / "summary.json",
-                                     json.dumps(rounded(merged), indent=2) + "\n", overwrite))
-    return written
+            atomic_write_bytes(folder / name, images[name])
+            names.append(name)
+    atomic_write_text(folder / "report.md", render_markdown(title, sections))
+    atomic_write_text(folder / "report.html", render_html(title, sections, images))
+    atomic_write_text(folder / "summary.json", json.dumps(rounded(merged), indent=2) + "\n")
+    return names + ["report.md", "report.html", "summary.json"]
 
 
 def write_section(out, section, *, overwrite: bool = False) -> list[Path]:

@@ -1,0 +1,65 @@
+"""One rule for ties: which pose is "the worst" when several are equally bad.
+
+Many poses of a machine are equally bad by symmetry (a rotary axis at 72° and at 144°, a
+linear axis whose position does not enter an output). Their computed values then differ only
+by summation rounding, which differs between computers (BLAS, SIMD width), so "the largest"
+alone names a different pose on a different machine. Every worst pose the toolkit reports
+is therefore chosen by :func:`worst_rows`:
+
+    among the candidates whose value is within a relative tolerance ``rtol`` of the worst
+    value, the pose that comes first in lexicographic order (first axis first, smallest
+    position first).
+
+``rtol`` is :data:`TIE_RTOL` (1e-9) for values computed in closed form (σ, probabilities)
+and :data:`SEARCH_RTOL` (1e-7) for values found by a numerical search, whose optimum is
+known only to the search's tolerance.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+#: Relative tolerance within which closed-form values (σ, failure probability) are tied.
+TIE_RTOL = 1e-9
+#: Relative tolerance within which values found by a local search are tied.
+SEARCH_RTOL = 1e-7
+
+
+def worst_rows(values, poses, *, rtol: float = TIE_RTOL, largest: bool = True) -> np.ndarray:
+    """Row of the worst value of each column, ties broken by the first pose.
+
+    Parameters
+    ----------
+    values : array_like (n_rows,) or (n_rows, n_columns)
+        Non-negative scores, e.g. σ or a failure probability; NaN rows never win.
+    poses : array_like (n_rows, n_axes)
+        The pose of each row; its lexicographic order breaks ties.
+    rtol : float
+        Values within ``rtol × |worst|`` of the worst are tied.
+    largest : bool
+        The worst value is the largest (σ, failure probability) or the smallest.
+
+    Returns
+    -------
+    int or ndarray of int
+        The chosen row (an int for one-dimensional ``values``, one per column otherwise).
+    """
+    values = np.asarray(values, dtype=float)
+    single = values.ndim == 1
+    values = values.reshape(len(values), -1)
+    signed = values if largest else -values
+    signed = np.where(np.isnan(signed), -np.inf, signed)
+    worst = signed.max(axis=0)
+    tied = signed >= worst - rtol * np.abs(worst)
+    rank = lexicographic_rank(poses)
+    rows = np.where(tied, rank[:, None], len(rank)).argmin(axis=0)
+    return int(rows[0]) if single else rows
+
+
+def lexicographic_rank(poses) -> np.ndarray:
+    """Rank of each pose in lexicographic order (first axis first, smallest first)."""
+    poses = np.asarray(poses, dtype=float).reshape(len(poses), -1)
+    order = np.lexsort(poses.T[::-1])
+    rank = np.empty(len(poses), dtype=np.int64)
+    rank[order] = np.arange(len(poses))
+    return rank
