@@ -19,13 +19,11 @@ from pathlib import Path
 
 import numpy as np
 
-from reliability.files import (atomic_write_bytes, atomic_write_text, check_destination,
-                              make_temporary_folder)
+from reliability.files import (SIGNIFICANT, atomic_write_bytes, atomic_write_text,
+                              check_destination, make_temporary_folder)
 
 from .markdown import markdown_to_html
 
-#: Significant digits of every number written to CSV, markdown and JSON.
-SIGNIFICANT = 6
 #: Files whose presence marks a folder as holding an earlier report.
 REPORT_MARKERS = ("summary.json", "report.md", "report.html")
 FIGURE_DPI = 100

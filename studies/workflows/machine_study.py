@@ -19,7 +19,7 @@ import pandas as pd
 from allocation import AllocationProblem
 from reliability.fosm import fosm
 from reliability.poses import workspace_grid
-from reliability.streams import spawn
+from reliability.files import as_written
 from reliability.verification import verify
 
 #: Relative change of a tolerance below which it counts as unchanged.
@@ -56,8 +56,11 @@ def run(machine, *, points: int = 5, side: str = "two_sided", bounds=(0.5, 1.5),
     bounds : (float, float)
         Tolerance box as factors of the initial allocation.
     seed : int
-        Seed of the Monte-Carlo verification: ``spawn(seed, 2)`` gives the streams of the
-        initial and the optimal allocation (:mod:`reliability.streams`).
+        Seed of the Monte-Carlo verification of each allocation
+        (:func:`reliability.streams.verification_streams`), as ``precrel verify --seed``.
+        The optimum is verified (and its FOSM computed) exactly as written to
+        ``allocation.csv`` (:func:`reliability.files.as_written`), so ``precrel verify
+        --tolerances allocation.csv --seed S`` prints the report's Monte-Carlo numbers.
     repeats, samples : int
         Grid experiments, and random-pose / worst-pose samples, per allocation.
     progress : callable, optional
@@ -77,14 +80,14 @@ def run(machine, *, points: int = 5, side: str = "two_sided", bounds=(0.5, 1.5),
     initial = fosm(machine, problem.reference, problem.poses, jacobian=problem.jacobian)
     progress("certified cheapest allocation (convex solver)")
     optimum = problem.solve_exact()
-    optimal = fosm(machine, optimum.tolerances, problem.poses, jacobian=problem.jacobian)
+    written = as_written(optimum.tolerances)
+    optimal = fosm(machine, written, problem.poses, jacobian=problem.jacobian)
     checks = {}
-    for (name, t, prediction), rng in zip((("initial", problem.reference, initial),
-                                           ("optimum", optimum.tolerances, optimal)),
-                                          spawn(seed, 2)):
+    for name, t, prediction in (("initial", problem.reference, initial),
+                                ("optimum", written, optimal)):
         progress(f"Monte-Carlo verification of the {name} allocation")
         checks[name] = verify(machine, t, points=points, repeats=repeats, samples=samples,
-                              rng=rng, progress=lambda text: progress(f"  {text}"), bar=bar,
+                              rng=seed, progress=lambda text: progress(f"  {text}"), bar=bar,
                               prediction=prediction)
     return MachineStudy(machine=machine, points=points, side=side, bounds=tuple(bounds),
                         seed=seed, problem=problem, initial_fosm=initial, optimum=optimum,

@@ -9,10 +9,11 @@ profile × seed × repeats. Each task
    recording the mean share of poses in tolerance per output and the machine-level yield
    (share of experiments in which every pose meets every limit).
 
-Reproducible under any executor: a task's random stream is
-:func:`reliability.streams.task_stream` of the task's own parameters (a hash of them),
-never from the worker or the order of execution, so serial, process-pool and Dask runs
-write byte-identical ``results.csv``.
+Reproducible under any executor: a task's grid experiments draw from the grid stream of
+:func:`reliability.streams.verification_streams` of the task's seed, never from the worker
+or the order of execution, so serial, process-pool and Dask runs write byte-identical
+``results.csv``, and a task's numbers are those of ``precrel verify --seed S`` on its
+allocation (the grid experiments, for the ``independent`` profile).
 
 Resumable: each finished task is stored at once, one file per task
 (:class:`reliability.checkpoint.ResultStore`), keyed by its parameters and the toolkit
@@ -41,7 +42,7 @@ from reliability.machine import OUTPUTS, hobbing_machine, load_machine
 from reliability.poses import workspace_grid
 from reliability.profiles import profile_model
 from reliability.sampling import GridExperiment
-from reliability.streams import task_stream
+from reliability.streams import verification_streams
 
 PAPER_MACHINE = "hobbing"
 INDEPENDENT = "independent"
@@ -66,7 +67,7 @@ class SweepTask:
     profile : str
         Error profile along travel of the verification (``"independent"``: the paper's).
     seed : int
-        Seed of the verification, mixed with the other parameters into its stream.
+        Seed of the verification (:func:`reliability.streams.verification_streams`).
     repeats : int
         Grid experiments of the verification.
     points_per_axis : int
@@ -85,13 +86,6 @@ class SweepTask:
         """The task's parameters as stored and hashed: the machine by its content."""
         machine = _load_machine(self.machine) if machine is None else machine
         return dict(asdict(self), machine_fingerprint=machine_fingerprint(machine))
-
-    def stream_parameters(self) -> dict:
-        """What the task's random stream is built from: its parameters, with the machine
-        by content rather than by file name (moving the file changes no number)."""
-        parameters = self.parameters()
-        del parameters["machine"]
-        return parameters
 
 
 @dataclass(frozen=True)
@@ -200,15 +194,14 @@ def run_task(task: SweepTask, allocated: dict | None = None) -> dict:
         experiments entirely in tolerance).
     """
     with threadpool_limits(limits=1):
-        stream = task.stream_parameters()
-        machine = (task.machine, stream["machine_fingerprint"])
+        machine = (task.machine, task.parameters()["machine_fingerprint"])
         if allocated is None:
             allocated = solve_allocation(*_allocation_key(task, machine[1]))
         if allocated["status"] != "ok":
             return {"status": allocated["status"], "relative_cost": None,
                     "certified": False, "fraction": [None] * len(OUTPUTS), "yield": None}
         experiment = _experiment(machine, task.target, task.points_per_axis, task.profile)
-        rng = task_stream(stream)
+        rng = verification_streams(task.seed)[0]
         verified = experiment.run(allocated["tolerances"], repeats=task.repeats, rng=rng,
                                   keep_values="none")
     return {"status": "ok", "relative_cost": allocated["relative_cost"],
