@@ -2,9 +2,11 @@
 
 At the optimum of Eq. (34) the worst-case rows read ``σ² (z/I)² <= 1`` with ``z`` the
 required index of the target (Eq. 23). The Lagrange multipliers λ of an output's binding rows
-give ``d ln F / d ln z = 2Σλ/F``; relaxing the limit ``I`` acts with the opposite sign, and the
-chain rule through ``R = Φ(z)`` (one-sided) or ``R = 2Φ(z) − 1`` (two-sided) gives the
-target's elasticity.
+give ``d ln F / d ln z = 2Σλ/F``; the limit ``I`` acts with the opposite sign
+(``d ln F / d ln I = −2Σλ/F``, the ``elasticity`` of
+:attr:`allocation.AllocationResult.requirements`), and the chain rule through ``R = Φ(z)``
+(one-sided) or ``R = 2Φ(z) − 1`` (two-sided) gives the target's elasticity. One sign
+convention throughout: an elasticity is ``d ln cost / d ln (requirement)``.
 """
 
 from __future__ import annotations
@@ -29,19 +31,19 @@ def requirement_table(result) -> pd.DataFrame:
     DataFrame
         Indexed by output, columns ``binding_rows``, ``binds`` (yes/no),
         ``dlncost/dln_limit`` (negative: a looser limit is cheaper) and
-        ``dlncost/dln_target``, both rounded to 4 decimals.
+        ``dlncost/dln_target`` (positive: a higher target costs more).
     """
     problem = result.problem
     requirements = result.requirements
-    limit_elasticity = -requirements["elasticity"].to_numpy()
+    limit_elasticity = requirements["elasticity"].to_numpy()
     target = problem.machine.targets
     z = required_index(target, problem.side)
     slope = norm.pdf(z) * (2.0 if problem.side == "two_sided" else 1.0)  # dR/dz
-    target_elasticity = requirements["elasticity"].to_numpy() * target / (z * slope)
+    target_elasticity = -limit_elasticity * target / (z * slope)
     binding = requirements["binding_rows"].to_numpy() > 0
     return pd.DataFrame({
         "binding_rows": requirements["binding_rows"].to_numpy(),
         "binds": np.where(binding, "yes", "no"),
-        "dlncost/dln_limit": np.round(limit_elasticity, 4) + 0.0,
-        "dlncost/dln_target": np.round(target_elasticity, 4),
+        "dlncost/dln_limit": limit_elasticity + 0.0,
+        "dlncost/dln_target": target_elasticity + 0.0,
     }, index=requirements.index)

@@ -32,6 +32,27 @@ METHODS = ("exact", "gwo")
 COST_RTOL = 1e-9  # the saved cost must be Σ w/t² of the saved tolerances
 CSV_COLUMNS = ("error", "reference", "allocated")
 READINGS = {"worst": "every target at every pose", "mean": "targets on the workspace mean"}
+#: A relative duality gap below this is shown as "< GAP_SHOWN": its value is solver noise
+#: that differs between computers, while the bound is what the certificate guarantees.
+GAP_SHOWN = 1e-8
+
+
+def gap_bound(gap: float) -> float:
+    """The relative duality gap as the toolkit writes it: :data:`GAP_SHOWN` when smaller,
+    otherwise rounded up to two significant digits (NaN stays NaN)."""
+    gap = float(gap)
+    if not np.isfinite(gap) or gap < GAP_SHOWN:
+        return gap if not np.isfinite(gap) else GAP_SHOWN
+    scale = 10.0 ** (np.floor(np.log10(gap)) - 1)
+    return float(np.ceil(gap / scale) * scale)
+
+
+def gap_text(gap: float) -> str:
+    """``"< 1e-08"`` for a gap below :data:`GAP_SHOWN`, else ``"≤ 2.3e-05"`` (rounded up)."""
+    gap = float(gap)
+    if not np.isfinite(gap):
+        return "unknown"
+    return f"< {GAP_SHOWN:.0e}" if gap < GAP_SHOWN else f"≤ {gap_bound(gap):.2g}"
 
 
 @dataclass(frozen=True, eq=False)
@@ -120,8 +141,8 @@ def _method_text(result) -> str:
         return "the Grey Wolf Optimiser (no optimality certificate)"
     certified = result.certificate.get("certified", False)
     gap = result.certificate.get("relative_gap")
-    gap_text = "" if gap is None else f", relative gap {gap:.2g}"
-    return f"the exact solver ({'certified' if certified else 'NOT certified'}{gap_text})"
+    shown = "" if gap is None else f", relative gap {gap_text(gap)}"
+    return f"the exact solver ({'certified' if certified else 'NOT certified'}{shown})"
 
 
 def _status_line(result) -> str:
@@ -136,9 +157,10 @@ def _binding_lines(result, context) -> list[str]:
     if result.requirements is not None:
         binding = result.requirements[result.requirements["binding_rows"] > 0]
         table = binding[["binding_rows", "elasticity"]].rename(
-            columns={"elasticity": "elasticity [% cost per % limit]"})
-        head = ["What binds: requirements with binding rows (relaxing a limit by 1 % saves "
-                "about 'elasticity' % of the cost)", table.to_string()]
+            columns={"elasticity": "dlncost/dln_limit"})
+        head = ["What binds: requirements with binding rows (dlncost/dln_limit: relaxing a "
+                "limit by 1 % changes the cost by about this many %; negative, a saving)",
+                table.to_string(float_format="{:.4g}".format)]
     else:
         outputs = sorted(set(result.active["output"])) if len(result.active) else []
         head = [f"What binds: {', '.join(outputs) if outputs else 'no reliability target'}"]

@@ -21,9 +21,11 @@ import pandas as pd
 from scipy.stats import norm
 
 from reliability import checks, streams
+from reliability.display import OUTPUT_UNITS, axis_units, pose_text
 from reliability.errors import InputError
 from reliability.fosm import probability
 from reliability.machine import OUTPUTS
+from reliability.ties import worst_rows
 
 from .convex import InfeasibleAllocationError, largest_fraction, solve_convex_allocation
 from .gwo import grey_wolf
@@ -61,6 +63,9 @@ def _unreachable_worst(problem, rows=(), loads=()) -> TargetUnreachableError:
     pose, output = np.nonzero(at_lower > 1.0)
     order = np.argsort(-at_lower[pose, output], kind="stable")
     pose, output = pose[order], output[order]
+    first = worst_rows(at_lower[pose, output], problem.poses[pose]) if len(pose) else 0
+    order = np.r_[first, np.delete(np.arange(len(pose)), first)]
+    pose, output = pose[order], output[order]
     frame = pd.DataFrame({"output": np.array(OUTPUTS)[output], "pose": pose})
     for i, axis in enumerate(problem.machine.axes):
         frame[axis] = problem.poses[pose, i]
@@ -74,11 +79,14 @@ def _unreachable_worst(problem, rows=(), loads=()) -> TargetUnreachableError:
         frame["sigma_at_lower"] = frame["allowed_sigma"] * np.sqrt(at_lower[pose, output])
         need, have, what, verb = "allowed_sigma", "sigma_at_lower", "target", "needs σ ≤"
     first = frame.iloc[0]
-    positions = ", ".join(f"{axis}={first[axis]:.6g}" for axis in problem.machine.axes)
+    machine = problem.machine
+    positions = pose_text(first[list(machine.axes)].to_numpy(dtype=float), machine.axes,
+                          axis_units(machine), digits=6)
+    unit = OUTPUT_UNITS[OUTPUTS.index(first["output"])]
     message = (f"{what} unreachable inside the bounds: {first['output']} at pose "
-               f"{int(first['pose'])} ({positions}) {verb} {first[need]:.4g} "
-               f"but the tightest allowed tolerances give {first[have]:.4g}; "
-               f"{len(frame)} (output, pose) pair(s) blocked in all (see .blocking)")
+               f"{int(first['pose'])} ({positions}) {verb} {first[need]:.4g} {unit} "
+               f"but the tightest allowed tolerances give {first[have]:.4g} {unit}; "
+               f"{len(frame)} (output, pose) pair(s) blocked in all")
     return TargetUnreachableError(message, frame, rows, loads)
 
 
@@ -93,7 +101,7 @@ def _unreachable_mean(problem, shortfall) -> TargetUnreachableError:
     first = frame.iloc[0]
     message = (f"workspace-mean target unreachable inside the bounds: {first['output']} "
                f"reaches {first['mean_probability_at_lower']:.6g} at the tightest allowed "
-               f"tolerances, short of {first['target']:.6g} (see .blocking)")
+               f"tolerances, short of {first['target']:.6g}")
     return TargetUnreachableError(message, frame)
 
 
@@ -114,16 +122,18 @@ class AllocationResult:
         Exact: ``dual_bound``, ``relative_gap``, KKT residuals. GWO: ``violation``.
     active : DataFrame
         Binding constraints: output, pose index and positions, multiplier λ and the
-        elasticity ``2λ/F`` (relative cost change per relative change of the limit).
+        elasticity ``d ln F / d ln I = −2λ/F`` (relative cost change per relative change
+        of the limit; negative: a looser limit is cheaper).
         Where several binding rows are alike the split of λ among them is not unique;
         :attr:`requirements` gives the per-output totals, which are what a designer needs.
     history : DataFrame or None
         GWO convergence (best cost and violation per iteration).
     requirements : DataFrame or None
         Exact solver: per output, the number of binding rows, the summed multiplier and
-        the elasticity ``2Σλ/F``: relaxing that output's limit I by 1 % saves about
-        ``elasticity`` % of the cost (the rows scale as 1/I²; for the stack, whose rows
-        scale as 1/I, the elasticity is ``Σλ/F``).
+        the elasticity ``d ln F / d ln I = −2Σλ/F``: relaxing that output's limit I by
+        1 % changes the cost by about ``elasticity`` % (negative, a saving; the rows scale
+        as 1/I²; for the stack, whose rows scale as 1/I, it is ``−Σλ/F``). The toolkit
+        uses this one sign everywhere it prints an elasticity.
 
     ``summary()`` (and ``repr``) prints the cost relative to the reference allocation and
     what binds, opening with "NOT FEASIBLE" when the allocation misses a target;
@@ -206,7 +216,7 @@ def solve_exact(problem, *, gap_tol: float = 1e-6) -> AllocationResult:
     active = _row_frame(problem, solution.active)
     active["multiplier"] = solution.multipliers[solution.active]
     scale = 2.0 / problem.variable_power  # rows scale as 1/I² (FOSM) or 1/I (stack)
-    active["elasticity"] = scale * active["multiplier"] / solution.fun
+    active["elasticity"] = -scale * active["multiplier"] / solution.fun
     certificate = {"dual_bound": solution.dual_bound, "duality_gap": solution.duality_gap,
                    "relative_gap": solution.relative_gap,
                    "stationarity": solution.kkt.stationarity,
@@ -226,7 +236,7 @@ def _requirements(active: pd.DataFrame, cost: float, scale: float = 2.0) -> pd.D
     grouped = active.groupby("output")["multiplier"]
     frame = pd.DataFrame({"binding_rows": grouped.size(), "multiplier": grouped.sum()})
     frame = frame.reindex(OUTPUTS, fill_value=0)
-    frame["elasticity"] = scale * frame["multiplier"] / cost
+    frame["elasticity"] = -scale * frame["multiplier"] / cost
     frame.index.name = "output"
     return frame
 

@@ -38,6 +38,14 @@ def pose_frame(poses, axes, units, *, style: str = "bracket") -> pd.DataFrame:
                          for i, (axis, unit) in enumerate(zip(axes, shown_units))})
 
 
+def target_text(target: float) -> str:
+    """A probability readable near 1: ``0.99``, ``0.999999999`` (never a rounded ``1``):
+    enough decimals to show the failure probability ``1 − target`` to three digits."""
+    failure = 1.0 - float(target)
+    digits = max(6, int(np.ceil(-np.log10(failure))) + 3) if failure > 0 else 17
+    return f"{float(target):.{digits}f}".rstrip("0").rstrip(".")
+
+
 def bound_text(value: float, digits: int = 6) -> str:
     """A probability bound, clipped to [0, 1]; a bound at 0 or 1 says nothing and is marked
     ``(trivial)``."""

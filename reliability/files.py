@@ -14,9 +14,21 @@ import os
 import tempfile
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 
 from .errors import InputError, InputTypeError
+
+#: Significant digits of every number the toolkit writes to a CSV, markdown or JSON file.
+SIGNIFICANT = 6
+
+
+def as_written(values, digits: int = SIGNIFICANT) -> np.ndarray:
+    """``values`` exactly as they read back from a file written to ``digits`` significant
+    digits (``%.{digits}g``): what a later command reading that file computes with."""
+    values = np.asarray(values, dtype=float)
+    return np.array([float(f"{v:.{digits}g}") for v in values.ravel()]).reshape(values.shape)
+
 
 #: Permissions asked for a new file and a new folder, before the umask (as ``open``/``mkdir``).
 NEW_FILE_MODE, NEW_FOLDER_MODE = 0o666, 0o777

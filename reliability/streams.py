@@ -1,31 +1,32 @@
-"""Where every random draw comes from: one door for ``rng=``, three rules for extra streams.
+"""Where every random draw comes from: one door for ``rng=``, two rules for extra streams.
 
 Every function of the toolkit that draws takes ``rng=None`` and passes it through
 :func:`generator`, the only place an argument becomes a :class:`numpy.random.Generator`.
-Extra, independent streams come from one of three named rules, so a reader can tell from
+Extra, independent streams come from one of two named rules, so a reader can tell from
 the call which draws a number depends on:
 
 - :func:`spawn` — ``n`` children of a seed or generator, for the steps of one computation
-  (``spawn(seed, 3)`` gives the grid, random-pose and worst-pose streams of a verification);
+  (:func:`verification_streams`, ``spawn(seed, 3)``, gives the grid, random-pose and
+  worst-pose streams of a verification);
 - :func:`extra_stream` — stream ``index`` of the family ``[seed, 1]``, for work added on top
   of a computation that already consumes ``spawn(seed, ...)``, so that adding it changes none
   of the earlier numbers (the optional report sections, ``precrel verify --precision`` and
-  ``--rare``);
-- :func:`task_stream` — a stream fixed by a task's parameters alone (sweeps), whatever worker
-  runs it and in whatever order.
+  ``--rare``).
 
-The same seed therefore gives the same numbers in Python, on the command line and in a
-sweep, on any machine (numpy's ``SeedSequence`` and ``PCG64`` are platform independent).
+The Monte-Carlo verification of an allocation with seed ``S`` draws from
+:func:`verification_streams` of ``S`` wherever it runs: ``precrel verify --seed S``, both
+allocations of ``precrel report --seed S``, a sweep task with seed ``S`` (its grid
+experiments) and :func:`reliability.verification.verify` with ``rng=S``. The same seed and
+allocation therefore give the same numbers in Python, on the command line and in a sweep,
+on any machine (numpy's ``SeedSequence`` and ``PCG64`` are platform independent).
 """
 
 from __future__ import annotations
 
-import hashlib
 import numbers
 
 import numpy as np
 
-from .checkpoint import canonical_json
 from .errors import InputError, InputTypeError
 
 #: The entropy word that marks :func:`extra_stream`'s family beside the seed.
@@ -75,12 +76,10 @@ def extra_stream(seed: int, index: int) -> np.random.Generator:
                                                         spawn_key=(int(index),)))
 
 
-def task_stream(parameters) -> np.random.Generator:
-    """A stream determined by a task's parameters alone (not by the worker, the order of
-    execution or the toolkit version): the SHA-256 of their canonical JSON
-    (:func:`reliability.checkpoint.canonical_json`) as the entropy of a SeedSequence."""
-    digest = hashlib.sha256(canonical_json(parameters).encode("utf-8")).digest()
-    return np.random.default_rng(np.random.SeedSequence(int.from_bytes(digest, "little")))
+def verification_streams(rng) -> list[np.random.Generator]:
+    """The grid-experiment, random-pose and worst-pose streams of a Monte-Carlo verification
+    with seed (or generator) ``rng``: ``spawn(rng, 3)``, whichever command runs it."""
+    return spawn(rng, 3)
 
 
 def _seed(seed) -> int:

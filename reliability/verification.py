@@ -34,7 +34,7 @@ from .pose_sampling import EVENTS, sample_at_poses
 from .poses import workspace_grid
 from .rare import failure_probability, worst_grid_poses
 from .sampling import GridExperiment, sample_random_poses
-from .streams import spawn
+from .streams import spawn, verification_streams
 
 
 @dataclass(frozen=True)
@@ -78,8 +78,9 @@ def verify(machine, tolerances, *, points: int = 5, repeats: int = 20,
     samples : int
         Random-pose samples, and samples at each worst pose.
     rng : None, int or numpy.random.Generator
-        Split by :func:`reliability.streams.spawn` into the grid, random-pose and
-        worst-pose streams, in that order.
+        Split by :func:`reliability.streams.verification_streams` into the grid,
+        random-pose and worst-pose streams, in that order (the same seed gives the same
+        numbers here, in ``precrel verify``, ``precrel report`` and a sweep).
     progress : callable, optional
         ``progress(step)`` with a short description before each step.
     bar : callable, optional
@@ -91,7 +92,7 @@ def verify(machine, tolerances, *, points: int = 5, repeats: int = 20,
     """
     progress = progress or (lambda step: None)
     bar = bar or _NoBar
-    grid_rng, random_rng, worst_rng = spawn(rng, 3)
+    grid_rng, random_rng, worst_rng = verification_streams(rng)
     experiment = GridExperiment(machine, points)
     result = fosm(machine, tolerances, experiment.poses) if prediction is None else prediction
     if not np.array_equal(result.poses, experiment.poses):

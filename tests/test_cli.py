@@ -283,12 +283,26 @@ def test_verify_precision_and_rare(allocation_csv, capsys):
 
 def test_front_command_writes_its_table(tmp_path, capsys):
     path = tmp_path / "front.csv"
-    code, out, _ = run(capsys, "front", MILL, "--targets", "0.9", "0.99", "0.999",
-                       "--grid", "3", "--out", str(path))
+    code, out, _ = run(capsys, "front", MILL, "--target", "0.9", "0.99", "0.999",
+                       "--points", "3", "--out", str(path))
     assert code == 0
     frame = pd.read_csv(path)
     assert list(frame["target"]) == [0.9, 0.99, 0.999]
     assert frame["cost"].is_monotonic_increasing and frame["certified"].all()
+    assert (frame["relative_gap"] == 1e-8).all()  # written as the bound "< 1e-8"
+
+
+def test_front_on_an_unreachable_box_refuses_with_the_blocking_pose(capsys):
+    code, out, err = run(capsys, "front", MILL, "--target", "0.99999999", "--points", "3")
+    assert_one_line_error(code, err, "unreachable", "--bounds", " mm")
+    assert out == ""
+
+
+def test_front_prints_high_targets_with_their_failure_probability(capsys):
+    code, out, _ = run(capsys, "front", MILL, "--target", "0.9", "0.999999999",
+                       "--points", "3", "--bounds", "0.001", "1.5")
+    assert code == 0
+    assert "0.999999999 " in out and "1e-09" in out
 
 
 def test_report_takes_bounds_and_an_unreachable_box_says_how_to_proceed(tmp_path, capsys):

@@ -123,12 +123,12 @@ MILL = str(Path(__file__).parent / "machines" / "mill3.toml")
 
 def test_command_prints_and_writes_the_front(tmp_path, capsys):
     out = tmp_path / "front.csv"
-    command, args = _parse([MILL, "--targets", "0.9", "0.999", "--bounds", "0.001", "1.5",
-                            "--grid", "3", "--out", str(out)])
+    command, args = _parse([MILL, "--target", "0.9", "0.999", "--bounds", "0.001", "1.5",
+                            "--points", "3", "--out", str(out)])
     assert command.run(args) == 0
     printed = capsys.readouterr().out
     assert "worst-case stack: cost" in printed and f"written: {out}" in printed
-    table = pd.read_csv(out, index_col=0)
+    table = pd.read_csv(out)
     assert table["target"].tolist() == [0.9, 0.999]
     assert table["certified"].all()
     assert table["relative_cost"].is_monotonic_increasing
@@ -137,15 +137,17 @@ def test_command_prints_and_writes_the_front(tmp_path, capsys):
         command.run(args)
 
 
-def test_command_refuses_too_few_points():
-    command, args = _parse([MILL, "--grid", "2", "--points", "1"])
-    with pytest.raises(InputError, match="--points"):
+def test_command_refuses_too_few_targets():
+    command, args = _parse([MILL, "--points", "2", "--targets", "1"])
+    with pytest.raises(InputError, match="--targets"):
         command.run(args)
 
 
 @pytest.mark.parametrize("argv, words", [
-    (["--grid", "1"], ["--grid", "'1'"]),
-    (["--targets", "1.5"], ["--targets", "'1.5'"]),
+    (["--points", "1"], ["--points", "'1'"]),
+    (["--target", "1.5"], ["--target", "'1.5'"]),
+    (["--targets", "0.5"], ["--targets", "'0.5'"]),
+    (["--bounds", "1.5", "0.5"], ["--bounds", "LO"]),
 ])
 def test_command_refuses_bad_options_before_any_work(argv, words, capsys):
     from studies import cli

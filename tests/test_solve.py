@@ -140,7 +140,7 @@ def test_active_frame(exact_cases):
                                       problem.poses[active["pose"].to_numpy()])
         load = active_rows(problem, active) @ result.tolerances ** 2
         assert np.all(load >= 1 - 1e-7) and np.all(load <= 1)
-        np.testing.assert_allclose(active["elasticity"], 2 * active["multiplier"] / result.cost,
+        np.testing.assert_allclose(active["elasticity"], -2 * active["multiplier"] / result.cost,
                                    rtol=1e-12)
         # complementary slackness, relative to the cost as the duality gap is
         slack = active["multiplier"].to_numpy() * (1 - load) / result.cost
@@ -156,7 +156,7 @@ def test_requirements_are_the_per_output_totals(exact_cases):
         np.testing.assert_allclose(frame["multiplier"], totals, rtol=1e-12)
         np.testing.assert_array_equal(frame["binding_rows"],
                                       grouped.size().reindex(OUTPUTS, fill_value=0))
-        np.testing.assert_allclose(frame["elasticity"], 2 * totals / result.cost, rtol=1e-9)
+        np.testing.assert_allclose(frame["elasticity"], -2 * totals / result.cost, rtol=1e-9)
 
 
 @pytest.mark.parametrize("side", ["one_sided", "two_sided"])
@@ -225,7 +225,7 @@ def test_single_constraint_matches_the_lagrange_closed_form(hobbing):
     assert result.active["multiplier"].iloc[0] == pytest.approx(lam, rel=1e-6)
     # F_free ∝ I⁻² (homogeneous of degree −1 in u): the elasticity is 2 × its share of F
     share = lam / result.cost
-    assert result.active["elasticity"].iloc[0] == pytest.approx(2 * share, rel=1e-6)
+    assert result.active["elasticity"].iloc[0] == pytest.approx(-2 * share, rel=1e-6)
     status = result.to_frame()["status"]
     assert set(status[sensitive]) == {"free"} and set(status[~sensitive]) == {"upper"}
 
@@ -347,9 +347,12 @@ def test_unreachable_target_names_the_output_and_the_pose(blocked, hobbing):
     message = str(error)
     assert "dx" in message
     first = error.blocking.iloc[0]
-    for axis in hobbing.axes:
-        assert f"{axis}={first[axis]:.6g}" in message
+    for axis in hobbing.axis_specs:  # rotary positions in degrees, every position with its unit
+        shown, unit = (np.degrees(first[axis.name]), "deg") if axis.kind == "rotary" else \
+            (first[axis.name], "mm")
+        assert f"{axis.name}={shown:.6g} {unit}" in message
     assert f"pose {int(first['pose'])}" in message
+    assert ".blocking" not in message  # refusals name no Python attribute
 
 
 def test_blocking_frame_lists_truly_blocked_rows(blocked):

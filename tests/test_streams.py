@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from reliability.errors import InputError, InputTypeError
-from reliability.streams import extra_stream, generator, spawn, task_stream
+from reliability.streams import extra_stream, generator, spawn, verification_streams
 
 
 def test_generator_accepts_every_documented_form():
@@ -47,8 +47,8 @@ def test_extra_streams_are_their_documented_family_and_independent_of_spawn():
         extra_stream(-3, 0)
 
 
-def test_task_streams_depend_on_the_parameters_only():
-    a = task_stream({"target": 0.99, "seed": 1, "machine": "hobbing"}).random()
-    b = task_stream({"machine": "hobbing", "seed": 1, "target": 0.99}).random()
-    c = task_stream({"machine": "hobbing", "seed": 2, "target": 0.99}).random()
-    assert a == b != c
+def test_verification_streams_are_spawn_of_the_seed():
+    grid, random_poses, worst = verification_streams(7)
+    expected = [g.random() for g in spawn(7, 3)]
+    assert [grid.random(), random_poses.random(), worst.random()] == expected
+

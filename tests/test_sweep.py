@@ -23,6 +23,7 @@ from reliability.errors import InputError, InputTypeError, SavedResultError
 from reliability.machine import load_machine
 from reliability.poses import workspace_grid
 from studies.cli import sweep as command
+from reliability.verification import verify
 from studies.workflows.sweep import SweepSpec, SweepTask, run_sweep, run_task
 
 MACHINES = Path(__file__).parent / "machines"
@@ -92,6 +93,10 @@ def test_each_row_is_its_task_alone_and_the_allocation_is_the_exact_optimum(mill
     assert row["relative_cost"] == pytest.approx(best.cost / problem.cost.total(
         machine.initial_allocation), rel=1e-12)
     assert bool(row["certified"])
+    checked = verify(machine, best.tolerances, points=3, repeats=task.repeats, samples=10,
+                     rng=task.seed)  # same seed and allocation: the same grid experiments
+    np.testing.assert_allclose(alone["fraction"], checked.grid.fractions.mean(axis=0),
+                               rtol=1e-12)
     # a fraction is a mean of counts over 3 experiments of 27 poses
     counts = row.filter(like="fraction_").to_numpy(dtype=float) * 3 * 27
     np.testing.assert_allclose(counts, np.round(counts), atol=1e-9)

@@ -8,7 +8,7 @@ import numpy as np
 
 from allocation import AllocationProblem
 from allocation.elasticity import requirement_table
-from allocation.result_files import allocation_to_csv
+from allocation.result_files import allocation_to_csv, gap_text
 from reliability.errors import InputError
 from reliability.poses import workspace_grid
 from studies.report.writer import SIGNIFICANT
@@ -82,7 +82,7 @@ def describe(result) -> str:
     if result.method == "exact":
         certificate = result.certificate
         lines.append(f"certified optimum: {'yes' if certificate['certified'] else 'NO'} "
-                     f"(relative duality gap {certificate['relative_gap']:.1e})")
+                     f"(relative duality gap {gap_text(certificate['relative_gap'])})")
     else:
         lines.append("feasible: yes" if result.feasible else
                      f"NOT FEASIBLE: the best wolf violates the constraints by "

@@ -8,15 +8,17 @@ solved beside it. Prints one row per target and the stack; ``--out`` writes the 
 from __future__ import annotations
 
 import argparse
-import sys
 from pathlib import Path
 
 import numpy as np
 
+from allocation import AllocationProblem
 from allocation.front import FRONT_SIDES, cost_reliability_front
+from allocation.result_files import gap_bound, gap_text
+from reliability.display import target_text
 from reliability.errors import InputError
-from reliability.files import write_csv
-from reliability.machine import load_machine
+from reliability.files import SIGNIFICANT, write_csv
+from reliability.machine import OUTPUTS, load_machine
 from reliability.poses import workspace_grid
 
 from . import options
@@ -33,19 +35,14 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     parser.add_argument("machine", type=Path, help="machine description (TOML)")
     parser.add_argument("--side", choices=FRONT_SIDES, default="two_sided",
                         help="reading of the reliability requirement (default: two_sided)")
-    parser.add_argument("--targets", type=options.probability, nargs="+", default=None, metavar="R",
-                        help="reliability targets in (0, 1) (default: --points targets "
-                             "with 1 − R log-spaced from 1e-1 to 1e-9)")
-    parser.add_argument("--points", type=options.positive_int, default=20,
-                        help="number of log-spaced targets when --targets is not given "
+    parser.add_argument("--target", type=options.probability, nargs="+", default=None,
+                        metavar="R", help="reliability targets in (0, 1) (default: --targets "
+                                          "targets with 1 − R log-spaced from 1e-1 to 1e-9)")
+    parser.add_argument("--targets", type=options.positive_int, default=20, metavar="N",
+                        help="number of log-spaced targets when --target is not given "
                              "(default: 20)")
-    parser.add_argument("--bounds", type=options.positive_float, nargs=2, default=(0.5, 1.5),
-                        metavar=("LO", "HI"),
-                        help="tolerance box as factors of the initial allocation "
-                             "(default: 0.5 1.5; high targets and the stack usually need "
-                             "a lower LO, e.g. 0.001)")
-    parser.add_argument("--grid", type=options.grid_points, default=5,
-                        help="grid points per axis (default: 5)")
+    options.add_bounds(parser)
+    options.add_points(parser)
     parser.add_argument("--out", type=Path, default=None, help="write the table as CSV")
     parser.add_argument("--overwrite", action="store_true",
                         help="replace an existing --out file")
@@ -53,39 +50,62 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
 
 
 def run(args) -> int:
-    """Compute and print the front; write it with ``--out``."""
+    """Compute and print the front; write it with ``--out``; exit 2 when the box reaches
+    none of the targets."""
     targets = _targets(args)
-    if args.grid < 2:
-        raise InputError(f"--grid must be an integer >= 2; got {args.grid}")
+    bounds = options.check_bounds(args.bounds)
     if args.out is not None:
         options.destination(args.out, args.overwrite)
     machine = load_machine(args.machine)
-    print(f"front of {machine.name}: {len(targets)} target(s), {args.side}, box "
-          f"{args.bounds[0]:g}–{args.bounds[1]:g} × initial allocation", file=sys.stderr)
-    front = cost_reliability_front(machine, targets, side=args.side,
-                                   poses=workspace_grid(machine, args.grid),
-                                   bounds=tuple(args.bounds))
+    poses = workspace_grid(machine, args.points)
+    box = f"box {bounds[0]:g}–{bounds[1]:g} × initial allocation"
+    options.say(f"front of {machine.name}: {len(targets)} target(s), {args.side}, {box}, "
+                f"{args.points}-point grid")
+    front = cost_reliability_front(machine, targets, side=args.side, poses=poses,
+                                   bounds=bounds)
+    if not front["feasible"].any():
+        _refuse_unreachable(machine, float(front["target"].min()), args.side, poses, bounds)
     shown = front[["target", "cost", "relative_cost", "relative_gap", "certified",
-                   "feasible", "binding"]].copy()
-    shown.insert(1, "failure", 1.0 - shown["target"])  # 1 − R, readable where R rounds to 1
-    print(shown.to_string(float_format=lambda v: f"{v:.6g}"))
+                   "binding"]].copy()
+    shown.insert(1, "failure", 1.0 - shown["target"])
+    shown["relative_gap"] = [gap_bound(g) for g in shown["relative_gap"]]
+    reached = shown[front["feasible"]]
+    print(f"certified front ({args.side}, {box}, every target at every pose of the "
+          f"{args.points}-point grid); failure = 1 − target; relative_gap is an upper bound")
+    print(reached.to_string(index=False, formatters={
+        "target": target_text, "failure": "{:.3g}".format}, float_format="{:.6g}".format))
+    missed = front.loc[~front["feasible"], "target"]
+    if len(missed):
+        print(f"not reachable in the box: {len(missed)} target(s) from "
+              f"{target_text(missed.min())} (failure {1 - missed.min():.3g}) up; a wider "
+              f"box (--bounds LO HI, e.g. 0.001 1.5) may reach them")
     print(_stack_line(front.attrs["stack"]))
     seconds = front.attrs["seconds"]
-    print(f"time: build and row screening {seconds['build']:.2f} s, "
-          f"{len(targets)} solves {seconds['solve']:.2f} s", file=sys.stderr)
+    options.say(f"time: build and row screening {seconds['build']:.2f} s, "
+                f"{len(targets)} solves {seconds['solve']:.2f} s")
     if args.out is not None:
-        write_csv(shown, args.out, overwrite=args.overwrite)
+        write_csv(shown, args.out, overwrite=args.overwrite,
+                  float_format=f"%.{SIGNIFICANT}g", index=False)
         print(f"written: {args.out}")
     return 0
 
 
+def _refuse_unreachable(machine, target: float, side: str, poses, bounds) -> None:
+    """Raise the allocation's own refusal (blocking output and pose) for the lowest target."""
+    problem = AllocationProblem.build(machine, poses, side=side, bounds=bounds,
+                                      targets=dict.fromkeys(OUTPUTS, target))
+    problem.solve_exact()  # raises TargetUnreachableError naming what blocks
+    raise InputError(f"no target of the front is reachable in the box {bounds}")
+
+
 def _targets(args) -> np.ndarray:
-    if args.targets is not None:
-        return np.asarray(args.targets, dtype=float)
-    if args.points < 2:
-        raise InputError(f"--points must be an integer >= 2; got {args.points}")
+    if args.target is not None:
+        return np.asarray(args.target, dtype=float)
+    if args.targets < 2:
+        raise InputError(f"--targets must be an integer >= 2 (the number of log-spaced "
+                         f"targets); got {args.targets}")
     return 1.0 - np.logspace(np.log10(FAILURE_SPAN[0]), np.log10(FAILURE_SPAN[1]),
-                             args.points)
+                             args.targets)
 
 
 def _stack_line(stack) -> str:
@@ -93,4 +113,4 @@ def _stack_line(stack) -> str:
         return f"worst-case stack: not reachable in the box ({stack['error'].split(';')[0]})"
     return (f"worst-case stack: cost {stack['cost']:.6g} = {stack['relative_cost']:.4g} × "
             f"initial allocation, certified {stack['certified']}, relative gap "
-            f"{stack['relative_gap']:.2g}, binding {stack['binding']}")
+            f"{gap_text(stack['relative_gap'])}, binding {stack['binding']}")

@@ -160,7 +160,18 @@ def pose_text(machine, pose) -> str:
 
 
 def percent(value: float) -> str:
-    return f"{100.0 * value:.4f} %"
+    """A probability in per cent, with its failure probability beside it when it would
+    round to 100 % (``99.9999999 % (1 − 1e-09)``)."""
+    text = f"{100.0 * value:.4f} %"
+    if value >= 1.0:
+        return "100 % (1 − 0 in double precision)"
+    return text if 1.0 - value >= 5e-7 else \
+        f"{100.0 * value:.{display_decimals(value)}f} % (1 − {1.0 - value:.3g})"
+
+
+def display_decimals(value: float) -> int:
+    """Decimals of a percentage that keep ``1 − value`` visible to three digits."""
+    return len(display.target_text(value).split(".")[-1]) - 2
 
 
 def progress_bar(total: int, description: str):

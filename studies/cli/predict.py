@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pandas as pd
 
-from reliability.display import OUTPUT_UNITS, top_contributors
+from reliability.display import OUTPUT_UNITS, target_text, top_contributors
 from reliability.fosm import fosm
 from reliability.machine import OUTPUTS
 from reliability.poses import workspace_grid
@@ -54,7 +54,7 @@ def prediction_table(machine, result, side: str) -> pd.DataFrame:
         rows.append({
             "output": output,
             "limit": f"{row['limit']:g} {OUTPUT_UNITS[i]}",
-            "target": f"{row['target']:g}",
+            "target": target_text(row["target"]),
             "worst pose": options.pose_text(machine, pose),
             "beta": f"{row['beta']:.4f}",
             "P one-sided": options.percent(row["worst_one_sided"]),

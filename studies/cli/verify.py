@@ -51,7 +51,8 @@ def run(args) -> int:
                     samples=args.samples, rng=args.seed, progress=options.say,
                     bar=options.progress_bar)
     print(f"Monte-Carlo verification of {args.tolerances} on {machine.name!r} "
-          f"(seed {args.seed}); probabilities in %\n")
+          f"(seed {args.seed}); two-sided probabilities in %; Monte-Carlo errors drawn "
+          f"normal with sigma = t/3 truncated at +-t\n")
     print(report_tables(machine, result))
     worst = result.worst_poses
     short = worst[worst["mc_upper"] < machine.targets]["output"].tolist()
@@ -97,14 +98,14 @@ def report_tables(machine, result) -> str:
     """The three comparisons as text tables."""
     grid = result.grid_comparison
     grid_table = pd.DataFrame({
-        "FOSM grid mean": _pct(grid["fosm_two_sided"]),
+        "FOSM grid mean, normal errors": _pct(grid["fosm_two_sided"]),
         "MC mean": _pct(grid["mc_estimate"]),
         "95% Wilson (Kish n_eff)": _interval(grid["mc_lower"], grid["mc_upper"]),
-        "FOSM worst pose": _pct(grid["fosm_worst_two_sided"]),
+        "FOSM worst pose, normal errors": _pct(grid["fosm_worst_two_sided"]),
     }, index=pd.Index(grid["output"], name="output"))
     random = result.random_poses
     random_table = pd.DataFrame({
-        "FOSM": _pct(random["fosm_two_sided"]),
+        "FOSM, normal errors": _pct(random["fosm_two_sided"]),
         "MC": _pct(random["estimate"]),
         "95% Wilson": _interval(random["lower"], random["upper"]),
     }, index=pd.Index(random["output"], name="output"))
@@ -112,7 +113,7 @@ def report_tables(machine, result) -> str:
     worst_table = pd.DataFrame({
         "worst pose": [options.pose_text(machine, row) for row in
                        worst[list(machine.axes)].to_numpy()],
-        "FOSM": _pct(worst["fosm_two_sided"]),
+        "FOSM, truncated errors": _pct(worst["fosm_two_sided"]),
         "MC": _pct(worst["mc_estimate"]),
         "95% Wilson": _interval(worst["mc_lower"], worst["mc_upper"]),
     }, index=pd.Index(worst["output"], name="output"))

@@ -8,6 +8,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
+from allocation.result_files import gap_text
 from reliability.files import atomic_write_text
 from studies.report.markdown import format_cell, markdown_table
 
@@ -60,7 +61,7 @@ def _allocation(study, tables) -> str:
         lines.append(f"- **{side}**: exact optimum {exact.cost:.6g} (cost "
                      f"{PERCENT(costs.loc['exact' + suffix, 'relative_to_initial'])} of "
                      f"initial), certified relative duality gap "
-                     f"{exact.certificate['relative_gap']:.1e}; GWO (500 × 100) "
+                     f"{gap_text(exact.certificate['relative_gap'])}; GWO (500 × 100) "
                      f"{gwo.cost:.6g}, {PERCENT(gwo.cost / exact.cost - 1)} above the "
                      f"optimum, feasible: {'yes' if gwo.feasible else 'no'}.")
     refined = study.solutions["exact_two_sided_workspace"]
@@ -69,11 +70,12 @@ def _allocation(study, tables) -> str:
                  f"{len(study.refined_poses)} poses added) costs "
                  f"{PERCENT(refined.cost / study.solutions['exact_two_sided'].cost - 1)} "
                  f"more than the grid optimum (relative duality gap "
-                 f"{refined.certificate['relative_gap']:.1e}).")
+                 f"{gap_text(refined.certificate['relative_gap'])}).")
     lines += ["", _units_note(study)]
-    lines += ["", "Marginal cost of each requirement at the exact optima (`elasticity`: relaxing "
-              "that output's limit by 1 % saves about this many % of the cost; summed over "
-              "its binding (output, pose) rows):", ""]
+    lines += ["", "Marginal cost of each requirement at the exact optima (`elasticity` = "
+              "d ln cost / d ln limit: relaxing that output's limit by 1 % changes the cost "
+              "by about this many %, negative for a saving; summed over its binding "
+              "(output, pose) rows):", ""]
     requirements = tables["exact_requirements.csv"].reset_index()
     lines.append(markdown_table(requirements, {"multiplier": "{:.4g}".format,
                                                "elasticity": "{:.3f}".format}, index=False))

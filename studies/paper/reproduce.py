@@ -26,6 +26,7 @@ import numpy as np
 import pandas as pd
 
 import allocation
+from allocation.result_files import gap_text
 import reliability
 from reliability.comparison import fosm_versus_monte_carlo
 from reliability.files import atomic_write_bytes, write_csv
@@ -127,7 +128,7 @@ def run_study(seed: int = 2023, repeats: int = 20, wolves: int = 100,
         study.problems[side] = problem
         exact = problem.solve_exact()
         log(f"  exact optimum: cost {exact.cost:.5g}, relative gap "
-            f"{exact.certificate['relative_gap']:.1e}; GWO {iterations} x {wolves} ...")
+            f"{gap_text(exact.certificate['relative_gap'])}; GWO {iterations} x {wolves} ...")
         gwo = problem.solve_gwo(n_wolves=wolves, n_iterations=iterations, rng=next(streams))
         study.solutions[f"exact{suffix}"], study.solutions[f"gwo{suffix}"] = exact, gwo
         study.allocations[f"gwo{suffix}"] = gwo.tolerances

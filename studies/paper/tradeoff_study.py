@@ -29,6 +29,7 @@ from scipy.stats import norm
 import allocation
 import reliability
 from allocation.convex import solve_convex_allocation
+from allocation.result_files import gap_text
 from reliability.display import bound_text
 from reliability.fosm import required_index
 from reliability.machine import OUTPUTS
@@ -65,7 +66,7 @@ def stack_numbers(machine):
     print(f"   box {BOUNDS} × Table 4: cost {result.cost:.6g} = "
           f"{result.cost / reference:.4f} × Table 4 (certified "
           f"{result.certificate['certified']}, relative duality gap "
-          f"{result.certificate['relative_gap']:.2g}); items {status}; binding outputs "
+          f"{gap_text(result.certificate['relative_gap'])}); items {status}; binding outputs "
           f"{', '.join(binding)}")
     return result.cost / reference
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from matplotlib.figure import Figure
 
+from allocation.result_files import gap_text
 from studies.workflows.correlation import VALUES, correlation_sweep
 
 from .markdown import markdown_table
@@ -48,7 +49,7 @@ def correlation_section(machine, pair, values=VALUES, *, side: str = "two_sided"
         f"Errors {names[0]} and {names[1]} are given a correlation ρ "
         f"from {low:g} to {high:g}; for each value the worst-case allocation problem "
         f"({side.replace('_', '-')} reading, workspace grid) is solved to a certified "
-        f"optimum (largest relative duality gap {sweep['relative_gap'].max():.1e}). The "
+        f"optimum (largest relative duality gap {gap_text(sweep['relative_gap'].max())}). The "
         f"optimal cost moves from {sweep['cost_vs_rho0'].loc[low]:.4f} to "
         f"{sweep['cost_vs_rho0'].loc[high]:.4f} times its value at ρ = 0. The allocation "
         f"designed for uncorrelated errors keeps a worst-pose reliability of at least "

@@ -14,7 +14,7 @@ import pandas as pd
 from matplotlib.figure import Figure
 
 from allocation.elasticity import requirement_table
-from allocation.result_files import allocation_frame
+from allocation.result_files import allocation_frame, gap_text
 from reliability.display import OUTPUT_UNITS, axis_units, top_contributors
 from reliability.machine import OUTPUTS
 from studies.workflows.machine_study import MachineStudy, summary, tolerance_changes
@@ -50,7 +50,7 @@ def answers(study: MachineStudy) -> str:
         f"- The cheapest allocation meeting them within bounds [{study.bounds[0]:g}, "
         f"{study.bounds[1]:g}] × initial costs **{info['relative_cost']:.2%}** of the "
         f"initial allocation ({certified}, relative duality gap "
-        f"{info['relative_gap']:.1e}).",
+        f"{gap_text(study.optimum.certificate['relative_gap'])}).",
         f"- Monte-Carlo of that allocation ({info['samples']} samples at each output's "
         f"worst pose, Wilson 95 %): {verdict}; "
         + ", ".join(f"{row.output} {PERCENT(row.mc_estimate)}" for row in mc.itertuples())
@@ -146,7 +146,7 @@ def allocation_section(study: MachineStudy) -> Section:
             f"{study.bounds[1]:g}] × the initial allocation. Cost {optimum.cost:.6g} against "
             f"{info['initial_cost']:.6g} initially ({info['relative_cost']:.2%}); "
             f"{'certified' if info['certified'] else 'not certified'} optimum, relative "
-            f"duality gap {info['relative_gap']:.1e}.\n\n"
+            f"duality gap {gap_text(optimum.certificate['relative_gap'])}.\n\n"
             f"Which requirements bind, and what they cost: `dlncost/dln_limit` is the "
             f"relative cost change per relative change of the limit (from the Lagrange "
             f"multipliers), `dlncost/dln_target` the same for the target probability.\n\n"

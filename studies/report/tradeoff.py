@@ -12,6 +12,7 @@ import numpy as np
 import pandas as pd
 
 from allocation.front import allocation_point, cost_reliability_front
+from allocation.result_files import gap_text
 from reliability.display import bound_text
 from reliability.poses import workspace_grid
 from reliability.streams import spawn
@@ -70,7 +71,7 @@ def front_section(machine, *, targets=DEFAULT_TARGETS, reliability: float = 0.99
                 f"within their tolerances (the classical worst-case stack, Σ|∂y/∂x| t ≤ I "
                 f"at every pose) costs {stack['relative_cost']:.3g} × the initial "
                 f"allocation (certified optimum, relative duality gap "
-                f"{stack['relative_gap']:.1g}). The cheapest allocation meeting "
+                f"{gap_text(stack['relative_gap'])}). The cheapest allocation meeting "
                 f"{reliability:g} two-sided at every pose costs "
                 f"{at['relative_cost']:.3g} × the initial allocation: the worst-case "
                 f"machine is **{ratio:.3g} times** as expensive.")

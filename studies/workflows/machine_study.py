@@ -17,6 +17,7 @@ from dataclasses import dataclass
 import pandas as pd
 
 from allocation import AllocationProblem
+from allocation.result_files import gap_bound
 from reliability.fosm import fosm
 from reliability.poses import workspace_grid
 from reliability.files import as_written
@@ -106,7 +107,7 @@ def summary(study: MachineStudy) -> dict:
         "optimal_cost": study.optimum.cost,
         "relative_cost": study.optimum.cost / initial_cost,
         "certified": bool(study.optimum.certificate["certified"]),
-        "relative_gap": float(study.optimum.certificate["relative_gap"]),
+        "relative_gap": gap_bound(study.optimum.certificate["relative_gap"]),
         "initial_meets_targets": bool(study.initial_fosm.meets_targets(study.side).all()),
         "optimal_meets_targets": bool(study.optimal_fosm.meets_targets(study.side).all()),
         "seed": study.seed,
