@@ -1,4 +1,6 @@
-"""Tests for studies.report.plots: artists drawn, limit lines, refusals."""
+"""Tests for studies.report.plots: artists drawn, limit lines, refusals; and for every
+figure of the report and of the paper's case study: a title, and a legend that covers no
+data and stays inside the picture."""
 
 import matplotlib
 
@@ -9,15 +11,21 @@ import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 import pytest  # noqa: E402
 from matplotlib.axes import Axes  # noqa: E402
+from matplotlib.backends.backend_agg import FigureCanvasAgg  # noqa: E402
+from matplotlib.collections import LineCollection  # noqa: E402
 from matplotlib.colors import to_rgba  # noqa: E402
 
+from reliability.statistics import between_experiment_interval  # noqa: E402
+from studies.report.correlation import plot_cost_against_correlation  # noqa: E402
 from studies.report.plots import (  # noqa: E402
     plot_allocation_comparison,
     plot_comprehensive_error_scatter,
     plot_convergence,
+    plot_front,
     plot_reliability_comparison,
     plot_repeats,
 )
+from studies.report.profiles import plot_yield_against_length  # noqa: E402
 
 NAMES = ["X.dx", "X.dy", "X.ez", "C-X.dx", "C-X.ez"]
 INITIAL = np.array([0.003, 0.003, 1.45e-5, 0.003, 1.45e-5])
@@ -44,8 +52,134 @@ def _collection(ax, prefix):
     return found
 
 
+# --------------------------------------------------------------------------- legends
+def _drawn(ax):
+    """Lay the figure out and draw it, as saving a PNG does; return the renderer."""
+    if not hasattr(ax.figure.canvas, "get_renderer"):  # a bare Figure(): as savefig would
+        FigureCanvasAgg(ax.figure)
+    ax.figure.canvas.draw()
+    return ax.figure.canvas.get_renderer()
+
+
+def _data_covered_by(ax, box, renderer):
+    """The data artists of ``ax`` of which some part lies in the display box ``box``:
+    bars (their rectangles), lines (their drawn segments, or their markers when no line
+    joins them), scatter points and error-bar segments."""
+    covered = [patch for patch in ax.patches if patch.get_window_extent(renderer).overlaps(box)]
+    for line in ax.lines:
+        path = line.get_transform().transform_path(line.get_path())
+        if line.get_linestyle() in ("None", "", " "):
+            hit = box.count_contains(path.vertices) > 0
+        else:
+            hit = path.intersects_bbox(box, filled=False)
+        covered += [line] if hit else []
+    for collection in ax.collections:
+        if isinstance(collection, LineCollection):
+            transform = collection.get_transform()
+            hit = any(transform.transform_path(p).intersects_bbox(box, filled=False)
+                      for p in collection.get_paths())
+        else:
+            offsets = collection.get_offsets()
+            hit = len(offsets) > 0 and box.count_contains(
+                collection.get_offset_transform().transform(offsets)) > 0
+        covered += [collection] if hit else []
+    return covered
+
+
+def _inside(inner, outer, slack=0.5):
+    """Is the display box ``inner`` inside ``outer`` (to ``slack`` pixels)?"""
+    return (inner.x0 >= outer.x0 - slack and inner.y0 >= outer.y0 - slack
+            and inner.x1 <= outer.x1 + slack and inner.y1 <= outer.y1 + slack)
+
+
+def assert_readable(figure):
+    """Every axes of ``figure`` has a title (or the figure a suptitle) inside the picture;
+    every legend lies inside the picture and over none of the data of any axes."""
+    renderer = _drawn(figure.axes[0])
+    suptitle = figure._suptitle.get_text() if figure._suptitle is not None else ""
+    for ax in figure.axes:
+        if not (ax.get_title() or suptitle):
+            raise AssertionError(f"axes {ax.get_ylabel()!r} has no title")
+        if ax.get_title():
+            assert _inside(ax.title.get_window_extent(renderer), figure.bbox), ax.get_title()
+        legend = ax.get_legend()
+        if legend is None:
+            continue
+        box = legend.get_window_extent(renderer)
+        assert _inside(box, figure.bbox), f"legend of {ax.get_title()!r} leaves the picture"
+        for other in figure.axes:
+            covered = _data_covered_by(other, box, renderer)
+            assert not covered, f"legend of {ax.get_title()!r} covers {covered}"
+
+
+ITEMS = [f"{axis}.{c}" for axis in "CAYXZ" for c in ("dx", "dy", "dz", "ex", "ey", "ez")]
+
+
+def _crowded_allocation():
+    """Looser and tighter bars alternating across the whole axes: no empty corner."""
+    return plot_allocation_comparison(np.ones(30), np.tile([0.5, 1.5], 15), names=ITEMS)
+
+
+def _crowded_scatter():
+    """Points spread evenly over ±1.1 limit at every pose index: no empty corner."""
+    values = np.random.default_rng(0).permutation(np.linspace(-0.022, 0.022, 3000))
+    return plot_comprehensive_error_scatter(values, 0.02, output_label="dx")
+
+
+def _front_frame():
+    target = 1.0 - np.logspace(-1, -6, 12)
+    frame = pd.DataFrame({"target": target, "feasible": True,
+                          "relative_cost": 0.6 + 0.5 * np.arange(12)})
+    frame.attrs.update(side="two_sided", stack={"relative_cost": 7.0})
+    return frame
+
+
+def _yield_frame():
+    rows = [{"allocation": a, "profile": p, "repeats": 200, "length_mm": length,
+             "yield": y, "yield_lower": y - 0.05, "yield_upper": min(y + 0.05, 1.0)}
+            for a, base in (("initial", 0.1), ("optimum", 0.55))
+            for p, length, y in (("independent", 0.0, base), ("gp:100", 100.0, base + 0.1),
+                                 ("gp:1000", 1000.0, base + 0.35),
+                                 ("constant", np.inf, base + 0.4))]
+    return pd.DataFrame(rows)
+
+
+FIGURES = {
+    "allocation": _crowded_allocation,
+    "allocation, four allocations": lambda: plot_allocation_comparison(
+        {"initial": INITIAL, "paper": OPTIMISED, "gwo": OPTIMISED * 1.1,
+         "exact": OPTIMISED * 0.9}, names=NAMES),
+    "scatter": _crowded_scatter,
+    "convergence": lambda: plot_convergence(_history(), optimum=9.0e9),
+    "reliability": lambda: plot_reliability_comparison(_reliability_frame(), target=0.99,
+                                                       interval="95% Wilson"),
+    "repeats": lambda: plot_repeats(_repeats()),
+    "front": lambda: plot_front(_front_frame(), marks={"initial": (0.95, 1.0),
+                                                       "optimum": (0.99, 1.4)}),
+    "yield against correlation length": lambda: plot_yield_against_length(_yield_frame()),
+}
+
+
+@pytest.mark.parametrize("draw", FIGURES.values(), ids=FIGURES.keys())
+def test_legend_covers_no_data_and_every_figure_has_a_title(draw):
+    assert_readable(draw().figure)
+
+
+def test_the_check_finds_a_legend_over_data():
+    ax = _crowded_scatter()
+    ax.legend(loc="upper right")
+    with pytest.raises(AssertionError, match="covers"):
+        assert_readable(ax.figure)
+
+
+def test_correlation_figure_has_a_title():
+    sweep = pd.DataFrame({"cost_vs_rho0": [1.02, 1.0, 0.98]},
+                         index=pd.Index([-0.5, 0.0, 0.5], name="rho"))
+    assert_readable(plot_cost_against_correlation(sweep, ("X.dx", "Y.dy")).figure)
+
+
 # --------------------------------------------------------------------------- allocation
-def test_allocation_bars_are_ratios_drawn_from_one():
+def test_allocation_bars_are_ratios_drawn_from_one_on_a_log_axis():
     ax = plot_allocation_comparison(INITIAL, OPTIMISED, names=NAMES)
     assert isinstance(ax, Axes)
     bars = ax.patches
@@ -53,11 +187,28 @@ def test_allocation_bars_are_ratios_drawn_from_one():
     tops = np.array([b.get_y() + b.get_height() for b in bars])
     np.testing.assert_allclose([b.get_y() for b in bars], 1.0)
     np.testing.assert_allclose(tops, OPTIMISED / INITIAL)
+    assert ax.get_yscale() == "log"
     assert 1.0 in _horizontal_lines(ax)
+    assert ax.get_ylabel() == "optimised / reference (log scale)"
     assert [t.get_text() for t in ax.get_xticklabels()] == NAMES
     legend = [t.get_text() for t in ax.get_legend().get_texts()]
     assert legend == ["reference = 1", "optimised"]
-    assert ax.get_title() and ax.get_ylabel()
+    assert ax.get_title()
+
+
+def test_allocation_axis_is_symmetric_about_one_with_plain_ticks():
+    ax = plot_allocation_comparison(np.ones(4), [0.5, 0.8, 1.0, 1.25], names=NAMES[:4])
+    low, high = ax.get_ylim()
+    assert low * high == pytest.approx(1.0)  # halving and doubling: bars of equal length
+    assert low < 0.5 and high > 2.0
+    ticks = ax.get_yticks()
+    assert 1.0 in ticks and np.all((ticks >= low) & (ticks <= high))
+    _drawn(ax)
+    labels = {t.get_text() for t in ax.get_yticklabels()}
+    assert {"0.5", "1", "2"} <= labels
+    # An unchanged allocation still has an axis around 1 (zero-height bars).
+    flat = plot_allocation_comparison(np.ones(3), np.ones(3), names=NAMES[:3])
+    assert flat.get_ylim()[0] < 1.0 < flat.get_ylim()[1]
 
 
 def test_allocation_mapping_draws_one_bar_group_per_non_reference_allocation():
@@ -65,6 +216,10 @@ def test_allocation_mapping_draws_one_bar_group_per_non_reference_allocation():
                    "exact": OPTIMISED * 0.9}
     ax = plot_allocation_comparison(allocations, names=NAMES, title="Fig. 8")
     assert len(ax.patches) == 3 * len(NAMES)
+    tops = np.array([b.get_y() + b.get_height() for b in ax.patches]).reshape(3, -1)
+    np.testing.assert_allclose(tops, [OPTIMISED / INITIAL, 1.1 * OPTIMISED / INITIAL,
+                                      0.9 * OPTIMISED / INITIAL])
+    assert ax.get_ylabel() == "allocation / initial (log scale)"
     assert ax.get_title() == "Fig. 8"
     # Two groups ("X", "C-X") -> one separator at x = 2.5.
     assert [ln.get_xdata()[0] for ln in ax.lines if tuple(ln.get_ydata()) == (0, 1)] == [2.5]
@@ -196,7 +351,7 @@ def test_convergence_refusals(history, kwargs, match):
 
 # --------------------------------------------------------------------------- reliability
 def _reliability_frame():
-    return pd.DataFrame({
+    frame = pd.DataFrame({
         "output": ["dx", "dy", "dz", "ex", "ey", "ez"],
         "fosm_one_sided": [0.995, 0.999, 0.999, 0.996, 0.995, 0.993],
         "fosm_two_sided": [0.990, 0.998, 0.998, 0.992, 0.990, 0.986],
@@ -204,6 +359,8 @@ def _reliability_frame():
         "mc_lower": [0.9992, 1.0, 0.9995, 0.9990, 0.9985, 0.9971],
         "mc_upper": [1.0, 1.0, 1.0001, 0.9999, 0.9998, 0.9995],
     })
+    frame.attrs["mc_interval"] = "95% Wilson score interval on Kish's effective sample size"
+    return frame
 
 
 def test_reliability_comparison_draws_three_series_per_output():
@@ -218,6 +375,23 @@ def test_reliability_comparison_draws_three_series_per_output():
     np.testing.assert_allclose([s[:, 1] for s in segments], frame[["mc_lower", "mc_upper"]])
     assert 0.99 in _horizontal_lines(ax)
     assert [t.get_text() for t in ax.get_xticklabels()] == list(frame.output)
+    assert ax.get_ylabel() == "probability within limit (%)"
+
+
+def _legend_texts(ax):
+    return [" ".join(t.get_text().split()) for t in ax.get_legend().get_texts()]
+
+
+def test_reliability_comparison_names_the_interval_it_draws():
+    frame = _reliability_frame()
+    named = _legend_texts(plot_reliability_comparison(frame))
+    assert ("Monte Carlo mean, 95% Wilson score interval on Kish's effective sample size"
+            in named)
+    given = _legend_texts(plot_reliability_comparison(frame, interval="95% Clopper-Pearson"))
+    assert "Monte Carlo mean, 95% Clopper-Pearson" in given
+    frame.attrs.clear()
+    with pytest.raises(ValueError, match="name the interval of mc_lower and mc_upper"):
+        plot_reliability_comparison(frame)
 
 
 @pytest.mark.parametrize(
@@ -306,3 +480,59 @@ def test_repeats_leaves_out_table9_summary_rows(hobbing):
     points = sum(len(c.get_offsets()) for c in ax.collections)
     assert points == 3 * 6
     plt.close(ax.figure)
+
+
+# --------------------------------------------------------------------------- saved figures
+def _errorbar_bounds(ax):
+    """(lower, upper) ends of the error bars drawn on ``ax``."""
+    (bars,) = ax.containers
+    return np.array([s[:, 1] for s in bars.lines[2][0].get_segments()]).T
+
+
+def test_every_report_figure_is_readable_and_draws_the_tables_interval(mill3):
+    from studies.report import machine_sections
+    from studies.report.extras import EXTRAS, builders
+    from studies.workflows import machine_study
+    study = machine_study.run(mill3, points=3, repeats=4, samples=500, seed=0)
+    sections = machine_sections.sections(study, extra=builders(EXTRAS))
+    figures = {name: figure for section in sections
+               for name, figure in section.figures.items()}
+    assert {"allocation_motion.png", "fosm_vs_mc.png", "front.png", "scatter_dx.png",
+            "grid_repeats.png", "profiles_yield.png"} <= set(figures)
+    for name, figure in figures.items():
+        try:
+            assert_readable(figure)
+        except AssertionError as error:
+            raise AssertionError(f"{name}: {error}") from error
+    (verification,) = [s for s in sections if "fosm_vs_mc.png" in s.figures]
+    table = verification.tables["fosm_vs_mc.csv"]
+    for ax, (name, check) in zip(figures["fosm_vs_mc.png"].axes, study.checks.items()):
+        # The figure's bars are the table's interval: Wilson on Kish's effective size,
+        # recomputed here from the experiments' fractions.
+        kish = between_experiment_interval(check.grid.fractions, names=OUTPUTS,
+                                           poses=check.grid.n_poses)
+        np.testing.assert_allclose(_errorbar_bounds(ax), [kish.lower, kish.upper],
+                                   rtol=1e-12)
+        np.testing.assert_allclose(_errorbar_bounds(ax),
+                                   table.loc[name, ["mc_lower", "mc_upper"]].to_numpy().T,
+                                   rtol=1e-12)
+        assert any("Wilson" in text and "Kish" in text for text in _legend_texts(ax))
+        assert "t-interval" not in ax.get_title()
+    motion = figures["allocation_motion.png"].axes[0]
+    assert motion.get_yscale() == "log"
+    assert motion.get_ylabel() == "certified optimum / initial (log scale)"
+    ratio = study.optimum.tolerances[:18] / study.problem.reference[:18]
+    np.testing.assert_allclose([b.get_y() + b.get_height() for b in motion.patches], ratio)
+
+
+def test_every_figure_of_the_paper_study_is_readable():
+    from studies.paper import reproduce
+    study = reproduce.run_study(seed=7, repeats=3, wolves=12, iterations=30,
+                                random_samples=2000)
+    figures = reproduce.figures(study, reproduce.tables(study))
+    assert {f"fig{n:02d}.png" for n in range(8, 16)} <= set(figures)
+    for name, figure in figures.items():
+        try:
+            assert_readable(figure)
+        except AssertionError as error:
+            raise AssertionError(f"{name}: {error}") from error

@@ -1,6 +1,11 @@
 """A picture of a report as a browser shows it: headless Chromium screenshots an HTML file.
 
     python -m studies.benchmarks.screenshot report/report.html report.png
+    python -m studies.benchmarks.screenshot report/report.html first.png --first-screen
+
+The whole page by default: a first run of the browser lays the page out at the picture's
+width and measures its height, a second one takes a picture that tall. ``--first-screen``
+keeps only the top of the page, as a reader first sees it.
 
 Shows that ``report.html`` is self-contained: it is opened from a file, with networking
 left to the page (which needs none), and the figures appear in the picture.
@@ -8,6 +13,8 @@ left to the page (which needs none), and the figures appear in the picture.
 
 from __future__ import annotations
 
+import argparse
+import re
 import shutil
 import subprocess
 import sys
@@ -18,6 +25,24 @@ from reliability.errors import InputError
 
 #: Browsers tried in order when none is given.
 BROWSERS = ("/usr/bin/chromium", "chromium", "chromium-browser", "google-chrome")
+#: Options of every browser run: no window, no sandbox (containers), one CSS pixel per pixel.
+HEADLESS = ("--headless", "--disable-gpu", "--no-sandbox", "--hide-scrollbars",
+            "--force-device-scale-factor=1")
+#: Window height of the measuring run: small, so that the page, not the window, sets the
+#: document's scroll height.
+PROBE_HEIGHT = 100
+#: Milliseconds of page time the measuring run grants the page to finish loading.
+LOAD_BUDGET_MS = 10_000
+#: Height of ``--first-screen`` pictures: a laptop screen's view of the page.
+FIRST_SCREEN_HEIGHT = 800
+#: Set on the page's root element by the measuring run, once the page has loaded.
+HEIGHT_ATTRIBUTE = "data-page-height"
+MEASURE_SCRIPT = (
+    '<script>window.addEventListener("load", function () {'
+    " var root = document.documentElement;"
+    " var body = document.body ? document.body.scrollHeight : 0;"
+    f' root.setAttribute("{HEIGHT_ATTRIBUTE}", Math.ceil(Math.max(root.scrollHeight, body)));'
+    "});</script>")
 
 
 def find_browser() -> str | None:
@@ -29,9 +54,71 @@ def find_browser() -> str | None:
     return None
 
 
-def screenshot(html_path, png_path, width: int = 1200, height: int = 2400, *,
+def _measuring_copy(html_path: Path) -> str:
+    """The page's text with a base address (its links resolve as from its own folder) and
+    a script that writes the laid-out height into the root element once loaded."""
+    text = html_path.read_text(encoding="utf-8", errors="surrogateescape")
+    base = f'<base href="{html_path.parent.as_uri()}/">'
+    head = re.search(r"<head[^>]*>", text, flags=re.IGNORECASE)
+    text = text[:head.end()] + base + text[head.end():] if head else base + text
+    return text + MEASURE_SCRIPT
+
+
+def _run(command, browser, timeout) -> subprocess.CompletedProcess:
+    """Run the browser with a fresh profile folder (no state shared between runs)."""
+    with tempfile.TemporaryDirectory() as profile:
+        return subprocess.run([browser, *HEADLESS, f"--user-data-dir={profile}", *command],
+                              capture_output=True, text=True, timeout=timeout)
+
+
+def page_height(html_path, width: int = 1200, *, browser: str | None = None,
+                timeout: float = 120.0) -> int:
+    """Height in pixels of the page ``html_path`` laid out ``width`` pixels wide.
+
+    The browser opens a copy of the page (in a temporary folder, with a ``<base>`` pointing
+    at the page's own folder) that records ``document.documentElement.scrollHeight`` after
+    the load event, and prints the resulting document (``--dump-dom``).
+
+    Raises
+    ------
+    InputError
+        The HTML file does not exist or the width is not positive.
+    FileNotFoundError
+        No browser is installed.
+    RuntimeError
+        The browser did not report a height.
+    """
+    html_path = Path(html_path).resolve()
+    browser = _checked(html_path, width, browser)
+    with tempfile.TemporaryDirectory() as folder:
+        probe = Path(folder) / "measure.html"
+        probe.write_text(_measuring_copy(html_path), encoding="utf-8",
+                         errors="surrogateescape")
+        done = _run([f"--window-size={width},{PROBE_HEIGHT}",
+                     f"--virtual-time-budget={LOAD_BUDGET_MS}", "--dump-dom", probe.as_uri()],
+                    browser, timeout)
+    found = re.search(rf'{HEIGHT_ATTRIBUTE}="(\d+)"', done.stdout)
+    if found is None:
+        raise RuntimeError(f"{browser} reported no page height for {html_path} (exit "
+                           f"{done.returncode}): {done.stderr.strip()[-500:]}")
+    return int(found.group(1))
+
+
+def _checked(html_path: Path, width: int, browser: str | None) -> str:
+    """Refuse a missing page or a width below one pixel; return the browser to use."""
+    if not html_path.is_file():
+        raise InputError(f"html_path {html_path}: no such file")
+    if width < 1:
+        raise InputError(f"width must be >= 1 pixel; got {width}")
+    browser = browser or find_browser()
+    if browser is None:
+        raise FileNotFoundError(f"no Chromium browser found (tried {', '.join(BROWSERS)})")
+    return browser
+
+
+def screenshot(html_path, png_path, width: int = 1200, height: int | None = None, *,
                browser: str | None = None, timeout: float = 120.0) -> Path:
-    """Render ``html_path`` in headless Chromium and save a ``width`` × ``height`` PNG.
+    """Render ``html_path`` in headless Chromium and save a PNG ``width`` pixels wide.
 
     Parameters
     ----------
@@ -39,12 +126,15 @@ def screenshot(html_path, png_path, width: int = 1200, height: int = 2400, *,
         HTML file to open (as a ``file://`` address).
     png_path : str or Path
         PNG to write (replaced if it exists).
-    width, height : int
-        Window size in pixels, which is the size of the picture.
+    width : int
+        Window width in pixels, which is the width of the picture.
+    height : int, optional
+        Height of the picture in pixels: the first screen of the page, that tall. None
+        (default) for the whole page, as tall as :func:`page_height` measures it.
     browser : str, optional
         Browser executable; default the first of :data:`BROWSERS` found.
     timeout : float
-        Seconds to wait for the browser.
+        Seconds to wait for each run of the browser.
 
     Raises
     ------
@@ -53,35 +143,45 @@ def screenshot(html_path, png_path, width: int = 1200, height: int = 2400, *,
     FileNotFoundError
         No browser is installed.
     RuntimeError
-        The browser ran but wrote no picture.
+        The browser ran but wrote no picture or reported no page height.
     """
     html_path, png_path = Path(html_path).resolve(), Path(png_path).resolve()
-    if not html_path.is_file():
-        raise InputError(f"html_path {html_path}: no such file")
-    if width < 1 or height < 1:
-        raise InputError(f"width and height must be >= 1 pixel; got {width} x {height}")
-    browser = browser or find_browser()
-    if browser is None:
-        raise FileNotFoundError(f"no Chromium browser found (tried {', '.join(BROWSERS)})")
-    with tempfile.TemporaryDirectory() as profile:
-        command = [browser, "--headless", "--disable-gpu", "--no-sandbox",
-                   "--hide-scrollbars", f"--user-data-dir={profile}",
-                   f"--screenshot={png_path}", f"--window-size={width},{height}",
-                   html_path.as_uri()]
-        done = subprocess.run(command, capture_output=True, text=True, timeout=timeout)
+    browser = _checked(html_path, width, browser)
+    if height is not None and height < 1:
+        raise InputError(f"height must be >= 1 pixel or None (the whole page); got {height}")
+    if height is None:
+        height = page_height(html_path, width, browser=browser, timeout=timeout)
+    done = _run([f"--screenshot={png_path}", f"--window-size={width},{height}",
+                 html_path.as_uri()], browser, timeout)
     if not png_path.is_file():
         raise RuntimeError(f"{browser} wrote no screenshot (exit {done.returncode}): "
                            f"{done.stderr.strip()[-500:]}")
     return png_path
 
 
+def _parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="python -m studies.benchmarks.screenshot",
+        description="A PNG of an HTML page in headless Chromium: the whole page, or its "
+                    "first screen.")
+    parser.add_argument("html", metavar="REPORT.html", help="the page to open")
+    parser.add_argument("png", metavar="PICTURE.png", help="the picture to write")
+    parser.add_argument("--width", type=int, default=1200, metavar="PX",
+                        help="window and picture width in pixels (default 1200)")
+    parser.add_argument("--first-screen", nargs="?", type=int, const=FIRST_SCREEN_HEIGHT,
+                        default=None, metavar="PX",
+                        help="only the top of the page, PX pixels tall (default "
+                             f"{FIRST_SCREEN_HEIGHT}); without it, the whole page")
+    return parser
+
+
 def main(argv=None) -> int:
-    argv = sys.argv[1:] if argv is None else argv
-    if len(argv) != 2:
-        print("usage: python -m studies.benchmarks.screenshot REPORT.html PICTURE.png",
-              file=sys.stderr)
+    args = _parser().parse_args(sys.argv[1:] if argv is None else argv)
+    try:
+        print(screenshot(args.html, args.png, width=args.width, height=args.first_screen))
+    except (InputError, FileNotFoundError, RuntimeError) as error:
+        print(f"error: {error}", file=sys.stderr)
         return 2
-    print(screenshot(argv[0], argv[1]))
     return 0
 
 

@@ -305,13 +305,13 @@ def _convergence_figure(study: Study) -> plt.Figure:
 
 
 def _comparison_figure(study: Study, comparison: pd.DataFrame) -> plt.Figure:
-    fig, axes = plt.subplots(1, len(study.grid), figsize=(5 * len(study.grid), 4.5),
+    fig, axes = plt.subplots(1, len(study.grid), figsize=(7 * len(study.grid), 4.5),
                              layout="constrained", sharey=True)
     for ax, (name, result) in zip(axes, study.grid.items()):
         plots.plot_reliability_comparison(comparison.loc[name].reset_index(), target=0.99,
                                           ax=ax)
         ax.set_title(f"{name} allocation: grid mean FOSM vs\n{result.repeats} grid "
-                     f"experiments (95 % t-interval)")
+                     f"experiments")
     return fig
 
 

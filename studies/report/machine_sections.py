@@ -215,13 +215,13 @@ def verification_section(study: MachineStudy) -> Section:
 
 def _verification_figures(study, grid, repeats) -> dict:
     machine, figures = study.machine, {}
-    figure = Figure(figsize=(5 * len(study.checks), 4.5), layout="constrained")
+    figure = Figure(figsize=(7 * len(study.checks), 4.5), layout="constrained")
     axes = figure.subplots(1, len(study.checks), sharey=True, squeeze=False).ravel()
     for ax, name in zip(axes, study.checks):
         plots.plot_reliability_comparison(grid.loc[name].reset_index(),
                                           target=float(machine.targets.min()), ax=ax)
         ax.set_title(f"{name} allocation: grid-mean FOSM vs\n"
-                     f"{study.checks[name].grid.repeats} grid experiments (95 % t-interval)")
+                     f"{study.checks[name].grid.repeats} grid experiments")
     figures["fosm_vs_mc.png"] = figure
     figure = Figure(figsize=(11, 4.5), layout="constrained")
     plots.plot_repeats(repeats, by="allocation", target=float(machine.targets.min()),

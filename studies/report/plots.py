@@ -4,15 +4,20 @@ the cost–reliability front.
 Every function draws onto a given :class:`matplotlib.axes.Axes` (or a new figure when
 ``ax=None``), labels titles, axes (with units) and legends so the figure reads without the
 code, and returns the axes. Nothing here opens a window or picks a backend.
+
+Legends stand to the right of the axes, outside the plotted area, so that they never cover
+data. A figure made here uses the constrained layout, which keeps them inside the saved
+image; on axes of a figure without a layout engine, save with ``bbox_inches="tight"``.
 """
 
 from __future__ import annotations
 
+import textwrap
 from collections.abc import Mapping
 
 import matplotlib.pyplot as plt
 import numpy as np
-from matplotlib.ticker import PercentFormatter
+from matplotlib.ticker import FixedLocator, FuncFormatter, NullLocator, PercentFormatter
 
 from reliability.errors import InputError, InputTypeError
 from reliability.streams import generator
@@ -65,6 +70,12 @@ def _require_columns(frame, columns):
         raise InputError(f"frame lacks column(s) {missing}; it has {list(frame.columns)}")
 
 
+def _legend_beside(ax, **options):
+    """Draw the legend to the right of the axes, outside the plotted area."""
+    return ax.legend(loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0.0,
+                     fontsize="small", **options)
+
+
 def _target_line(ax, target):
     """Draw a horizontal target-probability line, if a target is given."""
     if target is None:
@@ -114,6 +125,46 @@ def _group_separators(ax, names):
             ax.axvline(i - 0.5, color="0.85", lw=0.8, zorder=0)
 
 
+#: Mantissas of the tick values of a ratio axis, per decade.
+RATIO_TICK_MANTISSAS = (1, 1.2, 1.5, 2, 3, 4, 5, 6, 7, 8, 9)
+#: The fewest mantissas, used when the full set would crowd the axis.
+SPARSE_TICK_MANTISSAS = (1, 2, 5)
+#: At most this many labelled ticks on a ratio axis.
+MAX_RATIO_TICKS = 9
+
+
+def _ratio_limits(ratios):
+    """Y limits of a log ratio axis: symmetric about 1, the largest change and 8 % more
+    (in log).
+
+    Symmetric limits draw a halving and a doubling as bars of the same length. The smallest
+    span is ×/÷ 1.2, so that a figure of unchanged tolerances still has an axis.
+    """
+    reach = 1.08 * max(float(np.max(np.abs(np.log(ratios)))), np.log(1.2))
+    return np.exp(-reach), np.exp(reach)
+
+
+def _ratio_ticks(low, high):
+    """Readable tick values in ``[low, high]`` on a log axis, 1 always among them."""
+    decades = range(int(np.floor(np.log10(low))), int(np.ceil(np.log10(high))) + 1)
+    for mantissas in (RATIO_TICK_MANTISSAS, SPARSE_TICK_MANTISSAS, (1,)):
+        ticks = [m * 10.0 ** k for k in decades for m in mantissas
+                 if low <= m * 10.0 ** k <= high]
+        if len(ticks) <= MAX_RATIO_TICKS:
+            break
+    return ticks
+
+
+def _ratio_axis(ax, ratios):
+    """A log y axis for ratios: symmetric limits about 1, plain-number ticks, no minor ones."""
+    ax.set_yscale("log")
+    low, high = _ratio_limits(ratios)
+    ax.set_ylim(low, high)
+    ax.yaxis.set_major_locator(FixedLocator(_ratio_ticks(low, high)))
+    ax.yaxis.set_major_formatter(FuncFormatter(lambda value, _: f"{value:g}"))
+    ax.yaxis.set_minor_locator(NullLocator())
+
+
 def plot_allocation_comparison(
     before,
     after=None,
@@ -127,9 +178,10 @@ def plot_allocation_comparison(
 
     Translational tolerances (mm) and angular ones (rad) differ by about 200 times, so
     the bars show each allocation **relative to the reference** (the first allocation):
-    a bar of height ``t / t_reference`` drawn from the reference line at 1. A bar above
-    the line is a looser (cheaper) tolerance, below it a tighter one; the right-hand
-    axis reads the same bar as a percentage change, Table 6's "optimisation rate".
+    a bar from the reference line at 1 to the ratio ``t / t_reference``, on a logarithmic
+    axis, so that halving and doubling a tolerance are bars of the same length, downwards
+    (tighter, dearer) and upwards (looser, cheaper). A bar reaching 1.5 is Table 6's
+    "optimisation rate" of +50 %.
 
     Parameters
     ----------
@@ -166,24 +218,23 @@ def plot_allocation_comparison(
         for label, values in _allocations(before, after, labels).items()
     }
     (ref_label, ref), *others = allocations.items()
+    ratios = np.array([t / ref for _, t in others])
     ax = _axes(ax, (max(6.0, 0.3 * len(names) + 2), 4.5))
     x = np.arange(len(names))
     width = 0.8 / len(others)
-    for j, (label, t) in enumerate(others):
+    for j, ((label, _), ratio) in enumerate(zip(others, ratios)):
         offset = (j - (len(others) - 1) / 2) * width
-        ax.bar(x + offset, t / ref - 1.0, width, bottom=1.0, label=label)
+        ax.bar(x + offset, ratio - 1.0, width, bottom=1.0, label=label)
     ax.axhline(1.0, color="k", lw=1.0, label=f"{ref_label} = 1")
     _group_separators(ax, names)
+    _ratio_axis(ax, ratios)
     ax.set_xticks(x, names, rotation=90)
     ax.set_xlim(-0.6, len(names) - 0.4)
     ax.set_xlabel("error item (axis.component or joint.component)")
-    ax.set_ylabel(f"tolerance / {ref_label} tolerance")
-    change = ax.secondary_yaxis(
-        "right", functions=(lambda r: 100 * (r - 1), lambda c: 1 + c / 100)
-    )
-    change.set_ylabel(f"change from {ref_label} (%)")
+    compared = others[0][0] if len(others) == 1 else "allocation"
+    ax.set_ylabel(f"{compared} / {ref_label} (log scale)")
     ax.set_title(title or f"Tolerance allocation relative to {ref_label} ({len(names)} items)")
-    ax.legend(loc="best", fontsize="small")
+    _legend_beside(ax)
     return ax
 
 
@@ -275,7 +326,7 @@ def plot_comprehensive_error_scatter(
     ax.set_ylabel(f"{output_label} ({unit})")
     ax.set_title(f"Comprehensive error {output_label}: {n_out} of {values.size} poses "
                  f"outside ±{limit:g} {unit}")
-    ax.legend(loc="upper right", fontsize="small", markerscale=2)
+    _legend_beside(ax, markerscale=2)
     return ax
 
 
@@ -344,7 +395,7 @@ def plot_convergence(history, *, optimum=None, ax=None, yscale="auto"):
     ax.set_xlabel("iteration")
     ax.set_ylabel("best objective (manufacturing cost, Eq. 28)")
     ax.set_title(title)
-    ax.legend(loc="best", fontsize="small")
+    _legend_beside(ax)
     return ax
 
 
@@ -371,7 +422,17 @@ def _check_reliability_frame(frame):
         )
 
 
-def plot_reliability_comparison(frame, *, target=None, ax=None):
+def _interval_name(frame, interval):
+    """The name of the frame's Monte-Carlo interval: `interval`, else the frame's own."""
+    name = interval if interval is not None else frame.attrs.get("mc_interval")
+    if not name:
+        raise InputError("name the interval of mc_lower and mc_upper: pass interval= (e.g. "
+                         "\"95% Wilson score interval\") or give the frame "
+                         "attrs['mc_interval'], as fosm_versus_monte_carlo does")
+    return str(name)
+
+
+def plot_reliability_comparison(frame, *, target=None, ax=None, interval=None):
     """Per output: FOSM-predicted probabilities beside the Monte-Carlo estimate.
 
     The FOSM values (Eqs. 19-23) are drawn as markers, one-sided ``Φ(I/σ)`` as in the
@@ -383,12 +444,17 @@ def plot_reliability_comparison(frame, *, target=None, ax=None):
     ----------
     frame : pandas.DataFrame
         One row per output with columns ``output``, ``fosm_one_sided``,
-        ``fosm_two_sided``, ``mc_estimate``, ``mc_lower``, ``mc_upper``. The bounds are
-        drawn as given; a t-interval may reach above 1.
+        ``fosm_two_sided``, ``mc_estimate``, ``mc_lower``, ``mc_upper``, as
+        :func:`reliability.comparison.fosm_versus_monte_carlo` returns. The bounds are
+        drawn as given, so the figure shows the interval of the frame's table.
     target : float, optional
         Reliability target (e.g. 0.99), drawn as a dotted line.
     ax : matplotlib.axes.Axes, optional
         Axes to draw on; a new figure if None.
+    interval : str, optional
+        Name of the interval ``mc_lower``–``mc_upper``, printed in the legend; by default
+        ``frame.attrs["mc_interval"]`` (95 % Wilson score interval on Kish's effective
+        sample size for :func:`~reliability.comparison.fosm_versus_monte_carlo`).
 
     Returns
     -------
@@ -398,9 +464,11 @@ def plot_reliability_comparison(frame, *, target=None, ax=None):
     ------
     InputError
         If a column is missing, a probability is outside [0, 1] or non-finite, an interval
-        does not contain its estimate (the output is named), or `target` is outside (0, 1).
+        does not contain its estimate (the output is named), `target` is outside (0, 1),
+        or the interval has no name.
     """
     _check_reliability_frame(frame)
+    interval = _interval_name(frame, interval)
     x = np.arange(len(frame))
     est = frame["mc_estimate"].to_numpy(float)
     yerr = np.vstack([est - frame["mc_lower"], frame["mc_upper"] - est])
@@ -410,14 +478,15 @@ def plot_reliability_comparison(frame, *, target=None, ax=None):
     ax.plot(x, frame["fosm_two_sided"], "^", color="tab:green",
             label="FOSM two-sided P(|y| < I)")
     ax.errorbar(x + 0.2, est, yerr=yerr, fmt="o", color=INSIDE_COLOR, capsize=3,
-                label="Monte Carlo, with interval")
+                label=textwrap.fill(f"Monte Carlo mean, {interval}", 34,
+                                    break_on_hyphens=False))
     _target_line(ax, target)
     ax.set_xticks(x, frame["output"].astype(str))
     ax.set_xlabel("comprehensive error")
-    ax.set_ylabel("probability within limit")
+    ax.set_ylabel("probability within limit (%)")
     ax.yaxis.set_major_formatter(PercentFormatter(xmax=1.0))
     ax.set_title("Precision reliability: FOSM prediction vs Monte Carlo")
-    ax.legend(loc="best", fontsize="small")
+    _legend_beside(ax)
     return ax
 
 
@@ -496,15 +565,18 @@ def plot_repeats(frame, *, outputs=None, by=None, target=0.99, ax=None):
     _target_line(ax, target)
     ax.set_xticks(x, outputs)
     ax.set_xlabel("comprehensive error")
-    ax.set_ylabel("fraction of poses within limit")
+    ax.set_ylabel("fraction of poses within limit (%)")
     ax.yaxis.set_major_formatter(PercentFormatter(xmax=1.0))
     ax.set_title("Fraction within limit, per repeated grid experiment")
-    ax.legend(loc="best", fontsize="small")
+    _legend_beside(ax)
     return ax
 
 
-def plot_front(front, *, marks=None, ax=None):
+def plot_front(front, *, marks=None, ax=None, title=None):
     """Relative cost against the failure probability 1 − R (log axis), with the stack.
+
+    The certified optimal cost of holding one target for all six outputs at every pose,
+    against that target's failure probability; the worst-case stack as a dashed line.
 
     Parameters
     ----------
@@ -514,16 +586,20 @@ def plot_front(front, *, marks=None, ax=None):
         ``{label: (reliability, relative_cost)}`` of allocations to mark, e.g. the initial
         allocation and the paper's Table 6 from :func:`allocation.front.allocation_point`.
     ax : matplotlib.axes.Axes, optional
+        Axes to draw on; a new figure if None.
+    title : str, optional
+        Title; a description of the front (with its probability reading) if None.
 
     Returns
     -------
     matplotlib.axes.Axes
     """
-    ax = _axes(ax, (6.4, 4.2))
+    ax = _axes(ax, (7.6, 4.2))
     feasible = front[front["feasible"]].sort_values("target")
     failure = 1.0 - feasible["target"].to_numpy()
-    ax.plot(failure, feasible["relative_cost"], "o-", ms=3,
-            label=f"certified optimum ({front.attrs.get('side', '')})")
+    side = str(front.attrs.get("side", "")).replace("_", "-")
+    reading = f", {side} reading" if side else ""
+    ax.plot(failure, feasible["relative_cost"], "o-", ms=3, label="certified optimum")
     stack = front.attrs.get("stack") or {}
     if "relative_cost" in stack:
         ax.axhline(stack["relative_cost"], color="k", ls="--",
@@ -534,8 +610,10 @@ def plot_front(front, *, marks=None, ax=None):
     ax.set_xscale("log")
     ax.set_yscale("log")
     ax.invert_xaxis()
-    ax.set_xlabel("1 − R (worst output, worst pose)")
-    ax.set_ylabel("cost relative to the reference allocation")
+    ax.set_xlabel("failure probability 1 − R (worst output, worst pose; log scale)")
+    ax.set_ylabel("cost / reference allocation's cost (log scale)")
+    ax.set_title(title or f"Cost of reliability: certified optimal cost\nagainst the "
+                          f"failure probability{reading}")
     ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize="small")
+    _legend_beside(ax)
     return ax

@@ -30,7 +30,7 @@ def plot_yield_against_length(comparison, *, repeats=None, ax=None):
     matplotlib.axes.Axes
     """
     if ax is None:
-        _, ax = plt.subplots(figsize=(6.4, 4.0), layout="constrained")
+        _, ax = plt.subplots(figsize=(7.8, 4.0), layout="constrained")
     repeats = comparison["repeats"].max() if repeats is None else repeats
     rows = comparison[comparison["repeats"] == repeats]
     finite = rows["length_mm"][np.isfinite(rows["length_mm"]) & (rows["length_mm"] > 0)]
@@ -48,7 +48,8 @@ def plot_yield_against_length(comparison, *, repeats=None, ax=None):
     ax.set_ylabel("machine-level yield (all poses within every limit)")
     ax.set_ylim(0, 1)
     ax.set_title(f"Yield against correlation length ({repeats} experiments, 95 % intervals)")
-    ax.legend(title="allocation")
+    ax.legend(title="allocation", loc="upper left", bbox_to_anchor=(1.02, 1.0),
+              borderaxespad=0.0)  # beside the axes: never over the data
     return ax
 
 
