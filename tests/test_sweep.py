@@ -16,6 +16,7 @@ from concurrent.futures import ProcessPoolExecutor, ThreadPoolExecutor
 from pathlib import Path
 
 import numpy as np
+import pandas as pd
 import pytest
 
 from allocation import AllocationProblem
@@ -235,6 +236,26 @@ def test_unreachable_target_is_recorded_not_raised(mill, tmp_path):
     assert frame["status"].tolist() == ["ok", "unreachable"]
     assert np.isnan(frame["relative_cost"].iloc[1]) and not frame["certified"].iloc[1]
     assert frame.filter(like="fraction_").iloc[1].isna().all()
+    assert pd.isna(frame["reason"].iloc[0]) or frame["reason"].iloc[0] == ""
+    assert "unreachable inside the bounds" in frame["reason"].iloc[1]
+    assert " mm" in frame["reason"].iloc[1]  # the blocking σ with its unit
+
+
+def test_spec_bounds_set_the_box_of_every_task(mill, tmp_path):
+    spec = small_spec(mill, sides=("two_sided",), targets=(1 - 1e-12,), seeds=(0,),
+                      bounds=[0.01, 1.5])
+    frame = run_sweep(spec, tmp_path / "store").frame
+    assert frame["status"].tolist() == ["ok"]  # unreachable in [0.5, 1.5], reached here
+    assert (frame["bounds_low"].tolist(), frame["bounds_high"].tolist()) == ([0.01], [1.5])
+    machine = dataclasses.replace(load_machine(mill), targets=np.full(6, 1 - 1e-12))
+    problem = AllocationProblem.build(machine, workspace_grid(machine, 3), bounds=(0.01, 1.5))
+    expected = problem.solve_exact().cost / problem.cost.total(machine.initial_allocation)
+    written = pd.read_csv(tmp_path / "store" / "results.csv")
+    assert written["relative_cost"].iloc[0] == float(f"{expected:.6g}")  # 6 digits, as stated
+    for bad, words in (([1.5, 0.5], "LO exceeds HI"), ([0.5], "[LO, HI]"),
+                       ([0, 1], "> 0"), ("wide", "[LO, HI]")):
+        with pytest.raises(InputError, match=words.replace("[", r"\[").replace("]", r"\]")):
+            small_spec(mill, bounds=bad)
 
 
 def test_profiles_reach_the_grid_experiment(mill, tmp_path):

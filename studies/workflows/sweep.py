@@ -37,7 +37,7 @@ from allocation.problem import AllocationProblem
 from allocation.solve import TargetUnreachableError
 from reliability.checkpoint import ResultStore, machine_fingerprint
 from reliability.errors import InputError, InputTypeError
-from reliability.files import write_csv
+from reliability.files import SIGNIFICANT, write_csv
 from reliability.machine import OUTPUTS, hobbing_machine, load_machine
 from reliability.poses import workspace_grid
 from reliability.profiles import profile_model
@@ -48,7 +48,9 @@ PAPER_MACHINE = "hobbing"
 INDEPENDENT = "independent"
 SIDES = ("one_sided", "two_sided")
 SPEC_KEYS = {"machines", "sides", "targets", "profiles", "seeds", "repeats",
-             "points_per_axis"}
+             "points_per_axis", "bounds"}
+#: The search box of every task when the spec gives none (factors of the initial allocation).
+DEFAULT_BOUNDS = (0.5, 1.5)
 RESULTS_FILE = "results.csv"
 TASKS_FOLDER = "tasks"
 
@@ -72,6 +74,8 @@ class SweepTask:
         Grid experiments of the verification.
     points_per_axis : int
         Grid of the allocation and of the verification.
+    bounds : (float, float)
+        Search box of the allocation, as factors of the initial allocation.
     """
 
     machine: str
@@ -81,6 +85,7 @@ class SweepTask:
     seed: int
     repeats: int
     points_per_axis: int
+    bounds: tuple[float, float] = DEFAULT_BOUNDS
 
     def parameters(self, machine=None) -> dict:
         """The task's parameters as stored and hashed: the machine by its content."""
@@ -92,7 +97,8 @@ class SweepTask:
 class SweepSpec:
     """The lists a sweep combines; :meth:`tasks` expands them in a fixed order.
 
-    Build from a TOML file with :meth:`from_toml` (keys as the attributes).
+    Build from a TOML file with :meth:`from_toml` (keys as the attributes). ``bounds`` is
+    one box ``[LO, HI]`` (factors of the initial allocation) for every task.
     """
 
     machines: tuple[str, ...]
@@ -102,6 +108,7 @@ class SweepSpec:
     seeds: tuple[int, ...] = (0,)
     repeats: tuple[int, ...] = (20,)
     points_per_axis: int = 5
+    bounds: tuple[float, float] = DEFAULT_BOUNDS
 
     def __post_init__(self):
         for name in ("machines", "sides", "targets", "profiles", "seeds", "repeats"):
@@ -112,6 +119,7 @@ class SweepSpec:
             if not value:
                 raise InputError(f"sweep spec: {name!r} is empty; give at least one entry")
             object.__setattr__(self, name, value)
+        object.__setattr__(self, "bounds", _check_bounds(self.bounds))
         _check_spec(self)
 
     @classmethod
@@ -146,7 +154,7 @@ class SweepSpec:
     def tasks(self) -> list[SweepTask]:
         """Every combination, machines slowest and repeats fastest."""
         return [SweepTask(machine, side, float(target), profile, int(seed), int(repeats),
-                          int(self.points_per_axis))
+                          int(self.points_per_axis), self.bounds)
                 for machine, side, target, profile, seed, repeats in itertools.product(
                     self.machines, self.sides, self.targets, self.profiles, self.seeds,
                     self.repeats)]
@@ -188,7 +196,8 @@ def run_task(task: SweepTask, allocated: dict | None = None) -> dict:
     -------
     dict
         ``status`` (``"ok"``, or ``"unreachable"`` when no allocation inside the bounds
-        meets the target: the other entries are then empty), ``relative_cost`` (optimum
+        meets the target: ``reason`` then says what blocks, and the other entries are
+        empty), ``relative_cost`` (optimum
         over the cost of the reference allocation), ``certified``, ``fraction`` (mean share
         of poses in tolerance per output over the experiments), ``yield`` (share of
         experiments entirely in tolerance).
@@ -198,13 +207,14 @@ def run_task(task: SweepTask, allocated: dict | None = None) -> dict:
         if allocated is None:
             allocated = solve_allocation(*_allocation_key(task, machine[1]))
         if allocated["status"] != "ok":
-            return {"status": allocated["status"], "relative_cost": None,
-                    "certified": False, "fraction": [None] * len(OUTPUTS), "yield": None}
+            return {"status": allocated["status"], "reason": allocated["reason"],
+                    "relative_cost": None, "certified": False,
+                    "fraction": [None] * len(OUTPUTS), "yield": None}
         experiment = _experiment(machine, task.target, task.points_per_axis, task.profile)
         rng = verification_streams(task.seed)[0]
         verified = experiment.run(allocated["tolerances"], repeats=task.repeats, rng=rng,
                                   keep_values="none")
-    return {"status": "ok", "relative_cost": allocated["relative_cost"],
+    return {"status": "ok", "reason": "", "relative_cost": allocated["relative_cost"],
             "certified": allocated["certified"],
             "fraction": verified.fractions.mean(axis=0).tolist(),
             "yield": float(np.mean(verified.all_inside))}
@@ -263,17 +273,22 @@ def run_sweep(spec: SweepSpec, store, *, executor=None, progress=None, log=None,
         if progress is not None:
             progress(done, len(tasks))
     frame = results_frame(tasks, finished)
-    path = write_csv(frame, folder / RESULTS_FILE, overwrite=True, index=False)
+    path = write_csv(frame, folder / RESULTS_FILE, overwrite=True, index=False,
+                     float_format=f"%.{SIGNIFICANT}g")
     return SweepResult(frame=frame, computed=len(pending), resumed=resumed, path=path)
 
 
 def results_frame(tasks, results) -> pd.DataFrame:
-    """One row per task: its parameters, relative cost, certified, the mean fraction in
-    tolerance per output (``fraction_<output>``) and the machine-level yield."""
+    """One row per task: its parameters (``bounds`` as ``bounds_low``, ``bounds_high``),
+    status and ``reason`` (what blocks an unreachable target; empty otherwise), relative
+    cost, certified, the mean fraction in tolerance per output (``fraction_<output>``) and
+    the machine-level yield."""
     rows = []
     for task, result in zip(tasks, results):
         row = asdict(task)
+        row["bounds_low"], row["bounds_high"] = row.pop("bounds")
         row["status"] = result["status"]
+        row["reason"] = result.get("reason", "")
         row["relative_cost"] = result["relative_cost"]
         row["certified"] = result["certified"]
         row.update({f"fraction_{name}": value
@@ -315,6 +330,21 @@ def _check_executor(executor) -> None:
         return
     raise InputTypeError(f"executor must be None, a concurrent.futures.Executor or a "
                          f"dask.distributed.Client; got {type(executor).__name__}")
+
+
+def _check_bounds(bounds) -> tuple[float, float]:
+    """``bounds = [LO, HI]``: two numbers, 0 < LO <= HI."""
+    if isinstance(bounds, (str, bytes)) or not hasattr(bounds, "__len__") or len(bounds) != 2:
+        raise InputError(f"sweep spec: bounds {bounds!r} must be [LO, HI], factors of the "
+                         f"initial allocation")
+    low, high = bounds
+    for value in (low, high):
+        if isinstance(value, bool) or not isinstance(value, (int, float)) \
+                or not np.isfinite(value) or value <= 0:
+            raise InputError(f"sweep spec: bounds entry {value!r} must be a number > 0")
+    if low > high:
+        raise InputError(f"sweep spec: bounds [{low}, {high}]: LO exceeds HI")
+    return float(low), float(high)
 
 
 def _check_spec(spec: SweepSpec) -> None:
@@ -371,24 +401,25 @@ def _task_machine(machine: tuple[str, str], target: float):
 def _allocation_key(task: SweepTask, fingerprint: str) -> tuple:
     """What a task's allocation depends on (tasks differing only in profile, seed or
     repeats share it)."""
-    return (task.machine, fingerprint, task.side, task.target, task.points_per_axis)
+    return (task.machine, fingerprint, task.side, task.target, task.points_per_axis,
+            task.bounds)
 
 
 @functools.lru_cache(maxsize=64)
 def solve_allocation(name: str, fingerprint: str, side: str, target: float,
-                     points: int) -> dict:
+                     points: int, bounds: tuple[float, float] = DEFAULT_BOUNDS) -> dict:
     """Certified optimum of one machine (file ``name`` with content ``fingerprint``) and
-    reading: ``status`` ('ok' or 'unreachable'), ``tolerances``, ``relative_cost`` and
-    ``certified``. Deterministic, so solving it anywhere, once or many times, gives the
-    same numbers."""
+    reading in the box ``bounds``: ``status`` ('ok' or 'unreachable', with ``reason``),
+    ``tolerances``, ``relative_cost`` and ``certified``. Deterministic, so solving it
+    anywhere, once or many times, gives the same numbers."""
     with threadpool_limits(limits=1):
         machine = _task_machine((name, fingerprint), target)
         problem = AllocationProblem.build(machine, workspace_grid(machine, points),
-                                          side=side)
+                                          side=side, bounds=bounds)
         try:
             best = problem.solve_exact()
-        except TargetUnreachableError:
-            return {"status": "unreachable"}
+        except TargetUnreachableError as exc:
+            return {"status": "unreachable", "reason": str(exc)}
     return {"status": "ok", "tolerances": best.tolerances,
             "relative_cost": float(best.cost / problem.cost.total(problem.reference)),
             "certified": bool(best.certificate["certified"])}
