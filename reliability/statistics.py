@@ -193,7 +193,29 @@ def binomial_interval(successes, trials, confidence=0.95, method="wilson"):
 
 # --------------------------------------------------------------------------- results
 class _FrameMixin:
-    """``as_dict`` and ``to_frame`` for the frozen estimate dataclasses."""
+    """``as_dict``, ``to_frame`` and a readable ``summary`` (also the ``repr``) for the
+    frozen estimate dataclasses."""
+
+    def summary(self) -> str:
+        """The estimate with its interval, one line per output, and how it was made."""
+        n = np.unique(np.asarray(self.n)).tolist()
+        trials = "experiments" if self.method == "wilson-kish" else "trials"
+        head = (f"{type(self).__name__}: {self.confidence:.0%} {self.method} interval, "
+                f"{n[0] if len(n) == 1 else n} {trials}")
+        frame = pd.DataFrame({
+            "estimate": np.atleast_1d(self.estimate), "lower": np.atleast_1d(self.lower),
+            "upper": np.atleast_1d(self.upper),
+            "standard_error": np.atleast_1d(self.standard_error)},
+            index=pd.Index(self.names if self.names else
+                           range(np.size(np.atleast_1d(self.estimate))), name="output"))
+        if np.ndim(self.estimate) == 0:
+            return (f"{head}: {float(self.estimate):.6g} [{float(self.lower):.6g}, "
+                    f"{float(self.upper):.6g}], standard error "
+                    f"{float(self.standard_error):.3g}")
+        return f"{head}\n{frame.to_string(float_format='{:.6g}'.format)}"
+
+    def __repr__(self) -> str:
+        return self.summary()
 
     def as_dict(self):
         """Return the fields as a plain dict (arrays stay arrays)."""
@@ -220,7 +242,7 @@ class _FrameMixin:
         return pd.DataFrame(columns, index=index)
 
 
-@dataclass(frozen=True, eq=False)
+@dataclass(frozen=True, eq=False, repr=False)
 class ProportionEstimate(_FrameMixin):
     """A proportion from independent trials, with its interval.
 
@@ -253,7 +275,7 @@ class ProportionEstimate(_FrameMixin):
     names: tuple[str, ...] | None = None
 
 
-@dataclass(frozen=True, eq=False)
+@dataclass(frozen=True, eq=False, repr=False)
 class ReplicateEstimate(_FrameMixin):
     """A mean over independent experiments, with a Wilson score interval on Kish's
     effective sample size.

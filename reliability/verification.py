@@ -37,7 +37,7 @@ from .sampling import GridExperiment, sample_random_poses
 from .streams import spawn, verification_streams
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, repr=False)
 class Verification:
     """Monte-Carlo checks of one allocation.
 
@@ -60,6 +60,35 @@ class Verification:
     grid_comparison: pd.DataFrame
     random_poses: pd.DataFrame
     worst_poses: pd.DataFrame
+
+    def to_frame(self) -> pd.DataFrame:
+        """Per output, the three Monte-Carlo estimates with their 95 % intervals beside
+        the FOSM predictions they check (two-sided probabilities)."""
+        grid = self.grid_comparison.set_index("output")
+        random = self.random_poses.set_index("output")
+        worst = self.worst_poses.set_index("output")
+        return pd.DataFrame({
+            "grid_mc": grid["mc_estimate"], "grid_low": grid["mc_lower"],
+            "grid_high": grid["mc_upper"], "grid_fosm_normal": grid["fosm_two_sided"],
+            "random_mc": random["estimate"], "random_low": random["lower"],
+            "random_high": random["upper"], "random_fosm_normal": random["fosm_two_sided"],
+            "worst_mc": worst["mc_estimate"], "worst_low": worst["mc_lower"],
+            "worst_high": worst["mc_upper"], "worst_fosm_truncated": worst["fosm_two_sided"],
+        })
+
+    def summary(self) -> str:
+        """What was sampled, then :meth:`to_frame` in per cent."""
+        head = (f"Monte-Carlo verification: {self.grid.repeats} grid experiments of "
+                f"{self.grid.n_poses} poses (Wilson interval on Kish's effective size), "
+                f"{int(self.random_poses['n'].iloc[0])} random poses and "
+                f"{int(self.worst_poses['samples'].iloc[0])} samples at each output's worst "
+                f"pose (Wilson); errors drawn normal, σ = t/3, truncated at ±t; FOSM with "
+                f"normal errors, and with the truncated σ at the worst pose; two-sided "
+                f"probabilities in %")
+        return f"{head}\n{(100 * self.to_frame()).to_string(float_format='{:.3f}'.format)}"
+
+    def __repr__(self) -> str:
+        return self.summary()
 
 
 def verify(machine, tolerances, *, points: int = 5, repeats: int = 20,

@@ -27,7 +27,7 @@ from reliability.verification import verify
 UNCHANGED = 0.01
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, repr=False)
 class MachineStudy:
     """Everything a machine report is made from (see :func:`run`)."""
 
@@ -41,6 +41,22 @@ class MachineStudy:
     optimum: object
     optimal_fosm: object
     checks: dict  # allocation name -> reliability.verification.Verification
+
+    def summary(self) -> str:
+        """The study's choices and its headline numbers, one line each."""
+        info = summary(self)
+        return "\n".join([
+            f"study of {self.machine.name}: {self.side.replace('_', '-')} targets at every "
+            f"pose of the {self.points}-point grid, box {self.bounds[0]:g}–{self.bounds[1]:g} "
+            f"× the initial allocation, seed {self.seed}",
+            f"initial allocation meets the targets: {info['initial_meets_targets']}",
+            f"cheapest allocation: {info['relative_cost']:.4%} of the initial cost "
+            f"({'certified' if info['certified'] else 'NOT certified'}, relative gap "
+            f"≤ {info['relative_gap']:.0e})",
+            *(f"{name}: {check.summary()}" for name, check in self.checks.items())])
+
+    def __repr__(self) -> str:
+        return self.summary()
 
 
 def run(machine, *, points: int = 5, side: str = "two_sided", bounds=(0.5, 1.5),

@@ -160,7 +160,7 @@ class SweepSpec:
                     self.repeats)]
 
 
-@dataclass(frozen=True, eq=False)
+@dataclass(frozen=True, eq=False, repr=False)
 class SweepResult:
     """What a sweep run did.
 
@@ -180,6 +180,17 @@ class SweepResult:
     computed: int
     resumed: int
     path: Path
+
+    def summary(self) -> str:
+        """How many tasks, how each ended, and where the table is."""
+        status = self.frame["status"].value_counts()
+        return (f"sweep of {len(self.frame)} task(s): {self.computed} computed, "
+                f"{self.resumed} resumed; "
+                + ", ".join(f"{count} {name}" for name, count in status.items())
+                + f"; results in {self.path}")
+
+    def __repr__(self) -> str:
+        return self.summary()
 
 
 def run_task(task: SweepTask, allocated: dict | None = None) -> dict:
