@@ -32,28 +32,28 @@ REPORT_PROFILES = ("independent", "gp:100", "gp:1000", "constant")
 
 def front(study):
     """Cost against reliability, with the stack and the optimum marked."""
-    return front_section(study.machine, poses=study.problem.poses,
-                         marks={"optimum": study.optimum.tolerances})
+    return front_section(study.machine, poses=study.problem.poses, bounds=study.bounds,
+                         marks={"optimum": study.allocated})
 
 
 def system(study):
     """System reliability at the worst pose for the initial and the optimal allocation."""
     allocations = {"initial": study.machine.initial_allocation,
-                   "optimum": study.optimum.tolerances}
+                   "optimum": study.allocated}
     return system_section(study.machine, allocations, poses=study.problem.poses,
                           rng=extra_stream(study.seed, 0))
 
 
 def rare(study, samples: int = 100_000):
     """Worst-pose Monte-Carlo and rare-event estimates of the optimal allocation."""
-    return rare_section(study.machine, study.optimum.tolerances, label="optimum",
+    return rare_section(study.machine, study.allocated, label="optimum",
                         samples=samples, rng=extra_stream(study.seed, 1))
 
 
 def profiles(study, repeats: int = 200):
     """Yield and spread between experiments against the correlation length."""
     allocations = {"initial": study.machine.initial_allocation,
-                   "optimum": study.optimum.tolerances}
+                   "optimum": study.allocated}
     comparison = profile_comparison(study.machine, allocations, REPORT_PROFILES,
                                     repeats=(repeats,), seed=study.seed)
     # wall times would make the same seed write different files

@@ -15,7 +15,8 @@ from matplotlib.figure import Figure
 
 from allocation.elasticity import requirement_table
 from allocation.result_files import allocation_frame, gap_text
-from reliability.display import OUTPUT_UNITS, axis_units, top_contributors
+from reliability.display import (OUTPUT_UNITS, axis_units, pose_frame, shown_positions,
+                                 top_contributors)
 from reliability.machine import OUTPUTS
 from studies.workflows.machine_study import MachineStudy, summary, tolerance_changes
 
@@ -46,8 +47,13 @@ def answers(study: MachineStudy) -> str:
                + ", ".join(below["output"]))
     tighten, relax = (_changes_text(changes) for changes in tolerance_changes(study))
     return "\n".join([
-        f"- Does the initial allocation meet the targets ({reading})? {meets}.",
-        f"- The cheapest allocation meeting them within bounds [{study.bounds[0]:g}, "
+        f"Choices behind every number below: outputs in the tool frame (Eq. 18); a "
+        f"tolerance t read as a normal error with σ = t/3 (FOSM and allocation; the "
+        f"Monte-Carlo draws it truncated at ±t); {reading}; search box "
+        f"[{study.bounds[0]:g}, {study.bounds[1]:g}] × the initial allocation; cost Eq. 28 "
+        f"with t in mm and rad.\n",
+        f"- Does the initial allocation meet the targets? {meets}.",
+        f"- The cheapest allocation meeting them within the box [{study.bounds[0]:g}, "
         f"{study.bounds[1]:g}] × initial costs **{info['relative_cost']:.2%}** of the "
         f"initial allocation ({certified}, relative duality gap "
         f"{gap_text(study.optimum.certificate['relative_gap'])}).",
@@ -83,13 +89,13 @@ def sections(study: MachineStudy, extra=()) -> list[Section]:
 
 def machine_section(study: MachineStudy) -> Section:
     machine = study.machine
+    strokes, units = shown_positions(np.array([a.stroke for a in machine.axis_specs]).T,
+                                     axis_units(machine))
     axes = pd.DataFrame({
         "axis": [a.name for a in machine.axis_specs],
         "kind": [a.kind for a in machine.axis_specs],
         "direction": [a.direction for a in machine.axis_specs],
-        "stroke_low": [a.stroke[0] for a in machine.axis_specs],
-        "stroke_high": [a.stroke[1] for a in machine.axis_specs],
-        "unit": list(axis_units(machine)),
+        "stroke_low": strokes[0], "stroke_high": strokes[1], "stroke_unit": list(units),
         "size_m": [a.size for a in machine.axis_specs]})
     requirements = pd.DataFrame({"output": list(OUTPUTS), "limit": machine.limits,
                                  "unit": list(OUTPUT_UNITS),
@@ -104,12 +110,15 @@ def machine_section(study: MachineStudy) -> Section:
 
 
 def fosm_table(machine, result, side: str) -> pd.DataFrame:
-    """Per output: worst pose as axis positions, σ, β, probabilities, top contributors."""
+    """Per output: worst pose as axis positions (columns ``<axis>_mm``, ``<axis>_deg``), σ
+    with its unit, β, probabilities, top contributors."""
     frame = result.to_frame()
     rows = np.arange(len(OUTPUTS))
-    table = pd.DataFrame({"output": list(OUTPUTS)})
-    for i, (axis, unit) in enumerate(zip(machine.axes, axis_units(machine))):
-        table[f"{axis} ({unit})"] = result.poses[result.worst_pose, i]
+    table = pd.DataFrame({"output": list(OUTPUTS), "unit": list(OUTPUT_UNITS)})
+    poses = pose_frame(result.poses[result.worst_pose], machine.axes, axis_units(machine),
+                       style="csv")
+    for column in poses:
+        table[column] = poses[column].to_numpy()
     table["sigma"] = result.sigma[result.worst_pose, rows]
     table["beta"] = frame["beta"].to_numpy()
     table["worst_one_sided"] = frame["worst_one_sided"].to_numpy()
@@ -126,8 +135,9 @@ def fosm_section(study: MachineStudy) -> Section:
               "fosm_optimum.csv": fosm_table(study.machine, study.optimal_fosm, study.side)}
     formats = {"beta": "{:.4f}".format, "worst_one_sided": PERCENT,
                "worst_two_sided": PERCENT}
-    text = (f"First-order second-moment reliability (Eqs. 19–23) at each output's worst "
-            f"pose of the {study.points}-point grid, given as axis positions; "
+    text = (f"First-order second-moment reliability (Eqs. 19–23, normal errors) at each "
+            f"output's worst pose of the {study.points}-point grid, given as axis positions "
+            f"(mm, rotary axes in degrees); `sigma` in the output's `unit`; "
             f"`top_contributors` are the errors with the largest share of the output's "
             f"variance there.\n\n### Initial allocation\n\n"
             f"{markdown_table(tables['fosm_initial.csv'], formats, index=False)}\n\n"
@@ -155,7 +165,7 @@ def allocation_section(study: MachineStudy) -> Section:
             f"holds):\n\n{markdown_table(detail, {'rate': '{:+.1%}'.format}, index=False)}")
     figures = {}
     n_motion = 6 * len(machine.axes)
-    shown = {"initial": study.problem.reference, "certified optimum": optimum.tolerances}
+    shown = {"initial": study.problem.reference, "certified optimum": study.allocated}
     for name, part, what in (("allocation_motion.png", slice(0, n_motion), "motion"),
                              ("allocation_assembly.png", slice(n_motion, None), "assembly")):
         figure = Figure(figsize=(max(8, 0.35 * n_motion), 4.5), layout="constrained")
@@ -176,7 +186,7 @@ def verification_section(study: MachineStudy) -> Section:
                       for name, check in study.checks.items()}, names=["allocation"])
     random = pd.concat({name: check.random_poses.set_index("output")
                         for name, check in study.checks.items()}, names=["allocation"])
-    worst = pd.concat({name: check.worst_poses.set_index("output")
+    worst = pd.concat({name: _shown_poses(machine, check.worst_poses).set_index("output")
                        for name, check in study.checks.items()}, names=["allocation"])
     repeats = pd.concat(
         [pd.DataFrame(check.grid.fractions, columns=list(OUTPUTS))
@@ -201,9 +211,10 @@ def verification_section(study: MachineStudy) -> Section:
         markdown_table(random.reset_index()[["allocation", "output", "fosm_two_sided",
                                              "estimate", "lower", "upper"]], percent,
                        index=False),
-        "At each output's FOSM worst grid pose, Wilson interval, beside FOSM with the σ of "
-        "the truncated draws:",
-        markdown_table(worst.reset_index()[["allocation", "output", *machine.axes,
+        "At each output's FOSM worst grid pose (mm, rotary axes in degrees), Wilson "
+        "interval, beside FOSM with the σ of the truncated draws (`fosm_two_sided` here is "
+        "FOSM, truncated errors; above it is FOSM, normal errors):",
+        markdown_table(worst.reset_index()[["allocation", "output", *pose_columns_of(machine),
                                             "fosm_two_sided", "mc_estimate", "mc_lower",
                                             "mc_upper"]], percent, index=False)])
     return Section("Monte-Carlo verification", text,
@@ -211,6 +222,22 @@ def verification_section(study: MachineStudy) -> Section:
                    tables={"fosm_vs_mc.csv": grid, "random_pose.csv": random,
                            "worst_pose_mc.csv": worst,
                            "grid_repeats.csv": repeats.set_index(["allocation", "repeat"])})
+
+
+def pose_columns_of(machine) -> list[str]:
+    """The CSV column names of a pose of ``machine``: ``X_mm``, ``A_deg``, …"""
+    return list(pose_frame(np.zeros((1, len(machine.axes))), machine.axes,
+                           axis_units(machine), style="csv").columns)
+
+
+def _shown_poses(machine, frame: pd.DataFrame) -> pd.DataFrame:
+    """``frame`` with its axis columns (model units) replaced by ``X_mm``, ``A_deg``, …"""
+    shown = pose_frame(frame[list(machine.axes)].to_numpy(), machine.axes,
+                       axis_units(machine), style="csv")
+    out = frame.drop(columns=list(machine.axes))
+    for i, column in enumerate(shown):
+        out.insert(1 + i, column, shown[column].to_numpy())
+    return out
 
 
 def _verification_figures(study, grid, repeats) -> dict:

@@ -12,7 +12,7 @@ import numpy as np
 import pandas as pd
 
 from allocation.front import allocation_point, cost_reliability_front
-from allocation.result_files import gap_text
+from allocation.result_files import gap_bound, gap_text
 from reliability.display import bound_text
 from reliability.poses import workspace_grid
 from reliability.streams import spawn
@@ -55,19 +55,29 @@ def front_section(machine, *, targets=DEFAULT_TARGETS, reliability: float = 0.99
               for label, t in allocations.items()}
     ax = plot_front(front, marks=points)
     table = front[["target", "required_index", "cost", "relative_cost", "relative_gap",
-                   "certified", "feasible", "binding"]]
-    summary = {"front_points": int(len(front)),
+                   "certified", "feasible", "binding"]].assign(
+        relative_gap=[gap_bound(g) for g in front["relative_gap"]])
+    reached = int(front["feasible"].sum())
+    box = f"box {bounds[0]:g}–{bounds[1]:g} × the initial allocation"
+    summary = {"front_points": int(len(front)), "front_reached": reached,
                "front_certified": bool(front.loc[front["feasible"], "certified"].all()),
-               f"relative_cost_at_{reliability:g}": float(at["relative_cost"])}
+               f"relative_cost_at_{reliability:g}":
+                   float(at["relative_cost"]) if at["feasible"] else None}
+    text = f"In the {box}, the search box of this report. "
     if "error" in stack:
-        text = (f"The worst-case stack cannot be held in the box {bounds} × the initial "
-                f"allocation: {stack['error'].split(';')[0]}.")
+        text += (f"The worst-case stack cannot be held in this box: "
+                 f"{stack['error'].split(';')[0]}.")
+    elif not at["feasible"]:
+        text += (f"The worst-case stack costs {stack['relative_cost']:.3g} × the initial "
+                 f"allocation (certified, relative duality gap "
+                 f"{gap_text(stack['relative_gap'])}); {reliability:g} two-sided at every "
+                 f"pose is not reachable in this box.")
     else:
         ratio = stack["relative_cost"] / at["relative_cost"]
         summary.update(stack_relative_cost=float(stack["relative_cost"]),
                        stack_certified=bool(stack["certified"]),
                        stack_over_target_cost=float(ratio))
-        text = (f"Holding every output inside its limit for every combination of errors "
+        text += (f"Holding every output inside its limit for every combination of errors "
                 f"within their tolerances (the classical worst-case stack, Σ|∂y/∂x| t ≤ I "
                 f"at every pose) costs {stack['relative_cost']:.3g} × the initial "
                 f"allocation (certified optimum, relative duality gap "
@@ -75,10 +85,11 @@ def front_section(machine, *, targets=DEFAULT_TARGETS, reliability: float = 0.99
                 f"{reliability:g} two-sided at every pose costs "
                 f"{at['relative_cost']:.3g} × the initial allocation: the worst-case "
                 f"machine is **{ratio:.3g} times** as expensive.")
-    text += (f"\n\nThe front below gives the certified optimal cost for {len(front)} targets "
-             f"(box {bounds[0]:g}–{bounds[1]:g} × the initial allocation, the same target "
-             f"for all six outputs at every pose); the dashed line is the stack. Marked "
-             f"allocations sit at their worst reliability over outputs and poses.")
+    text += (f"\n\nThe front below gives the certified optimal cost for the {reached} of "
+             f"{len(front)} targets this box can reach (the same target for all six outputs "
+             f"at every pose; `relative_gap` is an upper bound); the dashed line is the "
+             f"stack. Marked allocations sit at their worst reliability over outputs and "
+             f"poses.")
     return Section(title="Cost against reliability", text=text,
                    figures={"front.png": ax.figure}, tables={"front.csv": table},
                    summary=summary)

@@ -42,6 +42,12 @@ class MachineStudy:
     optimal_fosm: object
     checks: dict  # allocation name -> reliability.verification.Verification
 
+    @property
+    def allocated(self):
+        """The optimal tolerances exactly as ``allocation.csv`` holds them (what every
+        later step of the study verifies)."""
+        return as_written(self.optimum.tolerances)
+
     def summary(self) -> str:
         """The study's choices and its headline numbers, one line each."""
         info = summary(self)
