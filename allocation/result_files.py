@@ -32,6 +32,9 @@ METHODS = ("exact", "gwo")
 COST_RTOL = 1e-9  # the saved cost must be Σ w/t² of the saved tolerances
 CSV_COLUMNS = ("error", "reference", "allocated")
 READINGS = {"worst": "every target at every pose", "mean": "targets on the workspace mean"}
+#: Significant digits a Lagrange multiplier (and an elasticity made from it) is written to:
+#: the dual solver fixes their sums per output only to about 1e-5 relative.
+MULTIPLIER_DIGITS = 3
 #: A relative duality gap below this is shown as "< GAP_SHOWN": its value is solver noise
 #: that differs between computers, while the bound is what the certificate guarantees.
 GAP_SHOWN = 1e-8

@@ -59,3 +59,21 @@ def test_exact_optimum_beats_gwo_and_paper(small_study):
     assert costs["exact"] <= costs["gwo"] * (1 + 1e-9)
     assert costs["exact_two_sided"] <= costs["gwo_two_sided"] * (1 + 1e-9)
     assert costs["exact"] < costs["paper"] < costs["initial"]
+
+
+def test_the_committed_case_study_regenerates_byte_for_byte(tmp_path):
+    """The README's first command (seed 2023) writes the files committed in figures/.
+
+    Tables, markdown and JSON are compared byte for byte. Figures and report.html (which
+    embeds them) also depend on the matplotlib and FreeType versions, so they are not
+    compared here.
+    """
+    from pathlib import Path
+
+    committed = Path(__file__).parent.parent / "figures"
+    assert rp.main(["--out", str(tmp_path), "--seed", "2023", "--quiet"]) == 0
+    text = [name for name in rp.OUTPUT_FILES if Path(name).suffix in (".csv", ".md", ".json")]
+    assert len(text) > 20
+    differing = [name for name in text
+                 if (tmp_path / name).read_bytes() != (committed / name).read_bytes()]
+    assert differing == [], f"regenerated files differ from figures/: {differing}"

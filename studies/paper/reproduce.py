@@ -26,10 +26,11 @@ import numpy as np
 import pandas as pd
 
 import allocation
-from allocation.result_files import gap_text
+from allocation.result_files import MULTIPLIER_DIGITS, gap_text
 import reliability
 from reliability.comparison import fosm_versus_monte_carlo
-from reliability.files import atomic_write_bytes, write_csv
+from reliability.display import axis_units, pose_frame
+from reliability.files import as_written, atomic_write_bytes, write_csv
 from reliability.fosm import fosm
 from reliability.sampling import GridExperiment, sample_random_poses
 from reliability.statistics import machine_yield
@@ -212,16 +213,40 @@ def tables(study: Study) -> dict[str, pd.DataFrame]:
         names=["allocation"])
     out["machine_yield.csv"] = _yields(study)
     out["exact_active_constraints.csv"] = pd.concat(
-        {side: study.solutions[f"exact{suffix}"].active for suffix, side in SIDES.items()},
-        names=["side", "row"])
+        {side: _binding_rows(study, study.solutions[f"exact{suffix}"].active)
+         for suffix, side in SIDES.items()}, names=["side", "row"])
     out["exact_requirements.csv"] = pd.concat(
-        {side: study.solutions[f"exact{suffix}"].requirements for suffix, side in SIDES.items()},
-        names=["side"])
-    out["continuous_worst.csv"] = pd.concat(study.continuous, names=["allocation"])
+        {side: _solver_digits(study.solutions[f"exact{suffix}"].requirements)
+         for suffix, side in SIDES.items()}, names=["side"])
+    out["continuous_worst.csv"] = pd.concat(
+        {name: _shown_poses(study, frame) for name, frame in study.continuous.items()},
+        names=["allocation"])
     out["gwo_history.csv"] = pd.concat(
         {side: study.solutions[f"gwo{suffix}"].history for suffix, side in SIDES.items()},
         names=["side"])
     return out
+
+
+def _shown_poses(study: Study, frame: pd.DataFrame) -> pd.DataFrame:
+    """``frame`` with its axis columns as ``C_deg``, ``X_mm``, … (positions for people)."""
+    axes = list(study.machine.axes)
+    shown = pose_frame(frame[axes].to_numpy(), axes, axis_units(study.machine), style="csv")
+    return pd.concat([frame.drop(columns=axes), shown.set_axis(frame.index)], axis=1)
+
+
+def _binding_rows(study: Study, active: pd.DataFrame) -> pd.DataFrame:
+    """The binding (output, pose) rows without their individual multipliers: where
+    several rows are alike the split of λ among them is not unique, so only the per-output
+    sums (``exact_requirements.csv``) are results."""
+    return _shown_poses(study, active.drop(columns=["multiplier", "elasticity"]))
+
+
+def _solver_digits(requirements: pd.DataFrame) -> pd.DataFrame:
+    """Multipliers and elasticities to :data:`MULTIPLIER_DIGITS` significant digits, what
+    the dual solve fixes."""
+    columns = ["multiplier", "elasticity"]
+    return requirements.assign(**{c: as_written(requirements[c], MULTIPLIER_DIGITS)
+                                  for c in columns})
 
 
 def _coefficients(study: Study) -> pd.DataFrame:

@@ -14,9 +14,10 @@ import pandas as pd
 from matplotlib.figure import Figure
 
 from allocation.elasticity import requirement_table
-from allocation.result_files import allocation_frame, gap_text
+from allocation.result_files import MULTIPLIER_DIGITS, allocation_frame, gap_text
 from reliability.display import (OUTPUT_UNITS, axis_units, pose_frame, shown_positions,
                                  top_contributors)
+from reliability.files import as_written
 from reliability.machine import OUTPUTS
 from studies.workflows.machine_study import MachineStudy, summary, tolerance_changes
 
@@ -150,6 +151,8 @@ def allocation_section(study: MachineStudy) -> Section:
     optimum, machine = study.optimum, study.machine
     detail = optimum.to_frame().reset_index()
     requirements = requirement_table(optimum).reset_index()
+    for column in ("dlncost/dln_limit", "dlncost/dln_target"):
+        requirements[column] = as_written(requirements[column], MULTIPLIER_DIGITS)
     info = summary(study)
     text = (f"The cheapest allocation (cost model Eq. 28, k1 = k2 = k3 = 1) meeting every "
             f"target at every grid pose (Eq. 34), tolerances within [{study.bounds[0]:g}, "
@@ -159,7 +162,8 @@ def allocation_section(study: MachineStudy) -> Section:
             f"duality gap {gap_text(optimum.certificate['relative_gap'])}.\n\n"
             f"Which requirements bind, and what they cost: `dlncost/dln_limit` is the "
             f"relative cost change per relative change of the limit (from the Lagrange "
-            f"multipliers), `dlncost/dln_target` the same for the target probability.\n\n"
+            f"multipliers; {MULTIPLIER_DIGITS} significant digits, what the dual solve "
+            f"fixes), `dlncost/dln_target` the same for the target probability.\n\n"
             f"{markdown_table(requirements, index=False)}\n\n"
             f"Allocation (`rate` = allocated / initial − 1; `status` says which bound "
             f"holds):\n\n{markdown_table(detail, {'rate': '{:+.1%}'.format}, index=False)}")
