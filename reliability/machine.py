@@ -234,7 +234,15 @@ class Machine:
 
     # ----- model -------------------------------------------------------------------
     def comprehensive_error(self, q, x) -> np.ndarray:
-        """Exact tool–workpiece pose error, Eqs. (16)–(18); see :mod:`reliability.kinematics`."""
+        """Exact tool–workpiece pose error, Eqs. (16)–(18); see :mod:`reliability.kinematics`.
+
+        A low-level evaluation of the chain: ``q`` may lie outside the strokes (the
+        kinematics extend smoothly, e.g. X = 10 000 mm on a 0–400 mm stroke), which is
+        what a caller extrapolating on purpose needs. The studies (:func:`reliability.fosm.fosm`,
+        the samplers, the allocation) refuse poses outside the strokes unless told
+        ``allow_outside_stroke=True``; check a pose with
+        :func:`reliability.checks.poses_in_strokes` before calling this directly.
+        """
         return kinematics.comprehensive_error(self, q, x)
 
     def jacobian(self, q) -> np.ndarray:
