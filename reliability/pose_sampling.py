@@ -31,6 +31,7 @@ import pandas as pd
 from scipy.stats import multivariate_normal
 
 from . import checks, streams
+from .display import shown_positions
 from .errors import InputError, InputTypeError
 from .fosm import error_sigma, two_sided_probability
 from .machine import OUTPUTS
@@ -50,8 +51,10 @@ class PoseSamplingResult:
     Attributes
     ----------
     axes : tuple of str
-        Axis names with units, e.g. ``'X (mm)'``, ``'A (rad)'``.
+        Axis names with the units positions are shown in, e.g. ``'X (mm)'``, ``'A (deg)'``.
     poses : ndarray (n_poses, n_axes)
+        Positions in the model's units (mm, rad); :meth:`to_frame` shows rotary ones in
+        degrees.
     labels : tuple of str
         One label per pose (``'worst dx'`` … or ``'pose 0'`` …).
     tracked : ndarray (n_poses, 7) of bool
@@ -108,8 +111,10 @@ class PoseSamplingResult:
         pose_index, event_index = np.nonzero(self.tracked)
         frame = pd.DataFrame({"pose": np.asarray(self.labels)[pose_index],
                               "event": np.asarray(EVENTS)[event_index]})
+        shown, _ = shown_positions(self.poses[pose_index],
+                                   ["rad" if a.endswith("(deg)") else "mm" for a in self.axes])
         for a, axis in enumerate(self.axes):
-            frame[axis] = self.poses[pose_index, a]
+            frame[axis] = shown[:, a]
         frame["samples"] = self.n_samples
         frame["failures"] = self.failures[pose_index, event_index]
         frame["mc_failure"] = np.asarray(est.estimate)[pose_index, event_index]
@@ -140,8 +145,8 @@ class PoseSamplingResult:
 
 
 def axis_labels(machine) -> tuple:
-    """Axis names with their units, ``'X (mm)'`` or ``'A (rad)'``."""
-    return tuple(f"{a.name} ({'mm' if a.kind == 'linear' else 'rad'})"
+    """Axis names with the units positions are shown in, ``'X (mm)'`` or ``'A (deg)'``."""
+    return tuple(f"{a.name} ({'mm' if a.kind == 'linear' else 'deg'})"
                  for a in machine.axis_specs)
 
 

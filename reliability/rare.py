@@ -45,6 +45,7 @@ from scipy.special import logsumexp
 from scipy.stats import norm
 
 from . import checks, streams
+from .display import pose_text, shown_positions
 from .errors import InputError, InputTypeError
 from .fosm import two_sided_failure, two_sided_probability
 from .kinematics import chain_factors, transports
@@ -119,9 +120,12 @@ class RareEventResult:
         return 1.0 - self.probability
 
     def to_frame(self) -> pd.DataFrame:
-        """One row: the pose as axis positions, the estimate, its CoV and interval."""
-        row = {f"{axis.name} ({'mm' if axis.kind == 'linear' else 'rad'})": value
-               for axis, value in zip(self.axes, self.pose)}
+        """One row: the pose as axis positions (``X (mm)``, ``A (deg)``), the estimate, its
+        CoV and interval."""
+        units = ["mm" if axis.kind == "linear" else "rad" for axis in self.axes]
+        shown, shown_units = shown_positions(self.pose, units)
+        row = {f"{axis.name} ({unit})": value
+               for axis, value, unit in zip(self.axes, shown, shown_units)}
         row.update(event=self.event, method=self.method, distribution=self.distribution,
                    probability=self.probability, cov=self.cov, lower=self.interval[0],
                    upper=self.interval[1], n_evaluations=self.n_evaluations,
@@ -130,7 +134,8 @@ class RareEventResult:
 
     def summary(self) -> str:
         """A few readable lines."""
-        pose = ", ".join(f"{a.name}={v:.4g}" for a, v in zip(self.axes, self.pose))
+        pose = pose_text(self.pose, [a.name for a in self.axes],
+                         ["mm" if a.kind == "linear" else "rad" for a in self.axes])
         level = f"{100 * self.confidence:.0f} %"
         if self.method == "exact-zero":
             body = f"failure probability exactly 0 ({self.note})"

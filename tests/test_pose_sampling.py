@@ -59,7 +59,8 @@ def test_default_poses_are_fosm_worst_poses(hobbing):
     frame = result.to_frame()
     assert len(frame) == 12  # each output at its own worst pose, the system at all six
     assert list(frame["event"][:2]) == ["dx", "system"]
-    assert {"C (rad)", "X (mm)", "mc_failure", "lower", "upper", "fosm_failure"} <= set(frame)
+    assert {"C (deg)", "X (mm)", "mc_failure", "lower", "upper", "fosm_failure"} <= set(frame)
+    np.testing.assert_allclose(frame["C (deg)"].iloc[0], np.degrees(result.poses[0, 0]))
     assert "Wilson" in result.summary()
 
 

@@ -216,8 +216,9 @@ def test_same_seed_same_numbers_and_summary(hobbing):
     b = failure_probability(hobbing, t, event="ey", rng=5)
     assert a.probability == b.probability and a.n_evaluations == b.n_evaluations
     frame = a.to_frame()
-    assert {"X (mm)", "A (rad)", "probability", "cov", "lower", "upper"} <= set(frame)
-    assert "ey at pose" in a.summary()
+    assert {"X (mm)", "A (deg)", "probability", "cov", "lower", "upper"} <= set(frame)
+    assert frame["A (deg)"].iloc[0] == pytest.approx(np.degrees(a.pose[3]))
+    assert "ey at pose" in a.summary() and " deg" in a.summary()
 
 
 def test_refined_design_point_lies_on_the_exact_limit(hobbing):

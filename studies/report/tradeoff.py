@@ -13,7 +13,7 @@ import pandas as pd
 
 from allocation.front import allocation_point, cost_reliability_front
 from allocation.result_files import gap_bound, gap_text
-from reliability.display import bound_text
+from reliability.display import axis_units, bound_text, pose_frame
 from reliability.poses import workspace_grid
 from reliability.streams import spawn
 from reliability.system import worst_system_reliability
@@ -115,7 +115,8 @@ def system_section(machine, allocations, *, poses=None, rng=None) -> Section:
         result = worst_system_reliability(machine, t, poses, rng=child, jacobian=jacobian)
         w = result.worst
         rows.append({"allocation": label, "worst_pose": int(result.index[w]),
-                     **dict(zip(machine.axes, result.poses[w])),
+                     **pose_frame(result.poses[w], machine.axes, axis_units(machine),
+                                  style="csv").iloc[0].to_dict(),
                      "system": result.probability[w], "error": result.error[w],
                      "product": result.product[w], "bonferroni": result.bonferroni[w],
                      "least_output": result.min_marginal[w]})
