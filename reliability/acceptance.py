@@ -582,12 +582,24 @@ class AcceptanceResult:
                             & (self.drivers["quantity"] == quantity)]
         rows = rows.sort_values("share", ascending=False, kind="stable").head(n)
         return ", ".join(f"{r.item} {100 * r.share:.0f} %" for r in rows.itertuples()
-                         if r.share > 0)
+                         if r.share >= 0.005)
 
     def _pass(self, ok) -> dict[str, float]:
         k, n = int(np.count_nonzero(ok)), len(ok)
         low, high = binomial_interval(k, n, self.confidence, method="wilson")
         return {"pass_probability": k / n, "pass_low": float(low), "pass_high": float(high)}
+
+
+def profile_note(profile) -> str:
+    """The error profile named with what it means for the tests, to print beside results."""
+    model = profile_model(profile)
+    if isinstance(model, ConstantProfile):
+        return ("error profile constant (one value of every error per built machine along "
+                "the whole travel: an axis' own positioning error is one offset, so "
+                "positioning tests show only reversal and repeatability, and a circle is an "
+                "exact ellipse with G proportional to its radius)")
+    return (f"error profile {model} (Gaussian process along travel, correlation length "
+            f"{model.length:g} mm)")
 
 
 # ----- the computation -----------------------------------------------------------------
@@ -647,7 +659,7 @@ def acceptance(machine, tests, tolerances=None, *, machines: int = 2000,
     AcceptanceResult
     """
     tests = _check_tests(tests)
-    model = _path_profile(profile, tests)
+    model = path_profile(profile, tests)
     if distribution not in DISTRIBUTIONS:
         raise InputError(f"distribution must be one of {DISTRIBUTIONS}; got {distribution!r}")
     for name, value in (("machines", machines), ("driver_machines", driver_machines)):
@@ -691,7 +703,8 @@ def _check_tests(tests) -> tuple:
     return tests
 
 
-def _path_profile(profile, tests):
+def path_profile(profile, tests):
+    """The profile model for ``tests``, or a refusal of ``independent`` naming the first test."""
     model = profile_model(profile)
     if not isinstance(model, (GaussianProfile, ConstantProfile)):
         raise InputError(f"profile {str(model)!r} draws a fresh error at every point and does "
