@@ -23,7 +23,7 @@ import tomllib
 from pathlib import Path
 from typing import Mapping
 
-from .acceptance import KINDS, CircularTest, PositioningTest, RotaryTest, test_path
+from .acceptance import KINDS, CircularTest, PositioningTest, RotaryTest, build_path
 from .errors import InputError
 
 COMMON_KEYS = ("name", "kind", "limit")
@@ -54,10 +54,10 @@ def read_tests(path, machine) -> tuple:
         raise InputError(f"{path}: not valid TOML: {exc}") from None
     except UnicodeDecodeError:
         raise InputError(f"{path}: not a text file (UTF-8 TOML expected)") from None
-    return tests_from_dict(data, machine, source=str(path))
+    return parse_tests(data, machine, source=str(path))
 
 
-def tests_from_dict(data: Mapping, machine, source: str = "tests") -> tuple:
+def parse_tests(data: Mapping, machine, source: str = "tests") -> tuple:
     """Check a parsed test file (the TOML layout) and build its tests."""
     if set(data) != {"tests"}:
         extra = sorted(set(data) - {"tests"})
@@ -75,7 +75,7 @@ def tests_from_dict(data: Mapping, machine, source: str = "tests") -> tuple:
             raise InputError(f"{source}: test name {test.name!r} is used twice")
         names.add(test.name)
         try:
-            test_path(machine, test)
+            build_path(machine, test)
         except InputError as exc:
             raise InputError(f"{source}: {exc}") from None
         tests.append(test)
