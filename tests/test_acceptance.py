@@ -402,6 +402,28 @@ def test_machine_file_positioning_keys_are_checked():
     assert again == machine and again.axis_specs[1].reversal == 0.001
 
 
+@pytest.mark.parametrize("machine_file, tests_file", [
+    (None, "paper_tests.toml"), ("trunnion5.toml", "trunnion5_tests.toml")])
+def test_example_test_files_load(hobbing, machine_file, tests_file):
+    machine = hobbing if machine_file is None else \
+        machine_from_dict(tomllib.loads((MACHINES / machine_file).read_text()))
+    tests = read_tests(EXAMPLES / tests_file, machine)
+    assert len(tests) == 6 and {t.kind for t in tests} == {"circular", "positioning", "rotary"}
+
+
+def test_report_section_has_a_figure_and_both_allocations(mill3):
+    from studies.report.acceptance import FIGURE, acceptance_section
+    tests = [CircularTest("c", "xy", CENTRE, 100.0, 0.004), _x_test()]
+    section = acceptance_section(mill3, tests, {"initial": mill3.initial_allocation,
+                                                "tight": mill3.initial_allocation / 2},
+                                 machines=100, rng=13)
+    assert section.title == "Acceptance tests" and FIGURE in section.figures
+    assert set(section.tables) == {"acceptance_initial.csv", "acceptance_tight.csv"}
+    tight = section.summary["acceptance"]["tight"]["c/G"]
+    assert tight >= section.summary["acceptance"]["initial"]["c/G"]
+    assert "gp:300" in section.text
+
+
 # ----- the command line ----------------------------------------------------------------
 def test_command_writes_the_csv_and_refuses_bad_files(tmp_path, capsys):
     machine = str(MACHINES / "trunnion5.toml")
