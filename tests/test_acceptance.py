@@ -440,7 +440,7 @@ def test_command_writes_the_csv_and_refuses_bad_files(tmp_path, capsys):
                      "--out", str(tmp_path / "out")]) == 2
     assert "--overwrite" in capsys.readouterr().err
     bad = tmp_path / "bad.toml"
-    bad.write_text(Path(tests).read_text().replace("limit = 0.010", "limit = 0.0", 1))
+    bad.write_text(Path(tests).read_text().replace("limit = 0.004", "limit = 0.0", 1))
     assert cli.main(["acceptance", machine, "--tests", str(bad)]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "'circle_xy_r150'" in err and "'limit'" in err
