@@ -45,7 +45,7 @@ probability of passing them all is estimated as well.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import ClassVar, Mapping
 
 import numpy as np
@@ -111,7 +111,7 @@ class CircularTest:
 
     @property
     def limits(self) -> dict[str, float]:
-        return {"G": float(self.limit)}
+        return {"G": self.limit}
 
 
 @dataclass(frozen=True)
@@ -263,7 +263,7 @@ def _range(values, axis=-1) -> np.ndarray:
 
 def default_targets(stroke, per_metre: int = TARGETS_PER_METRE,
                     minimum: int = MIN_TARGETS) -> np.ndarray:
-    """Target positions by ISO 230-2's spacing rule (clause 4.3.2).
+    """Target positions by ISO 230-2's spacing rule (its test conditions, target positions).
 
     At least ``per_metre`` targets per metre of travel and at least ``minimum`` in all,
     ``P_i = (i − 1) p + r_i`` over the stroke with ``p`` the uniform spacing and ``r_i`` a
@@ -354,7 +354,22 @@ def build_path(machine, test) -> TestPath:
     if type(test) not in builders:
         raise InputTypeError(f"tests must be CircularTest, PositioningTest or RotaryTest; "
                              f"got {type(test).__name__}")
+    _check_limits(test)
     return builders[type(test)](machine, test)
+
+
+def _check_limits(test) -> None:
+    """Limits on the test's own quantities only, at least one, each finite and > 0 (mm)."""
+    if not isinstance(test.limits, Mapping) or not test.limits:
+        _refuse(test, "limit", f"give a limit on any of {test.quantities} (mm)")
+    for quantity, value in test.limits.items():
+        if quantity not in test.quantities:
+            _refuse(test, "limit", f"unknown quantity {quantity!r}; use any of "
+                                   f"{test.quantities}")
+        if isinstance(value, bool) or not isinstance(value, (int, float, np.floating)) \
+                or not (math.isfinite(value) and value > 0):
+            _refuse(test, "limit", f"the limit on {quantity} must be a finite number > 0 mm; "
+                                   f"got {value!r}")
 
 
 def _refuse(test, key: str, text: str):
@@ -415,6 +430,9 @@ def _travel_directions(machine, q) -> np.ndarray:
 
 
 def _circular_path(machine, test) -> TestPath:
+    if isinstance(test.radius, bool) or not isinstance(test.radius, (int, float)) or \
+            not (math.isfinite(test.radius) and test.radius > 0):
+        _refuse(test, "radius", f"expected a finite number > 0 mm; got {test.radius!r}")
     if test.plane not in PLANES:
         _refuse(test, "plane", f"unknown plane {test.plane!r}; use one of {tuple(PLANES)}")
     centre = _positions(machine, test, "centre", test.centre)
@@ -670,6 +688,12 @@ def acceptance(machine, tests, tolerances=None, *, machines: int = 2000,
     model = path_profile(profile, tests)
     if distribution not in DISTRIBUTIONS:
         raise InputError(f"distribution must be one of {DISTRIBUTIONS}; got {distribution!r}")
+    for name, value, low in (("k", k, 0.0), ("confidence", confidence, 0.0)):
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or \
+                not (math.isfinite(value) and value > low) or \
+                (name == "confidence" and value >= 1.0):
+            raise InputError(f"{name} must be a finite number "
+                             f"{'in (0, 1)' if name == 'confidence' else '> 0'}; got {value!r}")
     for name, value in (("machines", machines), ("driver_machines", driver_machines)):
         if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
             raise InputError(f"{name} must be an integer >= 1; got {value!r}")

@@ -388,6 +388,18 @@ def test_bad_rotary_and_file_level_mistakes_are_refused(trunnion5, mill3):
         parse_tests({"tests": [{k: v for k, v in GOOD.items() if k != "radius"}]}, mill3)
 
 
+def test_tests_built_in_python_are_checked_too(mill3):
+    bad = [CircularTest("c", "xy", CENTRE, 100.0, -0.001),
+           CircularTest("c", "xy", CENTRE, 0.0, 0.001),
+           PositioningTest("p", "X", {"Y": 200.0, "Z": -175.0}, {"G": 0.01}),
+           PositioningTest("p", "X", {"Y": 200.0, "Z": -175.0}, {})]
+    for test, key in zip(bad, ("limit", "radius", "limit", "limit")):
+        with pytest.raises(InputError, match=f"key '{key}'"):
+            acceptance(mill3, [test], machines=10)
+    with pytest.raises(InputError, match="confidence"):
+        acceptance(mill3, [bad[1]], confidence=1.0)
+
+
 def test_machine_file_positioning_keys_are_checked():
     data = _mill_dict()
     data["axes"][1]["reversal"] = -0.001
