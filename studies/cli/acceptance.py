@@ -23,7 +23,7 @@ def add_parser(subparsers):
                     "and evaluate every test of TESTS.toml on each: circular deviation G "
                     "(ISO 230-4), E, A, R, B (ISO 230-2) and rotary-axis ranges. Prints each "
                     "result's mean and 95 % quantile, the pass probability with its Wilson "
-                    "95 %% interval and the error items that drive it.")
+                    "95 % interval and the error items that drive it.")
     options.add_machine(parser)
     parser.add_argument("--tests", required=True, metavar="TESTS.toml",
                         help="test definitions ([[tests]] tables, see docs/acceptance.md)")
