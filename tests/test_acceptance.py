@@ -461,6 +461,25 @@ def test_command_writes_the_csv_and_refuses_bad_files(tmp_path, capsys):
     assert "independent" in capsys.readouterr().err
 
 
+def test_report_with_tests_adds_the_section(tmp_path, capsys):
+    tests = tmp_path / "mill_tests.toml"
+    tests.write_text('[[tests]]\nname = "c"\nkind = "circular"\nplane = "xy"\n'
+                     'centre = { Y = 200.0, X = 0.0, Z = -175.0 }\nradius = 100.0\n'
+                     'limit = 0.004\n')
+    code = cli.main(["report", str(MACHINES / "mill3.toml"), "--out", str(tmp_path / "r"),
+                     "--tests", str(tests), "--skip", "front", "system", "rare", "profiles",
+                     "--repeats", "2", "--samples", "500", "--points", "3"])
+    capsys.readouterr()
+    assert code == 0
+    assert "## Acceptance tests" in (tmp_path / "r" / "report.md").read_text()
+    for name in ("acceptance.png", "acceptance_initial.csv", "acceptance_optimum.csv"):
+        assert (tmp_path / "r" / name).exists()
+    tests.write_text(tests.read_text().replace("radius = 100.0", "radius = 500.0"))
+    assert cli.main(["report", str(MACHINES / "mill3.toml"), "--out", str(tmp_path / "s"),
+                     "--tests", str(tests)]) == 2
+    assert "'radius'" in capsys.readouterr().err and not (tmp_path / "s").exists()
+
+
 def test_constant_profile_is_explained_where_chosen(capsys):
     code = cli.main(["acceptance", str(MACHINES / "trunnion5.toml"), "--tests",
                      str(EXAMPLES / "trunnion5_tests.toml"), "--machines", "20",
