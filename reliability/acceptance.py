@@ -366,8 +366,7 @@ def _check_limits(test) -> None:
         if quantity not in test.quantities:
             _refuse(test, "limit", f"unknown quantity {quantity!r}; use any of "
                                    f"{test.quantities}")
-        if isinstance(value, bool) or not isinstance(value, (int, float, np.floating)) \
-                or not (math.isfinite(value) and value > 0):
+        if not _finite_number(value) or value <= 0:
             _refuse(test, "limit", f"the limit on {quantity} must be a finite number > 0 mm; "
                                    f"got {value!r}")
 
@@ -430,8 +429,7 @@ def _travel_directions(machine, q) -> np.ndarray:
 
 
 def _circular_path(machine, test) -> TestPath:
-    if isinstance(test.radius, bool) or not isinstance(test.radius, (int, float)) or \
-            not (math.isfinite(test.radius) and test.radius > 0):
+    if not _finite_number(test.radius) or test.radius <= 0:
         _refuse(test, "radius", f"expected a finite number > 0 mm; got {test.radius!r}")
     if test.plane not in PLANES:
         _refuse(test, "plane", f"unknown plane {test.plane!r}; use one of {tuple(PLANES)}")
@@ -686,17 +684,7 @@ def acceptance(machine, tests, tolerances=None, *, machines: int = 2000,
     """
     tests = _check_tests(tests)
     model = path_profile(profile, tests)
-    if distribution not in DISTRIBUTIONS:
-        raise InputError(f"distribution must be one of {DISTRIBUTIONS}; got {distribution!r}")
-    for name, value, low in (("k", k, 0.0), ("confidence", confidence, 0.0)):
-        if isinstance(value, bool) or not isinstance(value, (int, float)) or \
-                not (math.isfinite(value) and value > low) or \
-                (name == "confidence" and value >= 1.0):
-            raise InputError(f"{name} must be a finite number "
-                             f"{'in (0, 1)' if name == 'confidence' else '> 0'}; got {value!r}")
-    for name, value in (("machines", machines), ("driver_machines", driver_machines)):
-        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
-            raise InputError(f"{name} must be an integer >= 1; got {value!r}")
+    _check_options(distribution, k, confidence, machines, driver_machines)
     if machine.correlation is not None:
         raise InputError("acceptance tests do not take the machine's [[correlation]] "
                          "between error items into account yet; remove it to predict them")
@@ -718,6 +706,23 @@ def acceptance(machine, tests, tolerances=None, *, machines: int = 2000,
     return AcceptanceResult(tests=tests, values=pd.DataFrame(values, columns=columns),
                             drivers=drivers, profile=str(model), distribution=distribution,
                             k=float(k), confidence=float(confidence))
+
+
+def _check_options(distribution, k, confidence, machines, driver_machines) -> None:
+    if distribution not in DISTRIBUTIONS:
+        raise InputError(f"distribution must be one of {DISTRIBUTIONS}; got {distribution!r}")
+    if not _finite_number(k) or k <= 0:
+        raise InputError(f"k must be a finite number > 0; got {k!r}")
+    if not _finite_number(confidence) or not 0 < confidence < 1:
+        raise InputError(f"confidence must be a number in (0, 1); got {confidence!r}")
+    for name, value in (("machines", machines), ("driver_machines", driver_machines)):
+        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
+            raise InputError(f"{name} must be an integer >= 1; got {value!r}")
+
+
+def _finite_number(value) -> bool:
+    return not isinstance(value, bool) and isinstance(value, (int, float, np.floating)) \
+        and math.isfinite(value)
 
 
 def _check_tests(tests) -> tuple:
