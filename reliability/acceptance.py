@@ -401,10 +401,16 @@ def _within_stroke(test, key, axis, value, what="position") -> float:
     low, high = axis.stroke
     slack = 1e-9 * (high - low)
     if value < low - slack or value > high + slack:
-        unit = "mm" if axis.kind == "linear" else "rad"
-        _refuse(test, key, f"{what} {value:g} {unit} of axis {axis.name!r} lies outside its "
-                           f"stroke [{low:g}, {high:g}] {unit}")
+        _refuse(test, key, f"{what} {_shown(axis, value)} of axis {axis.name!r} lies outside "
+                           f"its stroke [{_shown(axis, low)}, {_shown(axis, high)}]")
     return value
+
+
+def _shown(axis, value) -> str:
+    """A position with its unit, rotary ones in rad and degrees."""
+    if axis.kind == "linear":
+        return f"{value:g} mm"
+    return f"{value:g} rad ({math.degrees(value):.4g}°)"
 
 
 def _axis_index(machine, test, kind: str) -> int:
