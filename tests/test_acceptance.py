@@ -412,6 +412,8 @@ def test_machine_file_positioning_keys_are_checked():
     machine = _mill(repeatability=0.0004, reversal=0.001)
     again = machine_from_dict(tomllib.loads(machine.to_toml()))
     assert again == machine and again.axis_specs[1].reversal == 0.001
+    from reliability.machine_checks import describe
+    assert "reversal [mm]" in describe(machine) and "reversal" not in describe(_mill())
 
 
 @pytest.mark.parametrize("machine_file, tests_file", [
