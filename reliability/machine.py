@@ -38,6 +38,8 @@ OUTPUTS = COMPONENTS
 AXIS_KINDS = ("linear", "rotary")
 DIRECTIONS = ("x", "y", "z")
 FULL_TURN = (0.0, 2.0 * math.pi)
+#: Optional keys of a linear axis read by ISO 230-2 positioning tests only (mm).
+POSITIONING_KEYS = ("repeatability", "reversal")
 #: Largest magnitude accepted for a stroke end or an offset (mm: 1 km) and for an axis
 #: size (m), and for any other number of a description; larger values overflow the
 #: model's squares and the cost model's powers.
@@ -67,6 +69,13 @@ class Axis:
     offset : tuple of float
         Fixed translation (mm) from the previous axis' frame to this axis' frame, applied
         before the axis' motion. Zero in the paper, whose frames all share one origin.
+    repeatability : float
+        σ (mm) of one approach to a position of a linear axis, beyond its geometric errors
+        (ISO 230-2 separates it from them); enters positioning tests only
+        (:mod:`reliability.acceptance`). Default 0.
+    reversal : float
+        Reversal value (mm) of a linear axis, the difference between approaching a position
+        from below and from above (ISO 230-2's B); enters positioning tests only. Default 0.
     """
 
     name: str
@@ -76,6 +85,8 @@ class Axis:
     size: float
     full_turn: bool = False
     offset: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    repeatability: float = 0.0
+    reversal: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -416,8 +427,8 @@ def _parse_axes(entries, source: str) -> list[Axis]:
 
 
 def _parse_axis(entry, where: str) -> Axis:
-    _only_keys(entry, {"name", "kind", "direction", "stroke", "size", "full_turn", "offset"},
-               where)
+    _only_keys(entry, {"name", "kind", "direction", "stroke", "size", "full_turn", "offset",
+                       *POSITIONING_KEYS}, where)
     name = _require(entry, "name", where)
     if not isinstance(name, str) or not name or any(c in name for c in ".-") or any(
             c.isspace() or unicodedata.category(c).startswith("C") for c in name):
@@ -441,7 +452,24 @@ def _parse_axis(entry, where: str) -> Axis:
     size = _number(_require(entry, "size", where), f"{where}: size", positive=True,
                    largest=LARGEST_SIZE)
     offset = _vector3(entry.get("offset", (0, 0, 0)), f"{where}: offset")
-    return Axis(name, kind, direction, stroke, size, full_turn, offset)
+    return Axis(name, kind, direction, stroke, size, full_turn, offset,
+                **_positioning_values(entry, kind, where))
+
+
+def _positioning_values(entry, kind: str, where: str) -> dict[str, float]:
+    """``repeatability`` and ``reversal`` (mm, >= 0, linear axes only; default 0)."""
+    values = {}
+    for key in POSITIONING_KEYS:
+        if key not in entry:
+            continue
+        if kind != "linear":
+            raise MachineDescriptionError(f"{where}: {key} applies to linear axes only (it "
+                                          f"enters ISO 230-2 positioning tests)")
+        value = _number(entry[key], f"{where}: {key}", largest=LARGEST_LENGTH)
+        if value < 0:
+            raise MachineDescriptionError(f"{where}: {key} must be >= 0 mm, got {value!r}")
+        values[key] = value
+    return values
 
 
 def _parse_stroke(entry, full_turn: bool, where: str, kind: str) -> tuple[float, float]:
@@ -548,6 +576,9 @@ def _axis_to_dict(axis: Axis) -> dict:
     entry["size"] = float(axis.size)
     if any(axis.offset):
         entry["offset"] = [float(v) for v in axis.offset]
+    for key in POSITIONING_KEYS:
+        if getattr(axis, key):
+            entry[key] = float(getattr(axis, key))
     return entry
 
 

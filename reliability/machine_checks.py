@@ -192,6 +192,9 @@ def _axis_table(machine) -> pd.DataFrame:
         rows.append({"axis": axis.name, "kind": axis.kind, "direction": axis.direction,
                      "stroke": stroke, "size [m]": f"{what} = {axis.size:g}",
                      "offset [mm]": _vector(axis.offset)})
+        if any(a.repeatability or a.reversal for a in machine.axis_specs):
+            rows[-1]["repeatability σ [mm]"] = f"{axis.repeatability:g}"
+            rows[-1]["reversal [mm]"] = f"{axis.reversal:g}"
     return pd.DataFrame(rows)
 
 

@@ -69,7 +69,8 @@ def extra_stream(seed: int, index: int) -> np.random.Generator:
     spawn_key=(index,))``, independent of every stream :func:`spawn` derives from ``seed``.
 
     The extra streams in use: 0, the system-reliability section of a report and
-    ``precrel verify --precision``; 1, the rare-event section and ``precrel verify --rare``.
+    ``precrel verify --precision``; 1, the rare-event section and ``precrel verify --rare``;
+    2, the acceptance-test section (``precrel report --tests``).
     """
     seed = _seed(seed)
     return np.random.default_rng(np.random.SeedSequence([seed, EXTRA_FAMILY],

@@ -15,7 +15,8 @@ import sys
 from studies.workflows.timing import limit_blas_threads
 
 #: Subcommand modules under ``studies.cli``, in the order ``--help`` lists them.
-COMMANDS = ("check", "predict", "allocate", "verify", "report", "front", "sweep")
+COMMANDS = ("check", "predict", "allocate", "verify", "report", "front", "sweep",
+            "acceptance")
 PROG = "precrel"
 #: Exit code of bad input (argparse's own convention).
 USAGE_ERROR = 2

@@ -1,0 +1,93 @@
+"""``precrel acceptance MACHINE.toml --tests TESTS.toml``: will built machines pass their
+ISO 230 acceptance tests?"""
+
+from __future__ import annotations
+
+import pandas as pd
+
+from reliability.acceptance import DEFAULT_PROFILE, acceptance, path_profile, profile_note
+from reliability.acceptance_files import read_tests
+from reliability.files import write_csv
+
+from . import options
+
+#: The result file written into ``--out DIR``.
+RESULT_FILE = "acceptance.csv"
+
+
+def add_parser(subparsers):
+    parser = subparsers.add_parser(
+        "acceptance", help="predicted ISO 230 acceptance-test results and pass probabilities",
+        description="Draw machines built to an allocation (geometric errors along travel "
+                    "as an error profile, plus each linear axis' repeatability and reversal) "
+                    "and evaluate every test of TESTS.toml on each: circular deviation G "
+                    "(ISO 230-4), E, A, R, B (ISO 230-2) and rotary-axis ranges. Prints each "
+                    "result's mean and 95 % quantile, the pass probability with its Wilson "
+                    "95 % interval and the error items that drive it.")
+    options.add_machine(parser)
+    parser.add_argument("--tests", required=True, metavar="TESTS.toml",
+                        help="test definitions ([[tests]] tables, see docs/acceptance.md)")
+    parser.add_argument("--tolerances", metavar="CSV",
+                        help="allocation to assess (columns error, allocated); default the "
+                             "machine file's initial allocation")
+    parser.add_argument("--machines", type=options.positive_int, default=2000, metavar="N",
+                        help="built machines drawn (default 2000)")
+    parser.add_argument("--profile", default=DEFAULT_PROFILE, metavar="P",
+                        help=f"error profile along travel: gp:<length mm> or constant "
+                             f"(default {DEFAULT_PROFILE})")
+    parser.add_argument("--seed", type=options.seed, default=0, metavar="S",
+                        help="random seed (default 0)")
+    parser.add_argument("--out", metavar="DIR", help=f"write {RESULT_FILE} into DIR")
+    parser.add_argument("--overwrite", action="store_true",
+                        help=f"replace an earlier {RESULT_FILE} in DIR")
+    return parser
+
+
+def run(args) -> int:
+    out = None if args.out is None else options.destination(
+        args.out, args.overwrite, folder=True, markers=(RESULT_FILE,))
+    machine = options.machine(args)
+    tests = read_tests(args.tests, machine)
+    tolerances = None if args.tolerances is None else \
+        options.read_tolerances(args.tolerances, machine)
+    path_profile(args.profile, tests)
+    options.say(f"{len(tests)} tests on {args.machines} built machines")
+    result = acceptance(machine, tests, tolerances, machines=args.machines,
+                        profile=args.profile, rng=args.seed)
+    source = "initial allocation" if args.tolerances is None else args.tolerances
+    print(f"Acceptance tests of {machine.name!r}, {source}: {result.n_machines} built "
+          f"machines, seed {args.seed}; {profile_note(result.profile)}; tolerances read as "
+          f"{result.distribution} with σ = t/{result.k:g}; geometric errors only (no servo, "
+          f"dynamic or thermal effects), plus each linear axis' repeatability and reversal "
+          f"in positioning tests.\n")
+    print(printed_table(result).to_string(index=False))
+    passing = result.test_pass()
+    print("\npass probability of each test (every limited quantity), Wilson 95 %:")
+    for row in passing.itertuples():
+        print(f"  {row.test}: {row.pass_probability:.4f} "
+              f"[{row.pass_low:.4f}, {row.pass_high:.4f}]")
+    if out is not None:
+        out.mkdir(exist_ok=True)
+        path = write_csv(result.to_frame(), out / RESULT_FILE, overwrite=args.overwrite,
+                         index=False, float_format="%.6g")
+        print(f"\nwritten {path}")
+    return 0
+
+
+def printed_table(result) -> pd.DataFrame:
+    """The result table with limits, means and quantiles in µm and the drivers."""
+    frame = result.to_frame()
+    rows = []
+    for row in frame.itertuples():
+        if row.test == "all":
+            continue
+        limited = pd.notna(row.limit)
+        rows.append({
+            "test": row.test, "quantity": row.quantity,
+            "limit µm": f"{1000 * row.limit:.3g}" if limited else "-",
+            "mean µm": f"{1000 * row.mean:.3g}", "q95 µm": f"{1000 * row.q95:.3g}",
+            "pass": f"{row.pass_probability:.4f} [{row.pass_low:.4f}, {row.pass_high:.4f}]"
+            if limited else "-",
+            "driven by (share of mean square)": result.top_drivers(row.test, row.quantity)
+            or "-"})
+    return pd.DataFrame(rows)

@@ -1,0 +1,106 @@
+"""Report section: predicted ISO 230 acceptance-test results of built machines, for each
+allocation, with each result's distribution against its limit
+(:func:`reliability.acceptance.acceptance`)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from matplotlib.figure import Figure
+
+from reliability.acceptance import DEFAULT_PROFILE, acceptance, profile_note
+from reliability.streams import spawn
+
+from .markdown import markdown_table
+from .section import Section
+
+TITLE = "Acceptance tests"
+FIGURE = "acceptance.png"
+
+
+def acceptance_section(machine, tests, allocations: dict, *, machines: int = 2000,
+                       profile=DEFAULT_PROFILE, rng=None) -> Section:
+    """Predicted acceptance-test results of machines built to each allocation.
+
+    Parameters
+    ----------
+    machine : Machine
+    tests : sequence of tests
+        :func:`reliability.acceptance_files.read_tests`.
+    allocations : dict
+        Label -> tolerances, e.g. ``{"initial": ..., "optimum": ...}``.
+    machines : int
+        Built machines per allocation.
+    profile : str
+        Error profile along travel.
+    rng : seed or Generator
+        One child stream per allocation (:func:`reliability.streams.spawn`).
+    """
+    streams = spawn(rng, len(allocations))
+    results = {label: acceptance(machine, tests, t, machines=machines, profile=profile,
+                                 rng=stream)
+               for (label, t), stream in zip(allocations.items(), streams)}
+    first = next(iter(results.values()))
+    text = [f"Machines built to each allocation ({first.n_machines} each) and put through "
+            f"the {len(tests)} tests of the test file: {profile_note(first.profile)}; "
+            f"tolerances read as {first.distribution} with σ = t/{first.k:g}; geometric "
+            f"errors only (no servo, dynamic or thermal effects), plus each linear axis' "
+            f"repeatability and reversal in positioning tests. Results in µm; pass "
+            f"probabilities with Wilson 95 % intervals; drivers: each error item's share of "
+            f"the result's mean square, the item drawn alone."]
+    tables, summary = {}, {}
+    for label, result in results.items():
+        frame = result.to_frame()
+        tables[f"acceptance_{label}.csv"] = frame
+        text += ["", f"**{label}**: all tests passed with probability "
+                 f"{_interval(frame.iloc[-1])}.", "", markdown_table(_shown(result, frame),
+                                                                     index=False)]
+        summary[label] = {f"{row.test}/{row.quantity}": row.pass_probability
+                          for row in frame.itertuples() if not math.isnan(row.pass_probability)}
+    return Section(TITLE, "\n".join(text), figures={FIGURE: plot_results(results)},
+                   tables=tables, summary={"acceptance": summary})
+
+
+def _interval(row) -> str:
+    return f"{row.pass_probability:.4f} [{row.pass_low:.4f}, {row.pass_high:.4f}]"
+
+
+def _shown(result, frame):
+    rows = frame[frame["test"] != "all"].copy()
+    for column in ("limit", "mean", "q95"):
+        rows[column] = [f"{1000 * v:.3g}" if not math.isnan(v) else "-" for v in rows[column]]
+    rows["pass"] = [_interval(r) if not math.isnan(r.pass_probability) else "-"
+                    for r in rows.itertuples()]
+    rows["drivers"] = [result.top_drivers(r.test, r.quantity) or "-" for r in rows.itertuples()]
+    return rows[["test", "quantity", "limit", "mean", "q95", "pass", "drivers"]].rename(
+        columns={"limit": "limit µm", "mean": "mean µm", "q95": "q95 µm"})
+
+
+def plot_results(results: dict) -> Figure:
+    """One panel per limited result: its distribution (µm) for each allocation, and the
+    limit as a vertical line."""
+    first = next(iter(results.values()))
+    panels = [(test, quantity, limit) for test in first.tests
+              for quantity, limit in test.limits.items()]
+    columns = min(4, len(panels))
+    rows = math.ceil(len(panels) / columns)
+    figure = Figure(figsize=(3.2 * columns, 2.6 * rows), layout="constrained")
+    axes = figure.subplots(rows, columns, squeeze=False).ravel()
+    for ax, (test, quantity, limit) in zip(axes, panels):
+        values = {label: 1000 * r.values[(test.name, quantity)].to_numpy()
+                  for label, r in results.items()}
+        high = max(1000 * limit, *(np.quantile(v, 0.999) for v in values.values())) * 1.05
+        bins = np.linspace(0, high, 40)
+        for label, v in values.items():
+            ax.hist(np.minimum(v, high), bins=bins, histtype="step", density=True,
+                    label=label)
+        ax.axvline(1000 * limit, color="black", linestyle="--", linewidth=1)
+        ax.set_title(f"{test.name}: {quantity}", fontsize=9)
+        ax.set_xlabel("µm", fontsize=8)
+        ax.set_yticks([])
+    for ax in axes[len(panels):]:
+        ax.set_visible(False)
+    axes[0].legend(fontsize=7)
+    figure.suptitle("Predicted test results against their limits (dashed)")
+    return figure
