@@ -7,7 +7,7 @@ import pandas as pd
 
 from reliability.acceptance import DEFAULT_PROFILE, acceptance, path_profile, profile_note
 from reliability.acceptance_files import read_tests
-from reliability.files import write_csv
+from reliability.files import SIGNIFICANT, write_csv
 
 from . import options
 
@@ -69,7 +69,7 @@ def run(args) -> int:
     if out is not None:
         out.mkdir(exist_ok=True)
         path = write_csv(result.to_frame(), out / RESULT_FILE, overwrite=args.overwrite,
-                         index=False, float_format="%.6g")
+                         index=False, float_format=f"%.{SIGNIFICANT}g")
         print(f"\nwritten {path}")
     return 0
 
