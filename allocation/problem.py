@@ -272,6 +272,16 @@ class AllocationProblem:
             out[part] = self.row_matrix(block) @ u
         return out
 
+    def reaching_factor(self) -> float:
+        """The largest ``f`` with which ``f ×`` the reference allocation meets every row:
+        the largest lower-bound factor (``--bounds f HI``) that can reach the targets.
+
+        A row's load at ``f t`` is ``f^(2/p)`` times its load at ``t`` (``p`` =
+        :attr:`variable_power`), so ``f = (max load at the reference)^(−p/2)``.
+        """
+        worst = float(self.loads(self.variable(self.reference)).max())
+        return worst ** (-self.variable_power / 2.0)
+
     def with_poses(self, extra) -> "AllocationProblem":
         """The same problem with more poses; their rows are added unscreened."""
         extra = _checked_poses(self.machine, extra, False, "extra")

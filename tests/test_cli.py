@@ -236,13 +236,16 @@ def test_writer_takes_extra_sections(tmp_path):
     assert "## Extra" in (tmp_path / "report.md").read_text()
 
 
-def test_failed_report_leaves_no_folder(tmp_path, capsys):
+def test_every_section_of_a_report_copes_with_targets_out_of_reach(tmp_path, capsys):
     out = tmp_path / "unreachable"
-    bad = tmp_path / "bad.toml"
-    bad.write_text(Path(MILL).read_text().replace("limit = 0.01,", "limit = 0.0001,"))
-    code, _, err = run(capsys, "report", str(bad), "--out", str(out), *QUICK)
-    assert_one_line_error(code, err, "unreachable")
-    assert not out.exists()
+    tight = tmp_path / "tight.toml"
+    tight.write_text(Path(MILL).read_text().replace("limit = 0.01,", "limit = 0.0001,"))
+    code, printed, _ = run(capsys, "report", str(tight), "--out", str(out), *QUICK)
+    assert code == 0 and "No allocation inside the box" in printed
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["reachable"] is False and summary["front_reached"] == 0
+    assert (out / "initial_rare_events.csv").is_file()  # rare events of what exists
+    assert "Targets out of reach" in (out / "report.md").read_text()
 
 
 OPTIONAL_FILES = ("front.csv", "system_reliability.csv", "optimum_rare_events.csv",
@@ -305,12 +308,24 @@ def test_front_prints_high_targets_with_their_failure_probability(capsys):
     assert "0.999999999 " in out and "1e-09" in out
 
 
-def test_report_takes_bounds_and_an_unreachable_box_says_how_to_proceed(tmp_path, capsys):
+def test_report_on_an_unreachable_box_is_written_and_says_how_to_proceed(tmp_path, capsys):
     out = tmp_path / "tight"
-    code, _, err = run(capsys, "report", MILL, "--out", str(out), *QUICK, "--bounds", "1", "1.01",
-                       "--skip", "front", "system", "rare", "profiles")
-    assert_one_line_error(code, err, "unreachable", "--bounds")
-    assert not out.exists()
+    code, printed, _ = run(capsys, "report", MILL, "--out", str(out), *QUICK, "--bounds", "1",
+                           "1.01")
+    assert code == 0
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["reachable"] is False
+    assert summary["optimal_cost"] is None and summary["relative_cost"] is None
+    factor = summary["reaching_factor"]
+    assert 0 < factor < 1 and "--bounds LO HI" in printed
+    assert (out / "fosm_initial.csv").is_file() and (out / "blocking.csv").is_file()
+    assert not (out / "allocation.csv").exists()
+    # the factor is the largest that reaches the targets: just above it, no box does
+    reached = run(capsys, "allocate", MILL, "--out", str(tmp_path / "a.csv"), "--points", "3",
+                  "--bounds", f"{0.999 * factor:.6g}", "1.01")
+    missed = run(capsys, "allocate", MILL, "--out", str(tmp_path / "b.csv"), "--points", "3",
+                 "--bounds", f"{1.001 * factor:.6g}", "1.01")
+    assert reached[0] == 0 and missed[0] == 2
 
 
 def test_tolerances_may_name_errors_by_iso_symbol(allocation_csv, mill3, tmp_path, capsys):

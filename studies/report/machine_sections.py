@@ -38,6 +38,14 @@ def answers(study: MachineStudy) -> str:
              if p < t]
     meets = ("**yes**: every output meets its target" if not short else
              f"**no**: {'; '.join(short)}")
+    choices = (f"Choices behind every number below: outputs in the tool frame (Eq. 18); a "
+               f"tolerance t read as a normal error with σ = t/3 (FOSM and allocation; the "
+               f"Monte-Carlo draws it truncated at ±t); {reading}; search box "
+               f"[{study.bounds[0]:g}, {study.bounds[1]:g}] × the initial allocation; cost "
+               f"Eq. 28 with t in mm and rad.\n")
+    if not study.reachable:
+        return "\n".join([choices, f"- Does the initial allocation meet the targets? {meets}.",
+                          unreachable_text(study)])
     info = summary(study)
     certified = "certified optimal" if info["certified"] else "NOT certified"
     mc = study.checks["optimum"].worst_poses
@@ -48,11 +56,7 @@ def answers(study: MachineStudy) -> str:
                + ", ".join(below["output"]))
     tighten, relax = (_changes_text(changes) for changes in tolerance_changes(study))
     return "\n".join([
-        f"Choices behind every number below: outputs in the tool frame (Eq. 18); a "
-        f"tolerance t read as a normal error with σ = t/3 (FOSM and allocation; the "
-        f"Monte-Carlo draws it truncated at ±t); {reading}; search box "
-        f"[{study.bounds[0]:g}, {study.bounds[1]:g}] × the initial allocation; cost Eq. 28 "
-        f"with t in mm and rad.\n",
+        choices,
         f"- Does the initial allocation meet the targets? {meets}.",
         f"- The cheapest allocation meeting them within the box [{study.bounds[0]:g}, "
         f"{study.bounds[1]:g}] × initial costs **{info['relative_cost']:.2%}** of the "
@@ -65,6 +69,27 @@ def answers(study: MachineStudy) -> str:
         f"- Tighten: {tighten or 'none'}.",
         f"- May be relaxed: {relax or 'none'}.",
     ])
+
+
+def unreachable_text(study: MachineStudy) -> str:
+    """Why no allocation in the box meets the targets, and the box that would."""
+    factor = study.problem.reaching_factor()
+    return (f"- **No allocation inside the box [{study.bounds[0]:g}, {study.bounds[1]:g}] × "
+            f"the initial allocation meets the targets**: {study.unreachable}. The largest "
+            f"lower-bound factor that reaches them is **{factor:.4g}** (all tolerances at "
+            f"{factor:.4g} × the initial allocation just meet every target): rerun with "
+            f"`--bounds LO HI` and LO ≤ {factor:.4g}.")
+
+
+def unreachable_section(study: MachineStudy) -> Section:
+    """What blocks the targets: every blocked (output, pose), worst first."""
+    machine = study.machine
+    blocking = _shown_poses(machine, study.unreachable.blocking)
+    text = (f"{unreachable_text(study)[2:]}\n\nBlocked requirements with every tolerance "
+            f"at the box's lower bound (σ in mm or rad, the output's unit; poses in mm and "
+            f"degrees), worst first; {len(blocking)} in all, the first 20 shown:\n\n"
+            f"{markdown_table(blocking.head(20), index=False)}")
+    return Section("Targets out of reach", text, tables={"blocking.csv": blocking})
 
 
 def _changes_text(changes: pd.Series, n: int = 6) -> str:
@@ -83,8 +108,9 @@ def sections(study: MachineStudy, extra=()) -> list[Section]:
         ``extra_section(study) -> Section``, appended after the standard sections (e.g. the
         cost–reliability front or rare-event estimates).
     """
+    allocation = allocation_section(study) if study.reachable else unreachable_section(study)
     return [Section("Answers", answers(study), summary=summary(study)),
-            machine_section(study), fosm_section(study), allocation_section(study),
+            machine_section(study), fosm_section(study), allocation,
             verification_section(study), *(make(study) for make in extra)]
 
 
@@ -132,18 +158,20 @@ def fosm_table(machine, result, side: str) -> pd.DataFrame:
 
 
 def fosm_section(study: MachineStudy) -> Section:
-    tables = {"fosm_initial.csv": fosm_table(study.machine, study.initial_fosm, study.side),
-              "fosm_optimum.csv": fosm_table(study.machine, study.optimal_fosm, study.side)}
+    tables = {"fosm_initial.csv": fosm_table(study.machine, study.initial_fosm, study.side)}
+    if study.reachable:
+        tables["fosm_optimum.csv"] = fosm_table(study.machine, study.optimal_fosm, study.side)
     formats = {"beta": "{:.4f}".format, "worst_one_sided": PERCENT,
                "worst_two_sided": PERCENT}
     text = (f"First-order second-moment reliability (Eqs. 19–23, normal errors) at each "
             f"output's worst pose of the {study.points}-point grid, given as axis positions "
             f"(mm, rotary axes in degrees); `sigma` in the output's `unit`; "
             f"`top_contributors` are the errors with the largest share of the output's "
-            f"variance there.\n\n### Initial allocation\n\n"
-            f"{markdown_table(tables['fosm_initial.csv'], formats, index=False)}\n\n"
-            f"### Cheapest certified allocation\n\n"
-            f"{markdown_table(tables['fosm_optimum.csv'], formats, index=False)}")
+            f"variance there.")
+    for name, heading in (("fosm_initial.csv", "Initial allocation"),
+                          ("fosm_optimum.csv", "Cheapest certified allocation")):
+        if name in tables:
+            text += f"\n\n### {heading}\n\n{markdown_table(tables[name], formats, index=False)}"
     return Section("FOSM reliability", text, tables=tables)
 
 
@@ -198,7 +226,7 @@ def verification_section(study: MachineStudy) -> Section:
          for name, check in study.checks.items()])[["allocation", "repeat", *OUTPUTS]]
     percent = {c: PERCENT for c in ("fosm_two_sided", "mc_estimate", "mc_lower", "mc_upper",
                                     "fosm_worst_two_sided", "estimate", "lower", "upper")}
-    check = study.checks["optimum"]
+    check = study.checks[_last_checked(study)]
     text = "\n\n".join([
         "Errors drawn normal with σ = t/3, truncated at ±t. Three checks of the FOSM "
         "prediction, each with a 95 % interval:",
@@ -226,6 +254,11 @@ def verification_section(study: MachineStudy) -> Section:
                    tables={"fosm_vs_mc.csv": grid, "random_pose.csv": random,
                            "worst_pose_mc.csv": worst,
                            "grid_repeats.csv": repeats.set_index(["allocation", "repeat"])})
+
+
+def _last_checked(study: MachineStudy) -> str:
+    """The optimum when there is one, else the initial allocation."""
+    return "optimum" if "optimum" in study.checks else "initial"
 
 
 def pose_columns_of(machine) -> list[str]:
@@ -258,13 +291,14 @@ def _verification_figures(study, grid, repeats) -> dict:
     plots.plot_repeats(repeats, by="allocation", target=float(machine.targets.min()),
                        ax=figure.subplots())
     figures["grid_repeats.png"] = figure
-    values = study.checks["optimum"].grid.values[0]
+    last = _last_checked(study)
+    label = "certified optimum" if last == "optimum" else "initial allocation"
+    values = study.checks[last].grid.values[0]
     for index, output in enumerate(OUTPUTS):
         figure = Figure(figsize=(9, 4.5), layout="constrained")
         ax = figure.subplots()
         plots.plot_comprehensive_error_scatter(values[:, index], machine.limits[index],
                                                output_label=output, ax=ax)
-        ax.set_title(f"{ax.get_title()}\n{machine.name}, certified optimum, grid "
-                     f"experiment 1")
+        ax.set_title(f"{ax.get_title()}\n{machine.name}, {label}, grid experiment 1")
         figures[f"scatter_{output}.png"] = figure
     return figures

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import pandas as pd
 
-from allocation import AllocationProblem
+from allocation import AllocationProblem, TargetUnreachableError
 from allocation.result_files import gap_bound
 from reliability.fosm import fosm
 from reliability.poses import workspace_grid
@@ -38,15 +38,21 @@ class MachineStudy:
     seed: int
     problem: object
     initial_fosm: object
-    optimum: object
+    optimum: object  # AllocationResult, or None when the targets are out of reach
     optimal_fosm: object
     checks: dict  # allocation name -> reliability.verification.Verification
+    unreachable: object = None  # the TargetUnreachableError when out of reach
+
+    @property
+    def reachable(self) -> bool:
+        """Whether an allocation inside the box meets the targets."""
+        return self.unreachable is None
 
     @property
     def allocated(self):
         """The optimal tolerances exactly as ``allocation.csv`` holds them (what every
-        later step of the study verifies)."""
-        return as_written(self.optimum.tolerances)
+        later step of the study verifies); None when the targets are out of reach."""
+        return None if self.optimum is None else as_written(self.optimum.tolerances)
 
     def summary(self) -> str:
         """The study's choices and its headline numbers, one line each."""
@@ -58,7 +64,8 @@ class MachineStudy:
             f"initial allocation meets the targets: {info['initial_meets_targets']}",
             f"cheapest allocation: {info['relative_cost']:.4%} of the initial cost "
             f"({'certified' if info['certified'] else 'NOT certified'}, relative gap "
-            f"≤ {info['relative_gap']:.0e})",
+            f"≤ {info['relative_gap']:.0e})" if self.reachable else
+            f"targets out of reach in the box: {self.unreachable}",
             *(f"{name}: {check.summary()}" for name, check in self.checks.items())])
 
     def __repr__(self) -> str:
@@ -91,10 +98,9 @@ def run(machine, *, points: int = 5, side: str = "two_sided", bounds=(0.5, 1.5),
     bar : callable, optional
         Progress-bar factory passed to :func:`reliability.verification.verify`.
 
-    Raises
-    ------
-    allocation.TargetUnreachableError
-        No allocation inside the bounds meets the targets.
+    When no allocation inside the bounds meets the targets the study still runs for the
+    initial allocation: ``optimum`` and ``optimal_fosm`` are None and ``unreachable``
+    holds the :class:`allocation.TargetUnreachableError` (what blocks, where).
     """
     progress = progress or (lambda text: None)
     progress(f"FOSM of the initial allocation on the {points}-point grid")
@@ -102,39 +108,58 @@ def run(machine, *, points: int = 5, side: str = "two_sided", bounds=(0.5, 1.5),
                                       bounds=bounds)
     initial = fosm(machine, problem.reference, problem.poses, jacobian=problem.jacobian)
     progress("certified cheapest allocation (convex solver)")
-    optimum = problem.solve_exact()
-    written = as_written(optimum.tolerances)
-    optimal = fosm(machine, written, problem.poses, jacobian=problem.jacobian)
+    verified = [("initial", problem.reference, initial)]
+    optimum = optimal = unreachable = None
+    try:
+        optimum = problem.solve_exact()
+    except TargetUnreachableError as exc:
+        unreachable = exc
+        progress(f"targets out of reach in the box: {exc}")
+    if optimum is not None:
+        written = as_written(optimum.tolerances)
+        optimal = fosm(machine, written, problem.poses, jacobian=problem.jacobian)
+        verified.append(("optimum", written, optimal))
     checks = {}
-    for name, t, prediction in (("initial", problem.reference, initial),
-                                ("optimum", written, optimal)):
+    for name, t, prediction in verified:
         progress(f"Monte-Carlo verification of the {name} allocation")
         checks[name] = verify(machine, t, points=points, repeats=repeats, samples=samples,
                               rng=seed, progress=lambda text: progress(f"  {text}"), bar=bar,
                               prediction=prediction)
     return MachineStudy(machine=machine, points=points, side=side, bounds=tuple(bounds),
                         seed=seed, problem=problem, initial_fosm=initial, optimum=optimum,
-                        optimal_fosm=optimal, checks=checks)
+                        optimal_fosm=optimal, checks=checks, unreachable=unreachable)
 
 
 def summary(study: MachineStudy) -> dict:
-    """The ``summary.json`` entries (the report's contract plus a few more)."""
+    """The ``summary.json`` entries (the report's contract plus a few more).
+
+    ``reachable`` says whether an allocation inside the box meets the targets; when it is
+    false, ``optimal_cost``, ``relative_cost``, ``relative_gap`` and
+    ``optimal_meets_targets`` are None and ``reaching_factor`` is the largest lower-bound
+    factor with which the targets can be reached.
+    """
     initial_cost = float(study.problem.cost.total(study.problem.reference))
+    optimum = study.optimum
+    checked = study.checks["initial"]
     return {
         "machine": study.machine.name,
         "points_per_axis": study.points,
         "side": study.side,
         "bounds": list(study.bounds),
+        "reachable": study.reachable,
+        "reaching_factor": None if study.reachable else study.problem.reaching_factor(),
         "initial_cost": initial_cost,
-        "optimal_cost": study.optimum.cost,
-        "relative_cost": study.optimum.cost / initial_cost,
-        "certified": bool(study.optimum.certificate["certified"]),
-        "relative_gap": gap_bound(study.optimum.certificate["relative_gap"]),
+        "optimal_cost": None if optimum is None else optimum.cost,
+        "relative_cost": None if optimum is None else optimum.cost / initial_cost,
+        "certified": optimum is not None and bool(optimum.certificate["certified"]),
+        "relative_gap": None if optimum is None else
+        gap_bound(optimum.certificate["relative_gap"]),
         "initial_meets_targets": bool(study.initial_fosm.meets_targets(study.side).all()),
-        "optimal_meets_targets": bool(study.optimal_fosm.meets_targets(study.side).all()),
+        "optimal_meets_targets": None if optimum is None else
+        bool(study.optimal_fosm.meets_targets(study.side).all()),
         "seed": study.seed,
-        "repeats": study.checks["optimum"].grid.repeats,
-        "samples": int(study.checks["optimum"].worst_poses["samples"].iloc[0]),
+        "repeats": checked.grid.repeats,
+        "samples": int(checked.worst_poses["samples"].iloc[0]),
     }
 
 
