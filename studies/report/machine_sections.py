@@ -18,6 +18,7 @@ from allocation.result_files import MULTIPLIER_DIGITS, allocation_frame, gap_tex
 from reliability.display import (OUTPUT_UNITS, axis_units, pose_frame, shown_positions,
                                  top_contributors)
 from reliability.files import as_written
+from reliability.identifiability import EQUAL_RTOL, indistinguishable_groups
 from reliability.machine import OUTPUTS
 from studies.workflows.machine_study import MachineStudy, summary, tolerance_changes
 
@@ -177,6 +178,7 @@ def fosm_section(study: MachineStudy) -> Section:
 
 def allocation_section(study: MachineStudy) -> Section:
     optimum, machine = study.optimum, study.machine
+    groups = groups_table(machine, study.problem.poses)
     detail = optimum.to_frame().reset_index()
     requirements = requirement_table(optimum).reset_index()
     for column in ("dlncost/dln_limit", "dlncost/dln_target"):
@@ -194,7 +196,8 @@ def allocation_section(study: MachineStudy) -> Section:
             f"fixes), `dlncost/dln_target` the same for the target probability.\n\n"
             f"{markdown_table(requirements, index=False)}\n\n"
             f"Allocation (`rate` = allocated / initial − 1; `status` says which bound "
-            f"holds):\n\n{markdown_table(detail, {'rate': '{:+.1%}'.format}, index=False)}")
+            f"holds):\n\n{markdown_table(detail, {'rate': '{:+.1%}'.format}, index=False)}"
+            f"\n\n{groups_text(machine, groups)}")
     figures = {}
     n_motion = 6 * len(machine.axes)
     shown = {"initial": study.problem.reference, "certified optimum": study.allocated}
@@ -209,7 +212,28 @@ def allocation_section(study: MachineStudy) -> Section:
     return Section("Cheapest certified allocation", text, figures=figures,
                    tables={"allocation.csv": allocation_frame(optimum),
                            "allocation_detail.csv": detail,
-                           "requirements_elasticity.csv": requirements})
+                           "requirements_elasticity.csv": requirements,
+                           "indistinguishable_groups.csv": groups})
+
+
+def groups_table(machine, poses) -> pd.DataFrame:
+    """The errors that cannot be told apart on ``poses``, one row per group."""
+    groups = indistinguishable_groups(machine, poses)
+    return pd.DataFrame({"group": np.arange(1, len(groups) + 1),
+                         "size": [len(g) for g in groups],
+                         "errors": [" ".join(g) for g in groups]})
+
+
+def groups_text(machine, table: pd.DataFrame) -> str:
+    """The report's note on :func:`groups_table`."""
+    members = int(table["size"].sum())
+    return (
+        f"**Errors that cannot be told apart**: {members} of {machine.n_errors} errors fall "
+        f"into {len(table)} groups whose sensitivities are equal at every grid pose (to "
+        f"{EQUAL_RTOL:g} of the largest). Only each group's summed variance enters the "
+        f"outputs, so within a group the cost alone decides how it is shared; a tolerance "
+        f"set for one member can be traded for another's at no loss of reliability."
+        + (f"\n\n{markdown_table(table, index=False)}" if len(table) else ""))
 
 
 def verification_section(study: MachineStudy) -> Section:
