@@ -95,6 +95,10 @@ class AllocationProblem:
         solver's variable (:attr:`variable_power`).
     memory : int or None
         Bytes of temporary arrays per chunk of poses (None: the default budget).
+    bounds_source : str
+        Where the box comes from: ``"machine file"`` (its ``[bounds]`` table),
+        ``"factors of the initial allocation"`` (the default [0.5, 1.5]) or ``"given"``
+        (``bounds``, ``lower`` or ``upper`` passed to :meth:`build`).
     """
 
     machine: object
@@ -109,10 +113,11 @@ class AllocationProblem:
     cost: CostModel
     rows: ScreenedRows | None
     memory: int | None = None
+    bounds_source: str = "given"
 
     @classmethod
     def build(cls, machine, poses=None, *, side: str = "two_sided", workspace: str = "worst",
-              bounds=(0.5, 1.5), lower=None, upper=None, locked=(), reference=None,
+              bounds=None, lower=None, upper=None, locked=(), reference=None,
               k: float = 3.0, cost_factors=(1.0, 1.0, 1.0), targets=None, limits=None,
               allow_outside_stroke: bool = False, budget: int | None = None,
               memory: int | None = None) -> "AllocationProblem":
@@ -129,9 +134,10 @@ class AllocationProblem:
             worst-case stack ``Σ|J| t ≤ I`` (worst-case workspace only).
         workspace : {'worst', 'mean'}
             Target at every pose (Eq. 35 as read in docs/model.md) or on the workspace mean.
-        bounds : (float, float)
-            Default box as multiples of ``reference`` ([0.5, 1.5]: Table 6 moves no item by
-            more than +50 %).
+        bounds : (float, float), optional
+            Box as multiples of ``reference``. Default: the machine file's ``[bounds]``
+            table when it has one, else :data:`DEFAULT_FACTORS` ([0.5, 1.5]: Table 6 moves
+            no item by more than +50 %); :attr:`bounds_source` says which.
         lower, upper : array_like, optional
             Explicit tolerance bounds, overriding ``bounds``.
         locked : str or iterable of str
@@ -172,15 +178,29 @@ class AllocationProblem:
                             "the per-pose results and screened rows of the allocation problem",
                             "pass fewer poses (a coarser grid)")
         reference = _reference(machine, reference)
-        low, high = _bounds(machine, reference, bounds, lower, upper, locked)
+        source = bounds_source(machine, bounds, lower, upper)
+        if source == "machine file":
+            lower, upper = machine.tolerance_bounds
+        low, high = _bounds(machine, reference, DEFAULT_FACTORS if bounds is None else bounds,
+                            lower, upper, locked)
         memory_budget = MEMORY_BUDGET if memory is None else memory
         keep = workspace == "mean" or len(poses) * 6 * machine.n_errors * 8 <= memory_budget
         jacobian = machine.jacobian(poses) if keep else None
         problem = cls(machine=machine, poses=poses, jacobian=jacobian, side=side,
                       workspace=workspace, k=float(k), lower=low, upper=high,
                       reference=reference, cost=CostModel.from_machine(machine, *cost_factors),
-                      rows=None, memory=memory)
+                      rows=None, memory=memory, bounds_source=source)
         return replace(problem, rows=problem._screen()) if workspace == "worst" else problem
+
+    def box_text(self) -> str:
+        """The box in words, for a report: its source and its extent."""
+        if self.bounds_source == "factors of the initial allocation":
+            low, high = (float(np.median(b / self.reference)) for b in (self.lower,
+                                                                         self.upper))
+            return f"[{low:g}, {high:g}] × the initial allocation"
+        return (f"the {self.bounds_source}'s tolerance bounds (translations "
+                f"{_span(self.lower, self.upper, self.machine, False)} mm, rotations "
+                f"{_span(self.lower, self.upper, self.machine, True)} rad)")
 
     def with_reading(self, side: str) -> "AllocationProblem":
         """The same poses, bounds and costs under another reliability reading.
@@ -541,6 +561,24 @@ def _reference(machine, reference) -> np.ndarray:
     if hasattr(reference, "items"):
         reference = machine.error_vector(reference, default=None)
     return machine.check_tolerances(reference).astype(float)
+
+
+#: The box when neither the caller nor the machine file gives one: factors of the reference.
+DEFAULT_FACTORS = (0.5, 1.5)
+
+
+def bounds_source(machine, bounds, lower=None, upper=None) -> str:
+    """Which box :meth:`AllocationProblem.build` uses for these arguments."""
+    if bounds is not None or lower is not None or upper is not None:
+        return "given"
+    if getattr(machine, "tolerance_bounds", None) is not None:
+        return "machine file"
+    return "factors of the initial allocation"
+
+
+def _span(lower, upper, machine, angular: bool) -> str:
+    mask = np.array([n.split(".")[1].startswith("e") == angular for n in machine.error_names])
+    return f"{lower[mask].min():g}–{upper[mask].max():g}"
 
 
 def _bounds(machine, reference, bounds, lower, upper, locked):

@@ -129,6 +129,7 @@ class Machine:
     cost_coefficients: CostCoefficients
     tool_offset: tuple[float, float, float] = (0.0, 0.0, 0.0)
     correlation: np.ndarray | None = field(default=None, repr=False)
+    tolerance_bounds: np.ndarray | None = field(default=None, repr=False)
     _index: Mapping[str, int] = field(init=False, repr=False, compare=False)
 
     def __post_init__(self):
@@ -142,6 +143,9 @@ class Machine:
         if self.correlation is not None:
             object.__setattr__(self, "correlation",
                                check_correlation_matrix(self.correlation, self.error_names))
+        if self.tolerance_bounds is not None:
+            object.__setattr__(self, "tolerance_bounds",
+                               _checked_bounds(self.tolerance_bounds, self.error_names))
 
     def __reduce__(self):
         """Pickle and copy through the constructor (the name index is rebuilt)."""
@@ -355,7 +359,7 @@ def load_machine(path) -> Machine:
 def machine_from_dict(data: Mapping, source: str = "machine") -> Machine:
     """Validate a parsed description (the TOML layout) and build a :class:`Machine`."""
     _only_keys(data, {"name", "axes", "requirements", "initial_allocation", "cost",
-                      "tool_offset", "correlation"}, source)
+                      "tool_offset", "correlation", "bounds"}, source)
     axes = _parse_axes(_require(data, "axes", source), source)
     names = tuple(a.name for a in axes)
     limits, targets = _parse_requirements(_require(data, "requirements", source), source)
@@ -369,6 +373,8 @@ def machine_from_dict(data: Mapping, source: str = "machine") -> Machine:
         cost_coefficients=_parse_cost(_require(data, "cost", source), joint_names(names),
                                       {a.kind for a in axes}, source),
         tool_offset=_vector3(data.get("tool_offset", (0, 0, 0)), f"{source}: tool_offset"),
+        tolerance_bounds=None if "bounds" not in data else
+        _parse_bounds(data["bounds"], error_names(names), source),
     )
     if "correlation" in data:
         machine = parse_correlation(machine, data["correlation"], source)
@@ -547,6 +553,53 @@ def _parse_initial(table, names: tuple[str, ...], source: str) -> np.ndarray:
     return initial
 
 
+def _parse_bounds(table, names: tuple[str, ...], source: str) -> np.ndarray:
+    """``[bounds]``: ``translation = [lo, hi]`` (mm), ``rotation = [lo, hi]`` (rad) and
+    ``items = { "X.dx" = [lo, hi] }``, the achievable tolerances; ``(2, n_errors)``."""
+    where = f"{source}: bounds"
+    _only_keys(table, {"translation", "rotation", "items"}, where)
+    translation = _pair(_require(table, "translation", where), f"{where}.translation")
+    rotation = _pair(_require(table, "rotation", where), f"{where}.rotation")
+    angular = np.array([n.split(".")[1].startswith("e") for n in names])
+    bounds = np.where(angular, np.array(rotation)[:, None], np.array(translation)[:, None])
+    items = table.get("items", {})
+    index = {n: i for i, n in enumerate(names)}
+    index.update({n: i for i, n in enumerate(iso_names(names))})
+    _only_keys(items, set(index), f"{where}.items")
+    given = {}
+    for name, value in items.items():
+        if index[name] in given:
+            raise MachineDescriptionError(f"{where}.items: {given[index[name]]!r} and "
+                                          f"{name!r} name the same error")
+        given[index[name]] = name
+        bounds[:, index[name]] = _pair(value, f"{where}.items.{name}")
+    return bounds
+
+
+def _pair(value, where: str) -> tuple[float, float]:
+    """``[lo, hi]`` with 0 < lo <= hi, or a MachineDescriptionError naming ``where``."""
+    if isinstance(value, (str, bytes)) or not hasattr(value, "__len__") or len(value) != 2:
+        raise MachineDescriptionError(f"{where}: expected [lo, hi] (two tolerances, mm or "
+                                      f"rad); got {value!r}")
+    low, high = (_number(v, where, positive=True) for v in value)
+    if low > high:
+        raise MachineDescriptionError(f"{where}: lo = {low:g} exceeds hi = {high:g}")
+    return low, high
+
+
+def _checked_bounds(bounds, names) -> np.ndarray:
+    """``(2, n_errors)`` finite positive bounds with lower <= upper, read-only."""
+    array = np.array(bounds, dtype=float)
+    if array.shape != (2, len(names)) or not np.all(np.isfinite(array) & (array > 0)):
+        raise MachineDescriptionError(f"tolerance_bounds must be (2, {len(names)}) positive "
+                                      f"finite (lower, upper) tolerances")
+    bad = np.flatnonzero(array[0] > array[1])
+    if len(bad):
+        raise MachineDescriptionError(f"bounds of {names[bad[0]]!r}: lower exceeds upper")
+    array.setflags(write=False)
+    return array
+
+
 # ----- writing -----------------------------------------------------------------------
 def machine_to_dict(machine: Machine) -> dict:
     """The machine-file layout of ``machine`` (what :func:`machine_from_dict` reads)."""
@@ -564,6 +617,25 @@ def machine_to_dict(machine: Machine) -> dict:
         del table["tool_offset"]
     if machine.correlation is not None:
         table["correlation"] = correlation_to_toml(machine)
+    if machine.tolerance_bounds is not None:
+        table["bounds"] = _bounds_to_dict(machine)
+    return table
+
+
+def _bounds_to_dict(machine: Machine) -> dict:
+    """Most common translational and angular pair as defaults, the rest as items."""
+    names, (low, high) = machine.error_names, machine.tolerance_bounds
+    angular = np.array([n.split(".")[1].startswith("e") for n in names])
+    table = {}
+    for key, mask in (("translation", ~angular), ("rotation", angular)):
+        pairs, counts = np.unique(np.column_stack([low[mask], high[mask]]), axis=0,
+                                  return_counts=True)
+        table[key] = [float(v) for v in pairs[np.argmax(counts)]]
+    default = np.where(angular, np.array(table["rotation"])[:, None],
+                       np.array(table["translation"])[:, None])
+    differ = np.flatnonzero((low != default[0]) | (high != default[1]))
+    if len(differ):
+        table["items"] = {names[i]: [float(low[i]), float(high[i])] for i in differ}
     return table
 
 

@@ -52,7 +52,8 @@ def run(args) -> int:
                              f"named like {machine.error_names[0]!r}")
     if args.target is not None:
         machine = dataclasses.replace(machine, targets=np.full(6, args.target))
-    options.say(f"building the problem on the {args.points}-point grid")
+    options.say(f"building the problem on the {args.points}-point grid, "
+                f"{options.box_words(machine, bounds)}")
     problem = AllocationProblem.build(machine, workspace_grid(machine, args.points),
                                       side=args.side, bounds=bounds, locked=tuple(args.lock))
     result = solve(problem, args.method, args.seed)

@@ -58,7 +58,7 @@ def run(args) -> int:
         options.destination(args.out, args.overwrite)
     machine = load_machine(args.machine)
     poses = workspace_grid(machine, args.points)
-    box = f"box {bounds[0]:g}–{bounds[1]:g} × initial allocation"
+    box = options.box_words(machine, bounds)
     options.say(f"front of {machine.name}: {len(targets)} target(s), {args.side}, {box}, "
                 f"{args.points}-point grid")
     front = cost_reliability_front(machine, targets, side=args.side, poses=poses,
@@ -95,7 +95,8 @@ def _refuse_unreachable(machine, target: float, side: str, poses, bounds) -> Non
     problem = AllocationProblem.build(machine, poses, side=side, bounds=bounds,
                                       targets=dict.fromkeys(OUTPUTS, target))
     problem.solve_exact()  # raises TargetUnreachableError naming what blocks
-    raise InputError(f"no target of the front is reachable in the box {bounds}")
+    raise InputError(f"no target of the front is reachable in the "
+                     f"{options.box_words(machine, bounds)}")
 
 
 def _targets(args) -> np.ndarray:

@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
+from allocation.problem import DEFAULT_FACTORS, bounds_source
 from allocation.result_files import read_allocation_csv
 from reliability import display
 from reliability.errors import InputError
@@ -94,10 +95,10 @@ def add_points(parser, default: int = 5) -> None:
 
 
 def add_bounds(parser) -> None:
-    parser.add_argument("--bounds", type=positive_float, nargs=2, default=(0.5, 1.5),
+    parser.add_argument("--bounds", type=positive_float, nargs=2, default=None,
                         metavar=("LO", "HI"),
-                        help="tolerance box as factors of the initial allocation "
-                             "(default 0.5 1.5)")
+                        help="tolerance box as factors of the initial allocation (default: "
+                             "the machine file's [bounds] table, else 0.5 1.5)")
 
 
 def add_monte_carlo(parser) -> None:
@@ -111,9 +112,23 @@ def add_monte_carlo(parser) -> None:
                         help="random seed (default 0)")
 
 
+def box_words(machine, bounds) -> str:
+    """The search box a command uses, in words: ``--bounds``, the machine file's
+    ``[bounds]``, or the default factors."""
+    source = bounds_source(machine, bounds)
+    if source == "machine file":
+        return "box from the machine file's [bounds]"
+    low, high = DEFAULT_FACTORS if bounds is None else bounds
+    where = "--bounds" if source == "given" else "default; the machine file has no [bounds]"
+    return f"box {low:g}–{high:g} × initial allocation ({where})"
+
+
 # ----- checks done before any work ----------------------------------------------------
-def check_bounds(bounds) -> tuple[float, float]:
-    """``--bounds LO HI``: factors of the reference allocation, 0 < LO <= HI."""
+def check_bounds(bounds) -> tuple[float, float] | None:
+    """``--bounds LO HI``: factors of the reference allocation, 0 < LO <= HI (None when not
+    given: the machine file's box, or the default factors)."""
+    if bounds is None:
+        return None
     low, high = bounds
     if low > high:
         raise InputError(f"--bounds: LO = {low:g} exceeds HI = {high:g}; expected "

@@ -41,8 +41,9 @@ def allocations(study) -> dict:
 def front(study):
     """Cost against reliability, with the stack and the optimum marked."""
     marks = {"optimum": study.allocated} if study.reachable else {}
-    return front_section(study.machine, poses=study.problem.poses, bounds=study.bounds,
-                         marks=marks)
+    return front_section(study.machine, poses=study.problem.poses,
+                         box={"lower": study.problem.lower, "upper": study.problem.upper},
+                         box_text=study.problem.box_text(), marks=marks)
 
 
 def system(study):

@@ -41,8 +41,8 @@ def answers(study: MachineStudy) -> str:
              f"**no**: {'; '.join(short)}")
     choices = (f"Choices behind every number below: outputs in the tool frame (Eq. 18); a "
                f"tolerance t read as a normal error with σ = t/3 (FOSM and allocation; the "
-               f"Monte-Carlo draws it truncated at ±t); {reading}; search box "
-               f"[{study.bounds[0]:g}, {study.bounds[1]:g}] × the initial allocation; cost "
+               f"Monte-Carlo draws it truncated at ±t); {reading}; "
+               f"{box_text(study)}; cost "
                f"Eq. 28 with t in mm and rad.\n")
     if not study.reachable:
         return "\n".join([choices, f"- Does the initial allocation meet the targets? {meets}.",
@@ -59,8 +59,8 @@ def answers(study: MachineStudy) -> str:
     return "\n".join([
         choices,
         f"- Does the initial allocation meet the targets? {meets}.",
-        f"- The cheapest allocation meeting them within the box [{study.bounds[0]:g}, "
-        f"{study.bounds[1]:g}] × initial costs **{info['relative_cost']:.2%}** of the "
+        f"- The cheapest allocation meeting them within the box costs "
+        f"**{info['relative_cost']:.2%}** of the "
         f"initial allocation ({certified}, relative duality gap "
         f"{gap_text(study.optimum.certificate['relative_gap'])}).",
         f"- Monte-Carlo of that allocation ({info['samples']} samples at each output's "
@@ -72,11 +72,21 @@ def answers(study: MachineStudy) -> str:
     ])
 
 
+def box_text(study: MachineStudy) -> str:
+    """The search box and where it comes from, e.g. ``search box [0.5, 1.5] × the initial
+    allocation (the default factors)``."""
+    source = {"machine file": "from the machine file's [bounds]",
+              "factors of the initial allocation": "the default factors; the machine file "
+                                                   "has no [bounds]",
+              "given": "from --bounds"}[study.problem.bounds_source]
+    return f"search box {study.problem.box_text()} ({source})"
+
+
 def unreachable_text(study: MachineStudy) -> str:
     """Why no allocation in the box meets the targets, and the box that would."""
     factor = study.problem.reaching_factor()
-    return (f"- **No allocation inside the box [{study.bounds[0]:g}, {study.bounds[1]:g}] × "
-            f"the initial allocation meets the targets**: {study.unreachable}. The largest "
+    return (f"- **No allocation inside the box ({study.problem.box_text()}) meets the "
+            f"targets**: {study.unreachable}. The largest "
             f"lower-bound factor that reaches them is **{factor:.4g}** (all tolerances at "
             f"{factor:.4g} × the initial allocation just meet every target): rerun with "
             f"`--bounds LO HI` and LO ≤ {factor:.4g}.")
@@ -185,8 +195,8 @@ def allocation_section(study: MachineStudy) -> Section:
         requirements[column] = as_written(requirements[column], MULTIPLIER_DIGITS)
     info = summary(study)
     text = (f"The cheapest allocation (cost model Eq. 28, k1 = k2 = k3 = 1) meeting every "
-            f"target at every grid pose (Eq. 34), tolerances within [{study.bounds[0]:g}, "
-            f"{study.bounds[1]:g}] × the initial allocation. Cost {optimum.cost:.6g} against "
+            f"target at every grid pose (Eq. 34), tolerances within the box "
+            f"({box_text(study)}). Cost {optimum.cost:.6g} against "
             f"{info['initial_cost']:.6g} initially ({info['relative_cost']:.2%}); "
             f"{'certified' if info['certified'] else 'not certified'} optimum, relative "
             f"duality gap {gap_text(optimum.certificate['relative_gap'])}.\n\n"

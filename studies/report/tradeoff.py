@@ -28,7 +28,8 @@ WIDE_BOUNDS = (0.001, 1.5)
 
 
 def front_section(machine, *, targets=DEFAULT_TARGETS, reliability: float = 0.99,
-                  bounds=WIDE_BOUNDS, poses=None, marks=None) -> Section:
+                  bounds=WIDE_BOUNDS, box=None, box_text=None, poses=None,
+                  marks=None) -> Section:
     """The certified two-sided front, the stack, and the stack / ``reliability`` ratio.
 
     Parameters
@@ -40,6 +41,11 @@ def front_section(machine, *, targets=DEFAULT_TARGETS, reliability: float = 0.99
         The target compared with the stack in the text ("a 99 % machine").
     bounds : (float, float)
         Box as factors of the initial allocation, for the front and the stack alike.
+    box : dict, optional
+        Explicit ``{"lower": ..., "upper": ...}`` tolerance bounds instead of ``bounds``
+        (e.g. a report's own box), described by ``box_text``.
+    box_text : str, optional
+        The box in words; default ``"LO–HI × the initial allocation"``.
     poses : array_like, optional
         Default: the 5-point workspace grid.
     marks : mapping, optional
@@ -47,7 +53,8 @@ def front_section(machine, *, targets=DEFAULT_TARGETS, reliability: float = 0.99
     """
     poses = workspace_grid(machine) if poses is None else poses
     all_targets = np.union1d(np.asarray(targets, dtype=float), [reliability])
-    front = cost_reliability_front(machine, all_targets, bounds=bounds, poses=poses)
+    front = cost_reliability_front(machine, all_targets, poses=poses,
+                                   **({"bounds": bounds} if box is None else box))
     stack = front.attrs["stack"]
     at = front[np.isclose(front["target"], reliability)].iloc[0]
     allocations = {"initial": machine.initial_allocation, **(marks or {})}
@@ -58,12 +65,13 @@ def front_section(machine, *, targets=DEFAULT_TARGETS, reliability: float = 0.99
                    "certified", "feasible", "binding"]].assign(
         relative_gap=[gap_bound(g) for g in front["relative_gap"]])
     reached = int(front["feasible"].sum())
-    box = f"box {bounds[0]:g}–{bounds[1]:g} × the initial allocation"
+    words = f"box {bounds[0]:g}–{bounds[1]:g} × the initial allocation" if box_text is None \
+        else f"box {box_text}"
     summary = {"front_points": int(len(front)), "front_reached": reached,
                "front_certified": bool(front.loc[front["feasible"], "certified"].all()),
                f"relative_cost_at_{reliability:g}":
                    float(at["relative_cost"]) if at["feasible"] else None}
-    text = f"In the {box}, the search box of this report. "
+    text = f"In the {words}. "
     if "error" in stack:
         text += (f"The worst-case stack cannot be held in this box: "
                  f"{stack['error'].split(';')[0]}.")

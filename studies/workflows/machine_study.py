@@ -6,7 +6,8 @@ allocations (Sec. 5.3, :func:`reliability.verification.verify`). The report's se
 made from the result by :mod:`studies.report.machine_sections`.
 
 Defaults are the report's contract: the exact two-sided probability, the worst case over
-the 5-point grid, bounds [0.5, 1.5] × the initial allocation, limits and targets from the
+the 5-point grid, the machine file's ``[bounds]`` box (else [0.5, 1.5] × the initial
+allocation), limits and targets from the
 machine file.
 """
 
@@ -23,6 +24,11 @@ from reliability.poses import workspace_grid
 from reliability.files import as_written
 from reliability.verification import verify
 
+#: ``summary.json``'s ``bounds_source`` for each :attr:`AllocationProblem.bounds_source`
+#: (bounds given to :func:`run` come from ``--bounds`` on the command line).
+BOUNDS_SOURCES = {"machine file": "machine file",
+                  "factors of the initial allocation": "factors of the initial allocation",
+                  "given": "command line"}
 #: Relative change of a tolerance below which it counts as unchanged.
 UNCHANGED = 0.01
 
@@ -34,7 +40,7 @@ class MachineStudy:
     machine: object
     points: int
     side: str
-    bounds: tuple
+    bounds: tuple | None  # --bounds factors, or None: the machine file's box or the default
     seed: int
     problem: object
     initial_fosm: object
@@ -59,8 +65,8 @@ class MachineStudy:
         info = summary(self)
         return "\n".join([
             f"study of {self.machine.name}: {self.side.replace('_', '-')} targets at every "
-            f"pose of the {self.points}-point grid, box {self.bounds[0]:g}–{self.bounds[1]:g} "
-            f"× the initial allocation, seed {self.seed}",
+            f"pose of the {self.points}-point grid, box {self.problem.box_text()} "
+            f"({self.problem.bounds_source}), seed {self.seed}",
             f"initial allocation meets the targets: {info['initial_meets_targets']}",
             f"cheapest allocation: {info['relative_cost']:.4%} of the initial cost "
             f"({'certified' if info['certified'] else 'NOT certified'}, relative gap "
@@ -72,7 +78,7 @@ class MachineStudy:
         return self.summary()
 
 
-def run(machine, *, points: int = 5, side: str = "two_sided", bounds=(0.5, 1.5),
+def run(machine, *, points: int = 5, side: str = "two_sided", bounds=None,
         seed: int = 0, repeats: int = 20, samples: int = 20_000, progress=None,
         bar=None) -> MachineStudy:
     """Run the study of ``machine``.
@@ -83,8 +89,9 @@ def run(machine, *, points: int = 5, side: str = "two_sided", bounds=(0.5, 1.5),
     points : int
         Grid points per axis (the allocation constraint holds at every grid pose).
     side : {'two_sided', 'one_sided'}
-    bounds : (float, float)
-        Tolerance box as factors of the initial allocation.
+    bounds : (float, float), optional
+        Tolerance box as factors of the initial allocation; default the machine file's
+        ``[bounds]`` table, else [0.5, 1.5] (``summary.json`` names the source).
     seed : int
         Seed of the Monte-Carlo verification of each allocation
         (:func:`reliability.streams.verification_streams`), as ``precrel verify --seed``.
@@ -125,7 +132,8 @@ def run(machine, *, points: int = 5, side: str = "two_sided", bounds=(0.5, 1.5),
         checks[name] = verify(machine, t, points=points, repeats=repeats, samples=samples,
                               rng=seed, progress=lambda text: progress(f"  {text}"), bar=bar,
                               prediction=prediction)
-    return MachineStudy(machine=machine, points=points, side=side, bounds=tuple(bounds),
+    return MachineStudy(machine=machine, points=points, side=side,
+                        bounds=None if bounds is None else tuple(bounds),
                         seed=seed, problem=problem, initial_fosm=initial, optimum=optimum,
                         optimal_fosm=optimal, checks=checks, unreachable=unreachable)
 
@@ -145,7 +153,8 @@ def summary(study: MachineStudy) -> dict:
         "machine": study.machine.name,
         "points_per_axis": study.points,
         "side": study.side,
-        "bounds": list(study.bounds),
+        "bounds": None if study.bounds is None else list(study.bounds),
+        "bounds_source": BOUNDS_SOURCES[study.problem.bounds_source],
         "reachable": study.reachable,
         "reaching_factor": None if study.reachable else study.problem.reaching_factor(),
         "initial_cost": initial_cost,

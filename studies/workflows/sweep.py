@@ -49,8 +49,6 @@ INDEPENDENT = "independent"
 SIDES = ("one_sided", "two_sided")
 SPEC_KEYS = {"machines", "sides", "targets", "profiles", "seeds", "repeats",
              "points_per_axis", "bounds"}
-#: The search box of every task when the spec gives none (factors of the initial allocation).
-DEFAULT_BOUNDS = (0.5, 1.5)
 RESULTS_FILE = "results.csv"
 TASKS_FOLDER = "tasks"
 
@@ -74,8 +72,9 @@ class SweepTask:
         Grid experiments of the verification.
     points_per_axis : int
         Grid of the allocation and of the verification.
-    bounds : (float, float)
-        Search box of the allocation, as factors of the initial allocation.
+    bounds : (float, float) or None
+        Search box of the allocation, as factors of the initial allocation; None: the
+        machine file's ``[bounds]``, else [0.5, 1.5].
     """
 
     machine: str
@@ -85,7 +84,7 @@ class SweepTask:
     seed: int
     repeats: int
     points_per_axis: int
-    bounds: tuple[float, float] = DEFAULT_BOUNDS
+    bounds: tuple[float, float] | None = None
 
     def parameters(self, machine=None) -> dict:
         """The task's parameters as stored and hashed: the machine by its content."""
@@ -98,7 +97,8 @@ class SweepSpec:
     """The lists a sweep combines; :meth:`tasks` expands them in a fixed order.
 
     Build from a TOML file with :meth:`from_toml` (keys as the attributes). ``bounds`` is
-    one box ``[LO, HI]`` (factors of the initial allocation) for every task.
+    one box ``[LO, HI]`` (factors of the initial allocation) for every task; without it
+    each machine's own ``[bounds]`` table, else [0.5, 1.5].
     """
 
     machines: tuple[str, ...]
@@ -108,7 +108,7 @@ class SweepSpec:
     seeds: tuple[int, ...] = (0,)
     repeats: tuple[int, ...] = (20,)
     points_per_axis: int = 5
-    bounds: tuple[float, float] = DEFAULT_BOUNDS
+    bounds: tuple[float, float] | None = None
 
     def __post_init__(self):
         for name in ("machines", "sides", "targets", "profiles", "seeds", "repeats"):
@@ -219,13 +219,15 @@ def run_task(task: SweepTask, allocated: dict | None = None) -> dict:
             allocated = solve_allocation(*_allocation_key(task, machine[1]))
         if allocated["status"] != "ok":
             return {"status": allocated["status"], "reason": allocated["reason"],
+                    "bounds_source": allocated["bounds_source"],
                     "relative_cost": None, "certified": False,
                     "fraction": [None] * len(OUTPUTS), "yield": None}
         experiment = _experiment(machine, task.target, task.points_per_axis, task.profile)
         rng = verification_streams(task.seed)[0]
         verified = experiment.run(allocated["tolerances"], repeats=task.repeats, rng=rng,
                                   keep_values="none")
-    return {"status": "ok", "reason": "", "relative_cost": allocated["relative_cost"],
+    return {"status": "ok", "reason": "", "bounds_source": allocated["bounds_source"],
+            "relative_cost": allocated["relative_cost"],
             "certified": allocated["certified"],
             "fraction": verified.fractions.mean(axis=0).tolist(),
             "yield": float(np.mean(verified.all_inside))}
@@ -297,7 +299,8 @@ def results_frame(tasks, results) -> pd.DataFrame:
     rows = []
     for task, result in zip(tasks, results):
         row = asdict(task)
-        row["bounds_low"], row["bounds_high"] = row.pop("bounds")
+        row["bounds_low"], row["bounds_high"] = row.pop("bounds") or (None, None)
+        row["bounds_source"] = result.get("bounds_source", "")
         row["status"] = result["status"]
         row["reason"] = result.get("reason", "")
         row["relative_cost"] = result["relative_cost"]
@@ -344,7 +347,9 @@ def _check_executor(executor) -> None:
 
 
 def _check_bounds(bounds) -> tuple[float, float]:
-    """``bounds = [LO, HI]``: two numbers, 0 < LO <= HI."""
+    """``bounds = [LO, HI]``: two numbers, 0 < LO <= HI (None: each machine's own box)."""
+    if bounds is None:
+        return None
     if isinstance(bounds, (str, bytes)) or not hasattr(bounds, "__len__") or len(bounds) != 2:
         raise InputError(f"sweep spec: bounds {bounds!r} must be [LO, HI], factors of the "
                          f"initial allocation")
@@ -418,9 +423,10 @@ def _allocation_key(task: SweepTask, fingerprint: str) -> tuple:
 
 @functools.lru_cache(maxsize=64)
 def solve_allocation(name: str, fingerprint: str, side: str, target: float,
-                     points: int, bounds: tuple[float, float] = DEFAULT_BOUNDS) -> dict:
+                     points: int, bounds: tuple[float, float] | None = None) -> dict:
     """Certified optimum of one machine (file ``name`` with content ``fingerprint``) and
-    reading in the box ``bounds``: ``status`` ('ok' or 'unreachable', with ``reason``),
+    reading in the box ``bounds`` (None: the machine file's, else the default factors):
+    ``status`` ('ok' or 'unreachable', with ``reason``), ``bounds_source``,
     ``tolerances``, ``relative_cost`` and ``certified``. Deterministic, so solving it
     anywhere, once or many times, gives the same numbers."""
     with threadpool_limits(limits=1):
@@ -430,8 +436,10 @@ def solve_allocation(name: str, fingerprint: str, side: str, target: float,
         try:
             best = problem.solve_exact()
         except TargetUnreachableError as exc:
-            return {"status": "unreachable", "reason": str(exc)}
+            return {"status": "unreachable", "reason": str(exc),
+                    "bounds_source": problem.bounds_source}
     return {"status": "ok", "tolerances": best.tolerances,
+            "bounds_source": problem.bounds_source,
             "relative_cost": float(best.cost / problem.cost.total(problem.reference)),
             "certified": bool(best.certificate["certified"])}
 
