@@ -5,7 +5,9 @@ from __future__ import annotations
 
 import copy
 import itertools
+import json
 import math
+import shutil
 from dataclasses import replace
 from pathlib import Path
 
@@ -18,7 +20,9 @@ import allocation
 from allocation import AllocationProblem, Catalogue, load_catalogue, solve_catalogue
 from reliability import hobbing_machine, load_machine, workspace_grid
 from reliability.errors import InputError, InputTypeError
+from reliability.machine import OUTPUTS
 from studies import cli
+from studies.workflows.sweep import SweepSpec, SweepTask, run_sweep
 
 HERE = Path(__file__).parent
 MILL = str(HERE / "machines" / "mill3.toml")
@@ -270,3 +274,64 @@ def test_unreachable_catalogue_exits_2(tmp_path, capsys):
                      "--out", str(tmp_path / "c.csv"), "--points", "3"])
     err = capsys.readouterr().err.strip().splitlines()
     assert code == 2 and err[-1].startswith("precrel: error: no choice of classes meets dx")
+
+
+def test_report_adds_a_component_choice_section(tmp_path, capsys):
+    out = tmp_path / "report"
+    code = cli.main(["report", MILL, "--out", str(out), "--catalogue", MILL_CATALOGUE,
+                     "--repeats", "2", "--samples", "500", "--points", "3", "--skip",
+                     "front", "system", "rare", "profiles"])
+    assert code == 0
+    text = (out / "report.md").read_text()
+    assert "## Component choice" in text and "relative gap" in text
+    machine = load_machine(MILL)
+    problem = AllocationProblem.build(machine, workspace_grid(machine, 3))
+    result = solve_catalogue(problem, load_catalogue(MILL_CATALOGUE, machine))
+    choice = pd.read_csv(out / "choice.csv")
+    assert dict(zip(choice["component"], choice["class"])) == result.choice
+    summary = json.loads((out / "summary.json").read_text())["catalogue"]
+    assert summary["price"] == result.price and summary["certified"]
+    assert set(summary["worst_pose_mc"]) == set(OUTPUTS)
+    np.testing.assert_allclose(
+        allocation.read_allocation_csv(out / "choice_tolerances.csv", machine),
+        result.tolerances, rtol=1e-5)  # the report writes 6 significant digits
+
+
+def test_report_refuses_a_bad_catalogue_before_any_work(tmp_path, capsys):
+    data = changed(lambda d: screw(d).update(items=["X.dq"]))
+    out = tmp_path / "report"
+    code = cli.main(["report", MILL, "--out", str(out), "--catalogue",
+                     str(write(tmp_path, data))])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1 and "'X.dq'" in err[0]
+    assert not out.exists()
+
+
+def test_sweep_with_a_catalogue(tmp_path):
+    spec_path = tmp_path / "spec.toml"
+    shutil.copy(MILL, tmp_path / "mill3.toml")
+    shutil.copy(MILL_CATALOGUE, tmp_path / "cat.toml")
+    spec_path.write_text('machines = ["mill3.toml"]\ncatalogue = "cat.toml"\n'
+                         'targets = [0.95, 0.99]\nrepeats = [2]\npoints_per_axis = 3\n')
+    spec = SweepSpec.from_toml(spec_path)
+    frame = run_sweep(spec, tmp_path / "store").frame
+    machine = load_machine(MILL)
+    catalogue = load_catalogue(MILL_CATALOGUE, machine)
+    for row in frame.itertuples():
+        targeted = replace(machine, targets=np.full(6, row.target))
+        result = solve_catalogue(AllocationProblem.build(targeted, workspace_grid(machine, 3)),
+                                 catalogue)
+        assert row.price == result.price and row.certified
+        assert row.choice == "; ".join(f"{k}={v}" for k, v in result.choice.items())
+    assert frame["price"].is_monotonic_increasing  # a higher target never costs less
+    # a plain sweep's tasks (and so their stored results and streams) are unchanged
+    plain = SweepTask("hobbing", "two_sided", 0.99, "independent", 0, 20, 5)
+    assert "catalogue" not in plain.parameters() and "catalogue" not in \
+        plain.stream_parameters()
+
+
+def test_sweep_refuses_a_catalogue_the_machine_cannot_use(tmp_path):
+    data = changed(lambda d: screw(d).update(items=["X.dq"]) or
+                   screw(d)["classes"][0]["tolerances"].update({"X.dq": 0.006}))
+    with pytest.raises(InputError, match="'X.dq'"):
+        SweepSpec(machines=(MILL,), catalogue=str(write(tmp_path, data)))

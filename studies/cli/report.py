@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
+from allocation import load_catalogue, solve_catalogue
+from reliability.streams import extra_stream
 from studies.report import machine_sections
+from studies.report.catalogue import catalogue_section
 from studies.report.extras import EXTRAS, builders
 from studies.report.writer import REPORT_MARKERS, write_report
 from studies.workflows import machine_study
@@ -25,6 +28,9 @@ def add_parser(subparsers):
     parser.add_argument("--skip", nargs="+", default=(), choices=EXTRAS, metavar="SECTION",
                         help="leave out optional sections: " + ", ".join(EXTRAS)
                              + " (default: include all)")
+    parser.add_argument("--catalogue", metavar="CAT.toml",
+                        help="add a 'Component choice' section: the certified cheapest "
+                             "choice of one class per component of this catalogue")
     parser.add_argument("--overwrite", action="store_true",
                         help="replace an earlier report in DIR (other files are left alone)")
     return parser
@@ -34,12 +40,19 @@ def run(args) -> int:
     bounds = options.check_bounds(args.bounds)
     out = options.destination(args.out, args.overwrite, folder=True, markers=REPORT_MARKERS)
     machine = options.machine(args)
+    catalogue = None if args.catalogue is None else load_catalogue(args.catalogue, machine)
     study = machine_study.run(machine, points=args.points, side=args.side, bounds=bounds,
                               seed=args.seed, repeats=args.repeats, samples=args.samples,
                               progress=options.say, bar=options.progress_bar)
     included = [name for name in EXTRAS if name not in args.skip]
     options.say("optional sections: " + (", ".join(included) or "none"))
-    sections = machine_sections.sections(study, extra=builders(included))
+    extra = builders(included)
+    if catalogue is not None:
+        options.say("choosing catalogue classes (HiGHS)")
+        choice = solve_catalogue(study.problem, catalogue)
+        extra.append(lambda _: catalogue_section(choice, samples=args.samples,
+                                                 rng=extra_stream(args.seed, 2)))
+    sections = machine_sections.sections(study, extra=extra)
     options.say("drawing figures and writing the report")
     written = write_report(out, sections, machine_study.summary(study),
                            title=f"Precision allocation and reliability of {machine.name}",
