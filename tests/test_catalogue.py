@@ -7,6 +7,7 @@ import copy
 import itertools
 import json
 import math
+import re
 import shutil
 from dataclasses import replace
 from pathlib import Path
@@ -335,3 +336,15 @@ def test_sweep_refuses_a_catalogue_the_machine_cannot_use(tmp_path):
                    screw(d)["classes"][0]["tolerances"].update({"X.dq": 0.006}))
     with pytest.raises(InputError, match="'X.dq'"):
         SweepSpec(machines=(MILL,), catalogue=str(write(tmp_path, data)))
+
+
+def test_the_python_example_of_the_documentation_runs(monkeypatch, tmp_path):
+    root = HERE.parent
+    block = re.findall(r"```python\n(.*?)```", (root / "docs" / "catalogue.md").read_text(),
+                       flags=re.S)[0]
+    monkeypatch.chdir(root)
+    namespace = {}
+    exec(block.replace('"choice.csv"', repr(str(tmp_path / "choice.csv"))), namespace)
+    result = namespace["result"]
+    assert result.certified and result.price == pytest.approx(
+        pd.read_csv(tmp_path / "choice.csv")["price"].sum())
