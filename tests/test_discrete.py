@@ -106,6 +106,13 @@ def test_equals_brute_force(case):
     assert result.certified and result.feasible
 
 
+def test_row_generation_needs_only_some_rows(case):
+    _, _, result = case
+    details = result.details
+    assert details["rounds"] >= 2  # the first answer, without rows, is the cheapest
+    assert 0 < details["active_rows"] <= details["rows"]["dominance"]
+
+
 def test_choice_rechecked_on_every_row(case):
     problem, catalogue, result = case
     rows = problem.row_matrix().reshape(-1, len(problem.names))
@@ -173,6 +180,7 @@ def test_extra_poses_plug_in_as_rows():
     choice, price, _ = brute_force(extended, catalogue)
     assert result.choice == choice and result.price == pytest.approx(price, rel=1e-12)
     assert result.details["poses"] == 3 ** 6 + 4 ** 6
+    assert result.details["active_rows"] < result.details["rows"]["dominance"] / 2
 
 
 def test_cut_off_choices_keep_the_certificate(monkeypatch):
