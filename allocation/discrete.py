@@ -133,8 +133,6 @@ class CatalogueResult:
     neighbours: pd.DataFrame
     details: dict
 
-    method = "catalogue"
-
     def to_frame(self) -> pd.DataFrame:
         """The choice: columns ``component, class, price``, one row per component."""
         prices = [next(k.price for k in c.classes if k.name == self.choice[c.name])
@@ -145,7 +143,7 @@ class CatalogueResult:
 
     def binding(self) -> pd.DataFrame:
         """What binds: each output that forbids a one-class loosening of some component,
-        with those components and the pose where it breaks first."""
+        with those components, and the output's largest load at the choice and its pose."""
         broken = self.neighbours[(self.neighbours["direction"] == "looser")
                                  & ~self.neighbours["meets"].astype(bool)]
         rows = []
@@ -168,7 +166,8 @@ class CatalogueResult:
         lines += [f"Component choice from {len(self.catalogue.components)} components "
                   f"({self.catalogue.n_choices:,} possible choices) for "
                   f"{problem.machine.name}: every target at every one of "
-                  f"{len(problem.poses)} poses, {_reading(problem)}",
+                  f"{len(problem.poses)} poses, {_reading(problem)}; classes as given (no "
+                  f"search box), items in no component at the starting tolerances",
                   f"total price {self.price:.6g}{currency}",
                   f"relative gap {self.gap:.1e} "
                   f"({'certified optimum' if self.certified else 'NOT certified'}; "
@@ -321,7 +320,7 @@ class _Model:
         raise CatalogueInfeasibleError(
             f"no choice of classes meets {first['output']} at pose {int(first['pose'])} "
             f"({_pose_text(self.problem, int(first['pose']))}): even the tightest classes "
-            f"leave its load at {first['load']:.4g} × what the target allows; "
+            f"leave its load at {first['load']:.4g} (1 = what the requirement allows); "
             f"{len(frame)} (output, pose) row(s) blocked in all (see .blocking)", frame)
 
     def solve(self):
