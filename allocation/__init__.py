@@ -1,5 +1,6 @@
 """Precision allocation (paper Secs. 4.2–4.4): cost model, FCEM, the problem of Eq. (34)
-and its solvers — the Grey Wolf Optimiser as in the paper, and a certified exact optimum.
+and its solvers — the Grey Wolf Optimiser as in the paper, a certified exact optimum, and the
+certified cheapest choice of catalogue components (:mod:`allocation.discrete`).
 
 >>> import reliability, allocation
 >>> machine = reliability.hobbing_machine()
@@ -7,8 +8,10 @@ and its solvers — the Grey Wolf Optimiser as in the paper, and a certified exa
 >>> best = problem.solve_exact()                                          # doctest: +SKIP
 """
 
+from .catalogue import Catalogue, CatalogueClass, Component, load_catalogue
 from .convex import ConvexSolution, InfeasibleAllocationError, solve_convex_allocation
 from .cost import CostModel, cost_weights
+from .discrete import CatalogueInfeasibleError, CatalogueResult, solve_catalogue
 from .elasticity import requirement_table
 from .fcem import FcemResult, fcem_coefficient
 from .front import allocation_point, cost_reliability_front
@@ -19,10 +22,11 @@ from .result_files import read_allocation_csv
 from .solve import AllocationResult, TargetUnreachableError, solve_exact, solve_gwo
 from .system import system_allocation
 
-__all__ = ["AllocationProblem", "AllocationResult", "ConvexSolution", "CostModel",
-           "FcemResult", "GwoResult", "InfeasibleAllocationError", "ScreenedRows",
-           "TargetUnreachableError", "allocation_point", "cost_reliability_front",
-           "cost_weights", "fcem_coefficient", "grey_wolf",
-           "grey_wolf_reference", "read_allocation_csv", "requirement_table", "screen_rows",
-           "solve_convex_allocation", "solve_exact", "solve_gwo", "solve_over_workspace",
-           "system_allocation"]
+__all__ = ["AllocationProblem", "AllocationResult", "Catalogue", "CatalogueClass",
+           "CatalogueInfeasibleError", "CatalogueResult", "Component", "ConvexSolution",
+           "CostModel", "FcemResult", "GwoResult", "InfeasibleAllocationError",
+           "ScreenedRows", "TargetUnreachableError", "allocation_point",
+           "cost_reliability_front", "cost_weights", "fcem_coefficient", "grey_wolf",
+           "grey_wolf_reference", "load_catalogue", "read_allocation_csv",
+           "requirement_table", "screen_rows", "solve_catalogue", "solve_convex_allocation",
+           "solve_exact", "solve_gwo", "solve_over_workspace", "system_allocation"]

@@ -236,6 +236,13 @@ class AllocationProblem:
         parts = ((part.start, self.row_matrix(block)) for part, block in self.jacobian_chunks())
         return _screen_parts(parts, upper_u, len(self.poses))
 
+    def rows_up_to(self, upper) -> ScreenedRows:
+        """Screened rows of all poses for tolerances anywhere up to ``upper`` instead of the
+        problem's box (e.g. a catalogue's loosest classes). Only the box step depends on
+        the bound; duplicates and dominance hold for any tolerances."""
+        upper = self.machine.check_tolerances(upper).astype(float)
+        return replace(self, upper=upper, rows=None)._screen()
+
     def jacobian_chunks(self):
         """``(slice, jacobian)`` over chunks of the poses, within the memory budget."""
         for part in chunks(len(self.poses), jacobian_bytes(self.machine), self.memory):

@@ -1,4 +1,5 @@
-"""``precrel allocate MACHINE.toml --out CSV``: the cheapest allocation meeting the targets."""
+"""``precrel allocate MACHINE.toml --out CSV``: the cheapest allocation meeting the targets;
+with ``--catalogue CAT.toml`` the cheapest choice of catalogue classes."""
 
 from __future__ import annotations
 
@@ -6,7 +7,7 @@ import dataclasses
 
 import numpy as np
 
-from allocation import AllocationProblem
+from allocation import AllocationProblem, load_catalogue, solve_catalogue
 from allocation.elasticity import requirement_table
 from allocation.result_files import allocation_to_csv, gap_text
 from reliability.errors import InputError
@@ -14,6 +15,8 @@ from reliability.poses import workspace_grid
 from studies.report.writer import SIGNIFICANT
 
 from . import options
+
+DEFAULT_BOUNDS = (0.5, 1.5)
 
 
 def add_parser(subparsers):
@@ -23,27 +26,47 @@ def add_parser(subparsers):
                     "the certified optimum (exact) or the Grey Wolf Optimiser (gwo). Prints "
                     "the cost relative to the initial allocation, what binds and the "
                     "elasticity of each requirement; writes CSV columns error, reference, "
-                    "allocated.")
+                    "allocated. With --catalogue: the certified cheapest choice of one class "
+                    "per component of a catalogue (docs/catalogue.md), written as CSV "
+                    "columns component, class, price.")
     options.add_machine(parser)
     parser.add_argument("--out", required=True, metavar="CSV",
-                        help="allocation file to write (columns error, reference, allocated)")
+                        help="allocation file to write (columns error, reference, allocated);"
+                             " with --catalogue the choice (columns component, class, price)")
     options.add_side(parser)
     parser.add_argument("--target", type=options.probability, metavar="R",
                         help="one reliability target for every output (default: the file's)")
     options.add_points(parser)
     options.add_bounds(parser)
+    parser.set_defaults(bounds=None)  # to tell an explicit --bounds from the default
     parser.add_argument("--lock", nargs="+", default=(), metavar="NAME",
                         help="errors held at their initial tolerance (e.g. X.dx)")
     parser.add_argument("--method", choices=("exact", "gwo"), default="exact",
                         help="certified convex optimum (default) or the paper's GWO")
     parser.add_argument("--seed", type=options.seed, default=0,
                         help="random seed of GWO (default 0)")
-    parser.add_argument("--overwrite", action="store_true", help="replace an existing --out")
+    parser.add_argument("--catalogue", metavar="CAT.toml",
+                        help="choose one class per component of this catalogue instead of "
+                             "continuous tolerances (no --bounds, --lock or --method gwo)")
+    parser.add_argument("--tolerances", metavar="CSV",
+                        help="with --catalogue: tolerances of the items in no component "
+                             "(default the initial allocation)")
+    parser.add_argument("--tolerances-out", metavar="CSV",
+                        help="with --catalogue: write the tolerances that follow from the "
+                             "choice (columns error, reference, allocated)")
+    parser.add_argument("--overwrite", action="store_true",
+                        help="replace existing --out / --tolerances-out files")
     return parser
 
 
 def run(args) -> int:
-    bounds = options.check_bounds(args.bounds)
+    if args.catalogue is not None:
+        return run_catalogue(args)
+    for option, value in (("--tolerances", args.tolerances),
+                          ("--tolerances-out", args.tolerances_out)):
+        if value is not None:
+            raise InputError(f"{option} is used with --catalogue only")
+    bounds = options.check_bounds(DEFAULT_BOUNDS if args.bounds is None else args.bounds)
     out = options.destination(args.out, args.overwrite)
     machine = options.machine(args)
     for name in args.lock:
@@ -60,6 +83,39 @@ def run(args) -> int:
     print(describe(result))
     allocation_to_csv(result, out, args.overwrite, significant=SIGNIFICANT)
     print(f"\nallocation written to {out}")
+    return 0
+
+
+def run_catalogue(args) -> int:
+    """``--catalogue``: everything checked first, then the certified cheapest choice."""
+    for option, given in (("--bounds", args.bounds is not None), ("--lock", bool(args.lock)),
+                          ("--method gwo", args.method != "exact")):
+        if given:
+            raise InputError(f"{option} does not apply with --catalogue: classes are used "
+                             f"as given and items in no component keep their starting "
+                             f"tolerances")
+    out = options.destination(args.out, args.overwrite)
+    tolerances_out = None if args.tolerances_out is None else \
+        options.destination(args.tolerances_out, args.overwrite, "--tolerances-out")
+    if tolerances_out is not None and tolerances_out.resolve() == out.resolve():
+        raise InputError("--tolerances-out must differ from --out")
+    machine = options.machine(args)
+    catalogue = load_catalogue(args.catalogue, machine)
+    start = None if args.tolerances is None else \
+        options.read_tolerances(args.tolerances, machine)
+    if args.target is not None:
+        machine = dataclasses.replace(machine, targets=np.full(6, args.target))
+    options.say(f"building the problem on the {args.points}-point grid")
+    problem = AllocationProblem.build(machine, workspace_grid(machine, args.points),
+                                      side=args.side, reference=start)
+    options.say(f"choosing among {catalogue.n_choices:,} combinations of classes (HiGHS)")
+    result = solve_catalogue(problem, catalogue)
+    print(result.summary())
+    result.to_csv(out, args.overwrite, significant=SIGNIFICANT)
+    print(f"\nchoice written to {out}")
+    if tolerances_out is not None:
+        allocation_to_csv(result, tolerances_out, args.overwrite)  # all digits
+        print(f"tolerances written to {tolerances_out}")
     return 0
 
 

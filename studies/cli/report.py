@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+from allocation import load_catalogue, solve_catalogue
 from reliability.acceptance_files import read_tests
 from reliability.streams import extra_stream
 from studies.report import machine_sections
 from studies.report.acceptance import acceptance_section
+from studies.report.catalogue import catalogue_section
 from studies.report.extras import EXTRAS, allocations, builders
 from studies.report.writer import REPORT_MARKERS, write_report
 from studies.workflows import machine_study
@@ -31,6 +33,9 @@ def add_parser(subparsers):
     parser.add_argument("--tests", metavar="TESTS.toml",
                         help="add an 'Acceptance tests' section: these ISO 230 tests "
                              "predicted for the initial and the optimal allocation")
+    parser.add_argument("--catalogue", metavar="CAT.toml",
+                        help="add a 'Component choice' section: the certified cheapest "
+                             "choice of one class per component of this catalogue")
     parser.add_argument("--overwrite", action="store_true",
                         help="replace an earlier report in DIR (other files are left alone)")
     return parser
@@ -41,6 +46,7 @@ def run(args) -> int:
     out = options.destination(args.out, args.overwrite, folder=True, markers=REPORT_MARKERS)
     machine = options.machine(args)
     tests = None if args.tests is None else read_tests(args.tests, machine)
+    catalogue = None if args.catalogue is None else load_catalogue(args.catalogue, machine)
     study = machine_study.run(machine, points=args.points, side=args.side, bounds=bounds,
                               seed=args.seed, repeats=args.repeats, samples=args.samples,
                               progress=options.say, bar=options.progress_bar)
@@ -50,6 +56,11 @@ def run(args) -> int:
     if tests is not None:
         extra.append(lambda study: acceptance_section(
             machine, tests, allocations(study), rng=extra_stream(study.seed, 2)))
+    if catalogue is not None:
+        options.say("choosing catalogue classes (HiGHS)")
+        choice = solve_catalogue(study.problem, catalogue)
+        extra.append(lambda _: catalogue_section(choice, samples=args.samples,
+                                                 rng=extra_stream(args.seed, 3)))
     sections = machine_sections.sections(study, extra=extra)
     options.say("drawing figures and writing the report")
     written = write_report(out, sections, machine_study.summary(study),

@@ -4,7 +4,9 @@ A sweep is the table of every combination of machine × reading (side) × target
 profile × seed × repeats. Each task
 
 1. builds the worst-case allocation problem on the machine's workspace grid, with every
-   output's target replaced by the task's target, and solves it exactly (certified);
+   output's target replaced by the task's target, and solves it exactly (certified) — or,
+   when the spec names a ``catalogue``, chooses the certified cheapest catalogue classes
+   (:func:`allocation.solve_catalogue`);
 2. verifies the allocation by the grid experiment of Sec. 5.3 (``repeats`` experiments),
    recording the mean share of poses in tolerance per output and the machine-level yield
    (share of experiments in which every pose meets every limit).
@@ -23,6 +25,7 @@ version. A sweep started again computes only the tasks without a stored result.
 from __future__ import annotations
 
 import functools
+import hashlib
 import itertools
 import tomllib
 from concurrent.futures import Executor, as_completed
@@ -33,9 +36,11 @@ import numpy as np
 import pandas as pd
 from threadpoolctl import threadpool_limits
 
+from allocation.catalogue import load_catalogue
+from allocation.discrete import CatalogueInfeasibleError, solve_catalogue
 from allocation.problem import AllocationProblem
 from allocation.solve import TargetUnreachableError
-from reliability.checkpoint import ResultStore, machine_fingerprint
+from reliability.checkpoint import ResultStore, canonical_json, machine_fingerprint
 from reliability.errors import InputError, InputTypeError
 from reliability.files import SIGNIFICANT, write_csv
 from reliability.machine import OUTPUTS, hobbing_machine, load_machine
@@ -48,7 +53,7 @@ PAPER_MACHINE = "hobbing"
 INDEPENDENT = "independent"
 SIDES = ("one_sided", "two_sided")
 SPEC_KEYS = {"machines", "sides", "targets", "profiles", "seeds", "repeats",
-             "points_per_axis", "bounds"}
+             "points_per_axis", "bounds", "catalogue"}
 RESULTS_FILE = "results.csv"
 TASKS_FOLDER = "tasks"
 
@@ -75,6 +80,8 @@ class SweepTask:
     bounds : (float, float) or None
         Search box of the allocation, as factors of the initial allocation; None: the
         machine file's ``[bounds]``, else [0.5, 1.5].
+    catalogue : str or None
+        A catalogue file: the allocation is then its certified cheapest choice of classes.
     """
 
     machine: str
@@ -85,11 +92,18 @@ class SweepTask:
     repeats: int
     points_per_axis: int
     bounds: tuple[float, float] | None = None
+    catalogue: str | None = None
 
     def parameters(self, machine=None) -> dict:
-        """The task's parameters as stored and hashed: the machine by its content."""
+        """The task's parameters as stored and hashed: the machine and the catalogue by
+        their content (without a catalogue, exactly the parameters of a plain sweep)."""
         machine = _load_machine(self.machine) if machine is None else machine
-        return dict(asdict(self), machine_fingerprint=machine_fingerprint(machine))
+        parameters = dict(asdict(self), machine_fingerprint=machine_fingerprint(machine))
+        del parameters["catalogue"]
+        if self.catalogue is not None:
+            parameters.update(catalogue=self.catalogue,
+                              catalogue_fingerprint=catalogue_fingerprint(self.catalogue))
+        return parameters
 
 
 @dataclass(frozen=True)
@@ -109,6 +123,7 @@ class SweepSpec:
     repeats: tuple[int, ...] = (20,)
     points_per_axis: int = 5
     bounds: tuple[float, float] | None = None
+    catalogue: str | None = None
 
     def __post_init__(self):
         for name in ("machines", "sides", "targets", "profiles", "seeds", "repeats"):
@@ -137,6 +152,9 @@ class SweepSpec:
         if base is not None:
             machines = tuple(m if m == PAPER_MACHINE or Path(m).is_absolute()
                              else str(Path(base) / m) for m in machines)
+            catalogue = data.get("catalogue")
+            if isinstance(catalogue, str) and not Path(catalogue).is_absolute():
+                data["catalogue"] = str(Path(base) / catalogue)
         return cls(machines=machines, **data)
 
     @classmethod
@@ -154,7 +172,7 @@ class SweepSpec:
     def tasks(self) -> list[SweepTask]:
         """Every combination, machines slowest and repeats fastest."""
         return [SweepTask(machine, side, float(target), profile, int(seed), int(repeats),
-                          int(self.points_per_axis), self.bounds)
+                          int(self.points_per_axis), self.bounds, self.catalogue)
                 for machine, side, target, profile, seed, repeats in itertools.product(
                     self.machines, self.sides, self.targets, self.profiles, self.seeds,
                     self.repeats)]
@@ -211,17 +229,20 @@ def run_task(task: SweepTask, allocated: dict | None = None) -> dict:
         empty), ``relative_cost`` (optimum
         over the cost of the reference allocation), ``certified``, ``fraction`` (mean share
         of poses in tolerance per output over the experiments), ``yield`` (share of
-        experiments entirely in tolerance).
+        experiments entirely in tolerance); with a catalogue also ``price`` and ``choice``
+        (``"component=class; …"``).
     """
     with threadpool_limits(limits=1):
         machine = (task.machine, task.parameters()["machine_fingerprint"])
         if allocated is None:
             allocated = solve_allocation(*_allocation_key(task, machine[1]))
+        chosen = {key: allocated.get(key) for key in ("price", "choice")} \
+            if task.catalogue is not None else {}
         if allocated["status"] != "ok":
             return {"status": allocated["status"], "reason": allocated["reason"],
                     "bounds_source": allocated["bounds_source"],
                     "relative_cost": None, "certified": False,
-                    "fraction": [None] * len(OUTPUTS), "yield": None}
+                    "fraction": [None] * len(OUTPUTS), "yield": None, **chosen}
         experiment = _experiment(machine, task.target, task.points_per_axis, task.profile)
         rng = verification_streams(task.seed)[0]
         verified = experiment.run(allocated["tolerances"], repeats=task.repeats, rng=rng,
@@ -230,7 +251,7 @@ def run_task(task: SweepTask, allocated: dict | None = None) -> dict:
             "relative_cost": allocated["relative_cost"],
             "certified": allocated["certified"],
             "fraction": verified.fractions.mean(axis=0).tolist(),
-            "yield": float(np.mean(verified.all_inside))}
+            "yield": float(np.mean(verified.all_inside)), **chosen}
 
 
 def run_sweep(spec: SweepSpec, store, *, executor=None, progress=None, log=None,
@@ -295,10 +316,13 @@ def results_frame(tasks, results) -> pd.DataFrame:
     """One row per task: its parameters (``bounds`` as ``bounds_low``, ``bounds_high``),
     status and ``reason`` (what blocks an unreachable target; empty otherwise), relative
     cost, certified, the mean fraction in tolerance per output (``fraction_<output>``) and
-    the machine-level yield."""
+    the machine-level yield; with a catalogue also the catalogue file, the total ``price``
+    and the ``choice``."""
     rows = []
     for task, result in zip(tasks, results):
         row = asdict(task)
+        if task.catalogue is None:
+            del row["catalogue"]
         row["bounds_low"], row["bounds_high"] = row.pop("bounds") or (None, None)
         row["bounds_source"] = result.get("bounds_source", "")
         row["status"] = result["status"]
@@ -308,6 +332,8 @@ def results_frame(tasks, results) -> pd.DataFrame:
         row.update({f"fraction_{name}": value
                     for name, value in zip(OUTPUTS, result["fraction"])})
         row["yield"] = result["yield"]
+        if task.catalogue is not None:
+            row.update(price=result["price"], choice=result["choice"])
         rows.append(row)
     return pd.DataFrame(rows)
 
@@ -394,11 +420,17 @@ def _check_spec(spec: SweepSpec) -> None:
     points = spec.points_per_axis
     if isinstance(points, bool) or not isinstance(points, int) or points < 2:
         raise InputError(f"sweep spec: points_per_axis {points!r} must be an integer >= 2")
+    if spec.catalogue is not None:
+        if not isinstance(spec.catalogue, str):
+            raise InputTypeError(f"sweep spec: catalogue {spec.catalogue!r} must be a path")
+        catalogue = load_catalogue(spec.catalogue)
+        for machine in spec.machines:
+            catalogue.for_machine(_load_machine(machine))
 
 
 def clear_caches() -> None:
     """Forget the allocations and experiments this process has set up (for timing)."""
-    for cached in (_task_machine, solve_allocation, _experiment):
+    for cached in (_task_machine, solve_allocation, _experiment, _catalogue):
         cached.cache_clear()
 
 
@@ -417,31 +449,68 @@ def _task_machine(machine: tuple[str, str], target: float):
 def _allocation_key(task: SweepTask, fingerprint: str) -> tuple:
     """What a task's allocation depends on (tasks differing only in profile, seed or
     repeats share it)."""
-    return (task.machine, fingerprint, task.side, task.target, task.points_per_axis,
-            task.bounds)
+    key = (task.machine, fingerprint, task.side, task.target, task.points_per_axis,
+           task.bounds)
+    if task.catalogue is None:
+        return key
+    return key + (task.catalogue, catalogue_fingerprint(task.catalogue))
 
 
 @functools.lru_cache(maxsize=64)
 def solve_allocation(name: str, fingerprint: str, side: str, target: float,
-                     points: int, bounds: tuple[float, float] | None = None) -> dict:
+                     points: int, bounds: tuple[float, float] | None = None,
+                     catalogue: str | None = None,
+                     catalogue_content: str | None = None) -> dict:
     """Certified optimum of one machine (file ``name`` with content ``fingerprint``) and
     reading in the box ``bounds`` (None: the machine file's, else the default factors):
     ``status`` ('ok' or 'unreachable', with ``reason``), ``bounds_source``,
-    ``tolerances``, ``relative_cost`` and ``certified``. Deterministic, so solving it
-    anywhere, once or many times, gives the same numbers."""
+    ``tolerances``, ``relative_cost`` and ``certified``; with a ``catalogue`` (file, with
+    content ``catalogue_content``) the certified cheapest choice of classes, with its
+    ``price`` and ``choice`` (``bounds_source`` is then ``"catalogue classes"``).
+    Deterministic, so solving it anywhere, once or many times, gives the same numbers."""
     with threadpool_limits(limits=1):
         machine = _task_machine((name, fingerprint), target)
         problem = AllocationProblem.build(machine, workspace_grid(machine, points),
                                           side=side, bounds=bounds)
         try:
+            if catalogue is not None:
+                return dict(_choose(problem, _catalogue(catalogue, catalogue_content)),
+                            bounds_source="catalogue classes")
             best = problem.solve_exact()
-        except TargetUnreachableError as exc:
+        except (TargetUnreachableError, CatalogueInfeasibleError) as exc:
             return {"status": "unreachable", "reason": str(exc),
                     "bounds_source": problem.bounds_source}
     return {"status": "ok", "tolerances": best.tolerances,
             "bounds_source": problem.bounds_source,
             "relative_cost": float(best.cost / problem.cost.total(problem.reference)),
             "certified": bool(best.certificate["certified"])}
+
+
+def _choose(problem, catalogue) -> dict:
+    """The certified cheapest catalogue choice as a task's allocation."""
+    best = solve_catalogue(problem, catalogue)
+    return {"status": "ok", "tolerances": best.tolerances,
+            "relative_cost": float(problem.cost.total(best.tolerances)
+                                   / problem.cost.total(problem.reference)),
+            "certified": best.certified, "price": best.price,
+            "choice": "; ".join(f"{name}={chosen}" for name, chosen in best.choice.items())}
+
+
+def catalogue_fingerprint(path: str) -> str:
+    """Hex SHA-256 of a catalogue's content as read (components, classes, prices,
+    tolerances), so an edited catalogue is a new one and a moved one is not."""
+    catalogue = load_catalogue(path)
+    description = {"currency": catalogue.currency, "components": [
+        {"name": c.name, "items": list(c.items),
+         "classes": [{"name": k.name, "price": k.price, "tolerances": dict(k.tolerances)}
+                     for k in c.classes]} for c in catalogue.components]}
+    return hashlib.sha256(canonical_json(description).encode("utf-8")).hexdigest()
+
+
+@functools.lru_cache(maxsize=16)
+def _catalogue(path: str, content: str):
+    """The catalogue file ``path`` (``content``: its fingerprint, so an edit misses)."""
+    return load_catalogue(path)
 
 
 @functools.lru_cache(maxsize=64)
