@@ -325,10 +325,9 @@ def test_sweep_with_a_catalogue(tmp_path):
         assert row.price == result.price and row.certified
         assert row.choice == "; ".join(f"{k}={v}" for k, v in result.choice.items())
     assert frame["price"].is_monotonic_increasing  # a higher target never costs less
-    # a plain sweep's tasks (and so their stored results and streams) are unchanged
+    # a plain sweep's tasks (and so their stored results) are unchanged
     plain = SweepTask("hobbing", "two_sided", 0.99, "independent", 0, 20, 5)
-    assert "catalogue" not in plain.parameters() and "catalogue" not in \
-        plain.stream_parameters()
+    assert "catalogue" not in plain.parameters()
 
 
 def test_sweep_refuses_a_catalogue_the_machine_cannot_use(tmp_path):
