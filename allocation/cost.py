@@ -13,6 +13,14 @@ Every geometric error ``i`` with tolerance ``t_i`` costs ``w_i / t_i**2``; the w
 The machine cost is ``F = k1 sum F_linear + k2 sum F_rotary + k3 sum F_assembly``
 (Eq. 28), so ``F = sum_i w_i / t_i**2`` with the group factor folded into ``w_i``.
 
+**Units.** ``t`` in ``w / t**2`` is expressed in the machine file's cost units
+(``[cost] units = { length = "mm" | "um", angle = "rad" | "urad" | "arcsec" }``; mm and rad
+when not stated), so the weight of an item is ``w / s**2`` per mm or rad, with ``s`` the
+number of cost units in one mm or rad. The units decide how translational and angular items
+weigh against each other: in mm and rad an angular item at 1.45e-5 rad weighs about 4e4
+times a translational one at 0.003 mm, and the optimiser leaves the translational items to
+their bounds (see docs/cost-units.md).
+
 The paper does not publish ``k1``, ``k2``, ``k3``; they default to 1 here. For that reason
 the absolute costs of Table 7 (1.0065e10 initial, 9.0886e9 optimised) cannot be
 recomputed: with ``k = (1, 1, 1)`` the initial allocation of Table 4 costs 4.277e11
@@ -62,6 +70,8 @@ class CostModel:
         The axis or joint each error belongs to.
     k : tuple of float
         The group factors ``(k1, k2, k3)``.
+    units : tuple of str or None
+        ``(length, angle)`` units of t inside the cost; None: not stated (mm, rad).
     """
 
     names: tuple
@@ -69,6 +79,7 @@ class CostModel:
     groups: tuple
     owners: tuple
     k: tuple
+    units: tuple | None = None
 
     @classmethod
     def from_machine(cls, machine, k1=1.0, k2=1.0, k3=1.0):
@@ -102,11 +113,28 @@ class CostModel:
         groups = tuple(items[name][0] for name in names)
         owners = tuple(items[name][1] for name in names)
         factor = dict(zip(GROUPS, k))
+        coefficients = machine.cost_coefficients
+        length, angle = getattr(coefficients, "unit_scales", (1.0, 1.0))
+        scale = np.array([angle if name.split(".")[-1].startswith("e") else length
+                          for name in names])
         weights = np.array(
             [factor[items[name][0]] * items[name][2] for name in names]  # Eq. (28)
-        )
+        ) / np.square(scale)
         weights.setflags(write=False)
-        return cls(names=names, weights=weights, groups=groups, owners=owners, k=k)
+        return cls(names=names, weights=weights, groups=groups, owners=owners, k=k,
+                   units=getattr(coefficients, "units", None))
+
+    def shares(self, t) -> pd.DataFrame:
+        """Each group's share of the cost at ``t``, split into translational and angular
+        items: rows ``linear``, ``rotary``, ``assembly``, columns ``translational`` and
+        ``angular`` (fractions summing to 1)."""
+        costs = np.asarray(self.item_costs(t), dtype=float)
+        angular = np.array([name.split(".")[-1].startswith("e") for name in self.names])
+        frame = pd.DataFrame(0.0, index=pd.Index(GROUPS, name="group"),
+                             columns=["translational", "angular"])
+        for group, is_angular, cost in zip(self.groups, angular, costs):
+            frame.loc[group, "angular" if is_angular else "translational"] += cost
+        return frame / costs.sum()
 
     @property
     def n_errors(self):

@@ -32,12 +32,40 @@ METHODS = ("exact", "gwo")
 COST_RTOL = 1e-9  # the saved cost must be Σ w/t² of the saved tolerances
 CSV_COLUMNS = ("error", "reference", "allocated")
 READINGS = {"worst": "every target at every pose", "mean": "targets on the workspace mean"}
+#: Share of the cost below which an item at a bound counts as nearly free.
+NEARLY_FREE_SHARE = 1e-3
 #: Significant digits a Lagrange multiplier (and an elasticity made from it) is written to:
 #: the dual solver fixes their sums per output only to about 1e-5 relative.
 MULTIPLIER_DIGITS = 3
 #: A relative duality gap below this is shown as "< GAP_SHOWN": its value is solver noise
 #: that differs between computers, while the bound is what the certificate guarantees.
 GAP_SHOWN = 1e-8
+
+
+def cost_units_text(cost) -> str:
+    """The units t is read in inside the cost, and whether the machine file states them."""
+    length, angle = cost.units or ("mm", "rad")
+    stated = "" if cost.units else " (not stated in the machine file: read as mm and rad)"
+    return f"cost w/t² with t in {length} and {angle}{stated}"
+
+
+def cost_shares_text(cost, t) -> str:
+    """Each cost group's share at ``t``, translational and angular items apart, e.g.
+    ``linear: translational 0.001 %, angular 55.0 %; …``."""
+    shares = cost.shares(t)
+    return "; ".join(f"{group}: translational {100 * row.translational:.3g} %, angular "
+                     f"{100 * row.angular:.3g} %" for group, row in shares.iterrows())
+
+
+def nearly_free_text(result) -> str:
+    """The items at a bound carrying under 0.1 % of the cost, or an empty string."""
+    names = result.nearly_free()
+    if not names:
+        return ""
+    shown = ", ".join(names[:12]) + (f" and {len(names) - 12} more" if len(names) > 12 else "")
+    return (f"{len(names)} items nearly free (at a bound, each under "
+            f"{100 * NEARLY_FREE_SHARE:g} % of the cost: their tolerance is decided by the "
+            f"bound, not by cost): {shown}")
 
 
 def gap_bound(gap: float) -> float:

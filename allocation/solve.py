@@ -29,8 +29,8 @@ from reliability.ties import worst_rows
 
 from .convex import InfeasibleAllocationError, largest_fraction, solve_convex_allocation
 from .gwo import grey_wolf
-from .result_files import allocation_summary, allocation_to_csv, load_allocation, \
-    save_allocation
+from .result_files import (NEARLY_FREE_SHARE, allocation_summary, allocation_to_csv,
+                           load_allocation, save_allocation)
 
 CONVEX_BETA = np.sqrt(3.0)  # Φ(β) and 2Φ(β)−1 are concave in σ² for β ≥ √3
 
@@ -163,6 +163,16 @@ class AllocationResult:
         return pd.DataFrame({"reference": problem.reference, "allocated": self.tolerances,
                              "rate": rate, "status": status},
                             index=pd.Index(problem.names, name="error"))
+
+    def nearly_free(self, share: float = NEARLY_FREE_SHARE) -> list[str]:
+        """Items at a bound that carry less than ``share`` of the cost: nearly free, so
+        their tolerance is decided by the bound, not by the cost (often a sign that the
+        cost units make one kind of item negligible, docs/cost-units.md)."""
+        frame = self.to_frame()
+        costs = np.asarray(self.problem.cost.item_costs(self.tolerances), dtype=float)
+        cheap = costs / costs.sum() < share
+        at_bound = frame["status"].isin(["lower", "upper"]).to_numpy()
+        return [name for name, flag in zip(frame.index, cheap & at_bound) if flag]
 
     def breakdown(self) -> pd.DataFrame:
         """Where the cost goes, item by item (:meth:`CostModel.breakdown`)."""

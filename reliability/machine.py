@@ -89,6 +89,12 @@ class Axis:
     reversal: float = 0.0
 
 
+#: Units a tolerance may be expressed in inside the cost (``[cost] units``): how many of
+#: each unit one mm (length) or one rad (angle) is.
+COST_LENGTH_UNITS = {"mm": 1.0, "um": 1e3}
+COST_ANGLE_UNITS = {"rad": 1.0, "urad": 1e6, "arcsec": 180.0 * 3600.0 / np.pi}
+
+
 @dataclass(frozen=True)
 class CostCoefficients:
     """Fuzzy cost coefficients of Eqs. (25)–(27) (Table 5).
@@ -97,6 +103,11 @@ class CostCoefficients:
     guide; ``c``: rotation about the axis; ``d``: other rotary-axis items, per m of
     diameter; ``assembly``: ``m_ij`` per joint name. ``a`` and ``b`` are None on a machine
     without linear axes, ``c`` and ``d`` on one without rotary axes.
+
+    ``units``: ``(length, angle)``, the units the tolerance t is expressed in inside the
+    cost ``w / t²`` (``[cost] units`` in the machine file; :data:`COST_LENGTH_UNITS`,
+    :data:`COST_ANGLE_UNITS`). They change the cost only; limits, tolerances and bounds
+    stay in mm and rad. None when the file does not say (read as mm and rad).
     """
 
     a: float | None
@@ -104,12 +115,20 @@ class CostCoefficients:
     c: float | None
     d: float | None
     assembly: Mapping[str, float]
+    units: tuple[str, str] | None = None
 
     def __post_init__(self):
         object.__setattr__(self, "assembly", MappingProxyType(dict(self.assembly)))
 
     def __reduce__(self):
-        return (CostCoefficients, (self.a, self.b, self.c, self.d, dict(self.assembly)))
+        return (CostCoefficients, (self.a, self.b, self.c, self.d, dict(self.assembly),
+                                   self.units))
+
+    @property
+    def unit_scales(self) -> tuple[float, float]:
+        """How many cost units one mm and one rad are (1, 1 without stated units)."""
+        length, angle = self.units or ("mm", "rad")
+        return COST_LENGTH_UNITS[length], COST_ANGLE_UNITS[angle]
 
 
 @dataclass(frozen=True)
@@ -455,8 +474,13 @@ def _parse_axis(entry, where: str) -> Axis:
     if full_turn and kind != "rotary":
         raise MachineDescriptionError(f"{where}: full_turn applies to rotary axes only")
     stroke = _parse_stroke(entry, full_turn, where, kind)
-    size = _number(_require(entry, "size", where), f"{where}: size", positive=True,
-                   largest=LARGEST_SIZE)
+    try:
+        size = _number(_require(entry, "size", where), f"{where}: size", positive=True,
+                       largest=LARGEST_SIZE)
+    except MachineDescriptionError as error:
+        raise MachineDescriptionError(f"{error}; size is the guide length (linear axis) or "
+                                      f"rotation diameter (rotary axis) in metres (m), e.g. "
+                                      f"2.8 for a 2800 mm guide") from None
     offset = _vector3(entry.get("offset", (0, 0, 0)), f"{where}: offset")
     return Axis(name, kind, direction, stroke, size, full_turn, offset,
                 **_positioning_values(entry, kind, where))
@@ -520,7 +544,7 @@ def _parse_cost(table, joints: tuple[str, ...], kinds: set[str],
                 source: str) -> CostCoefficients:
     """Cost coefficients; those of a kind of axis the machine lacks may be omitted."""
     where = f"{source}: cost"
-    _only_keys(table, {"a", "b", "c", "d", "assembly"}, where)
+    _only_keys(table, {"a", "b", "c", "d", "assembly", "units"}, where)
     needed = "".join(COST_KEYS[kind] for kind in sorted(kinds))
     coefficients = {k: _number(_require(table, k, where), f"{where}.{k}", positive=True)
                     if k in needed or k in table else None for k in "abcd"}
@@ -528,7 +552,25 @@ def _parse_cost(table, joints: tuple[str, ...], kinds: set[str],
     _only_keys(assembly, set(joints), f"{where}.assembly")
     m = {j: _number(_require(assembly, j, f"{where}.assembly"), f"{where}.assembly.{j}",
                     positive=True) for j in joints}
-    return CostCoefficients(**coefficients, assembly=MappingProxyType(m))
+    return CostCoefficients(**coefficients, assembly=MappingProxyType(m),
+                            units=_parse_cost_units(table.get("units"), f"{where}.units"))
+
+
+def _parse_cost_units(table, where: str) -> tuple[str, str] | None:
+    """``units = { length = "mm" | "um", angle = "rad" | "urad" | "arcsec" }``."""
+    if table is None:
+        return None
+    if not isinstance(table, Mapping):
+        raise MachineDescriptionError(f"{where}: expected a table like "
+                                      f'{{ length = "mm", angle = "rad" }}; got {table!r}')
+    _only_keys(table, {"length", "angle"}, where)
+    length, angle = _require(table, "length", where), _require(table, "angle", where)
+    for key, value, allowed in (("length", length, COST_LENGTH_UNITS),
+                                ("angle", angle, COST_ANGLE_UNITS)):
+        if value not in allowed:
+            raise MachineDescriptionError(f"{where}.{key}: {value!r} is not one of "
+                                          f"{', '.join(map(repr, allowed))}")
+    return length, angle
 
 
 def _parse_initial(table, names: tuple[str, ...], source: str) -> np.ndarray:
@@ -676,4 +718,6 @@ def _most_common(values: np.ndarray) -> float:
 def _cost_to_dict(cost: CostCoefficients) -> dict:
     table = {k: float(getattr(cost, k)) for k in "abcd" if getattr(cost, k) is not None}
     table["assembly"] = {joint: float(m) for joint, m in cost.assembly.items()}
+    if cost.units is not None:
+        table["units"] = {"length": cost.units[0], "angle": cost.units[1]}
     return table

@@ -45,7 +45,7 @@ def likely_mistakes(machine) -> list[str]:
     _check_machine(machine)
     warnings = []
     for check in (_first_offset, _rotary_strokes, _sizes, _linear_strokes,
-                  _parallel_linear_axes, _limits, _initial_allocation):
+                  _parallel_linear_axes, _limits, _initial_allocation, _cost_units):
         warnings.extend(check(machine))
     return warnings
 
@@ -92,6 +92,18 @@ def _sizes(machine) -> list[str]:
                 f"than its stroke of {_width(axis):g} mm: is the size or the stroke in the "
                 f"wrong unit?")
     return warnings
+
+
+def _cost_units(machine) -> list[str]:
+    """A cost without stated units is read in mm and rad, which makes translational items
+    nearly free beside angular ones."""
+    if machine.cost_coefficients.units is not None:
+        return []
+    return ["[cost] states no units: the cost w/t² reads t in mm and rad, where an angular "
+            "item at 1e-5 rad weighs about 1e5 times a translational one at 0.003 mm, so "
+            "translational tolerances end up decided by the bounds; say which units you mean "
+            "with [cost] units = { length = \"um\", angle = \"arcsec\" } (or \"mm\", "
+            "\"rad\" to keep these), see docs/cost-units.md"]
 
 
 def _linear_strokes(machine) -> list[str]:

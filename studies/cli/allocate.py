@@ -9,7 +9,8 @@ import numpy as np
 
 from allocation import AllocationProblem, load_catalogue, solve_catalogue
 from allocation.elasticity import requirement_table
-from allocation.result_files import allocation_to_csv, gap_text
+from allocation.result_files import (allocation_to_csv, cost_shares_text, cost_units_text, gap_text,
+                                     nearly_free_text)
 from reliability.errors import InputError
 from reliability.poses import workspace_grid
 from studies.report.writer import SIGNIFICANT
@@ -148,6 +149,10 @@ def describe(result) -> str:
     counts = frame["status"].value_counts()
     lines.append("items: " + ", ".join(f"{counts.get(s, 0)} {s}"
                                         for s in ("lower", "upper", "free", "locked")))
+    lines.append(f"{cost_units_text(problem.cost)}; cost shares at the initial allocation: "
+                 f"{cost_shares_text(problem.cost, problem.reference)}")
+    if nearly_free_text(result):
+        lines.append(nearly_free_text(result))
     if result.requirements is not None:
         lines += ["", "requirements (elasticities from the Lagrange multipliers):",
                   requirement_table(result).to_string()]

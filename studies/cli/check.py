@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from allocation import CostModel
+from allocation.result_files import cost_shares_text, cost_units_text
 from reliability.identifiability import EQUAL_RTOL, indistinguishable_groups
 from reliability.machine_checks import describe, likely_mistakes
 
@@ -24,7 +25,11 @@ def run(args) -> int:
     machine = options.machine(args)
     cost = CostModel.from_machine(machine).total(machine.initial_allocation)
     print(describe(machine))
-    print(f"initial allocation cost (Eq. 28, k1 = k2 = k3 = 1): {cost:.6g}")
+    model = CostModel.from_machine(machine)
+    print(f"initial allocation cost (Eq. 28, k1 = k2 = k3 = 1; {cost_units_text(model)}): "
+          f"{cost:.6g}")
+    print(f"cost shares of the initial allocation: "
+          f"{cost_shares_text(model, machine.initial_allocation)}")
     print(groups_text(machine, indistinguishable_groups(machine)))
     warnings = likely_mistakes(machine)
     print(f"\nwarnings ({len(warnings)}):" if warnings else "\nno warnings")

@@ -14,7 +14,8 @@ import pandas as pd
 from matplotlib.figure import Figure
 
 from allocation.elasticity import requirement_table
-from allocation.result_files import MULTIPLIER_DIGITS, allocation_frame, gap_text
+from allocation.result_files import (MULTIPLIER_DIGITS, allocation_frame, cost_shares_text,
+                                     cost_units_text, gap_text, nearly_free_text)
 from reliability.display import (OUTPUT_UNITS, axis_units, pose_frame, shown_positions,
                                  top_contributors)
 from reliability.files import as_written
@@ -42,8 +43,7 @@ def answers(study: MachineStudy) -> str:
     choices = (f"Choices behind every number below: outputs in the tool frame (Eq. 18); a "
                f"tolerance t read as a normal error with σ = t/3 (FOSM and allocation; the "
                f"Monte-Carlo draws it truncated at ±t); {reading}; "
-               f"{box_text(study)}; cost "
-               f"Eq. 28 with t in mm and rad.\n")
+               f"{box_text(study)}; cost Eq. 28, {cost_units_text(study.problem.cost)}.\n")
     if not study.reachable:
         return "\n".join([choices, f"- Does the initial allocation meet the targets? {meets}.",
                           unreachable_text(study)])
@@ -55,7 +55,13 @@ def answers(study: MachineStudy) -> str:
                if below.empty else
                "Monte-Carlo at the worst pose is significantly below target for "
                + ", ".join(below["output"]))
-    tighten, relax = (_changes_text(changes) for changes in tolerance_changes(study))
+    free = study.optimum.nearly_free()
+    tighten, relax = (_changes_text(changes.drop(free, errors="ignore"))
+                      for changes in tolerance_changes(study))
+    free_note = (f"- {len(free)} items sit at a bound carrying under 0.1 % of the cost each "
+                 f"(nearly free in {cost_units_text(study.problem.cost)}): their tolerance is "
+                 f"decided by the box, not by cost, so they are left out of the advice "
+                 f"below." if free else "")
     return "\n".join([
         choices,
         f"- Does the initial allocation meet the targets? {meets}.",
@@ -67,6 +73,7 @@ def answers(study: MachineStudy) -> str:
         f"worst pose, Wilson 95 %): {verdict}; "
         + ", ".join(f"{row.output} {PERCENT(row.mc_estimate)}" for row in mc.itertuples())
         + ".",
+        *([free_note] if free_note else []),
         f"- Tighten: {tighten or 'none'}.",
         f"- May be relaxed: {relax or 'none'}.",
     ])
@@ -207,7 +214,7 @@ def allocation_section(study: MachineStudy) -> Section:
             f"{markdown_table(requirements, index=False)}\n\n"
             f"Allocation (`rate` = allocated / initial − 1; `status` says which bound "
             f"holds):\n\n{markdown_table(detail, {'rate': '{:+.1%}'.format}, index=False)}"
-            f"\n\n{groups_text(machine, groups)}")
+            f"\n\n{cost_text(study)}\n\n{groups_text(machine, groups)}")
     figures = {}
     n_motion = 6 * len(machine.axes)
     shown = {"initial": study.problem.reference, "certified optimum": study.allocated}
@@ -224,6 +231,16 @@ def allocation_section(study: MachineStudy) -> Section:
                            "allocation_detail.csv": detail,
                            "requirements_elasticity.csv": requirements,
                            "indistinguishable_groups.csv": groups})
+
+
+def cost_text(study: MachineStudy) -> str:
+    """The cost units, each group's share of the cost, and the nearly free items."""
+    cost = study.problem.cost
+    free = nearly_free_text(study.optimum)
+    return (f"**Cost units**: {cost_units_text(cost)}. Cost shares at the initial "
+            f"allocation: {cost_shares_text(cost, study.problem.reference)}; at the optimum: "
+            f"{cost_shares_text(cost, study.optimum.tolerances)}."
+            + (f" **{free}**." if free else ""))
 
 
 def groups_table(machine, poses) -> pd.DataFrame:
