@@ -99,8 +99,8 @@ def _cost_units(machine) -> list[str]:
     nearly free beside angular ones."""
     if machine.cost_coefficients.units is not None:
         return []
-    return ["[cost] states no units: the cost w/t² reads t in mm and rad, where an angular "
-            "item at 1e-5 rad weighs about 1e5 times a translational one at 0.003 mm, so "
+    return ["the [cost] table states no 'units': the cost w/t² reads t in mm and rad, where "
+            "an angular item at 1e-5 rad weighs about 1e5 times a translational one at 0.003 mm, so "
             "translational tolerances end up decided by the bounds; say which units you mean "
             "with [cost] units = { length = \"um\", angle = \"arcsec\" } (or \"mm\", "
             "\"rad\" to keep these), see docs/cost-units.md"]

@@ -62,8 +62,8 @@ def test_units_are_read_written_back_and_refused_when_unknown(tmp_path):
     path.write_text(text)
     machine = load_machine(path)
     assert machine.cost_coefficients.units == ("um", "arcsec")
-    assert "[cost] states no units" not in " ".join(likely_mistakes(machine))
-    assert "[cost] states no units" in " ".join(likely_mistakes(load_machine(MILL)))
+    assert "states no 'units'" not in " ".join(likely_mistakes(machine))
+    assert "states no 'units'" in " ".join(likely_mistakes(load_machine(MILL)))
     assert machine_from_dict(tomllib.loads(machine.to_toml())) == machine
     for bad, words in (('{ length = "inch", angle = "rad" }', "units.length"),
                        ('{ length = "mm" }', "missing key 'angle'"),
