@@ -38,6 +38,7 @@ from reliability import checks
 from reliability.chunks import MEMORY_BUDGET, chunks, jacobian_bytes
 from reliability.errors import InputError, InputTypeError
 from reliability.fosm import error_sigma, fosm, probability, required_index
+from reliability.kinematics import check_frame
 from reliability.machine import OUTPUTS
 from reliability.poses import workspace_grid
 
@@ -120,7 +121,7 @@ class AllocationProblem:
               bounds=None, lower=None, upper=None, locked=(), reference=None,
               k: float = 3.0, cost_factors=(1.0, 1.0, 1.0), targets=None, limits=None,
               allow_outside_stroke: bool = False, budget: int | None = None,
-              memory: int | None = None) -> "AllocationProblem":
+              memory: int | None = None, frame: str | None = None) -> "AllocationProblem":
         """Set up the problem.
 
         Parameters
@@ -161,6 +162,10 @@ class AllocationProblem:
             Bytes of temporary arrays (default :data:`reliability.chunks.MEMORY_BUDGET`):
             poses are screened in chunks, and the Jacobian of all poses is kept only when it
             fits (always for the mean reading, which needs it whole).
+        frame : {'tool', 'workpiece'}, optional
+            Frame the requirements hold in; default ``machine.frame`` (the machine file's
+            ``[requirements] frame``, else ``"tool"``, Eq. 18). The problem's ``machine``
+            carries it.
         """
         _check_choice(side, SIDES, "side")
         _check_choice(workspace, WORKSPACES, "workspace")
@@ -171,6 +176,8 @@ class AllocationProblem:
         if side == "stack" and workspace != "worst":
             raise InputError("side='stack' is a worst-case reading; use workspace='worst'")
         machine = with_requirements(machine, targets=targets, limits=limits)
+        if frame is not None:
+            machine = replace(machine, frame=check_frame(frame))
         k = checks.finite_float(k, "coverage factor k", 0.0, low_open=True)
         poses = workspace_grid(machine, budget=budget) if poses is None else \
             _checked_poses(machine, poses, allow_outside_stroke)

@@ -337,8 +337,7 @@ def deviation_weights(machine, poses) -> np.ndarray:
     """``(P, 3, n_errors)``: the tool point's deviation in the workpiece frame per unit of
     each error, ``R(q) J_δ(q)`` (first order of ``R(q) δ`` with ``δ`` the translation of
     Eq. 18's ``E``)."""
-    rotation = ideal_chain(machine, poses)[..., :3, :3]
-    return rotation @ machine.jacobian(poses)[..., :3, :]
+    return machine.jacobian(poses, frame="workpiece")[..., :3, :]
 
 
 def build_path(machine, test) -> TestPath:

@@ -19,7 +19,7 @@ uses that standard deviation instead.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import pandas as pd
@@ -31,7 +31,7 @@ from .correlation import correlated_sigma, euler_terms
 from .display import axis_units
 from .errors import InputError
 from .fosm_files import fosm_summary, load_fosm, save_fosm
-from .kinematics import output_variance
+from .kinematics import check_frame, output_variance
 from .machine import OUTPUTS
 from .ties import worst_rows
 
@@ -155,6 +155,8 @@ class FosmResult:
         Coverage factor the tolerances were read with (±kσ).
     distribution : str
         How σ followed from the tolerances (:func:`error_sigma`).
+    frame : str
+        ``"tool"`` (Eq. 18) or ``"workpiece"``: the frame the outputs are expressed in.
 
     ``summary()`` (and ``repr``) prints the verdicts with worst poses as axis positions;
     ``save(path)`` / ``FosmResult.load(path)`` keep the result as JSON.
@@ -175,6 +177,7 @@ class FosmResult:
     machine: str = ""
     k: float = 3.0
     distribution: str = "normal"
+    frame: str = "tool"
 
     def summary(self, top: int = 3) -> str:
         """Readable verdicts, worst poses as axis positions and the ``top`` contributors."""
@@ -249,7 +252,8 @@ class FosmResult:
 
 def fosm(machine, tolerances, poses, *, k: float = 3.0, means=None,
          distribution: str = "normal", jacobian=None, allow_outside_stroke: bool = False,
-         budget: int | None = None, memory: int | None = None) -> FosmResult:
+         budget: int | None = None, memory: int | None = None,
+         frame: str | None = None) -> FosmResult:
     """FOSM precision reliability of an allocation over a pose set (Eqs. 19–23).
 
     Parameters
@@ -282,10 +286,17 @@ def fosm(machine, tolerances, poses, *, k: float = 3.0, means=None,
         default): the poses are processed in chunks, so only the per-pose results
         ``(n_poses, 6)`` are ever held whole, never the Jacobian of all poses.
 
+    frame : {'tool', 'workpiece'}, optional
+        Frame of the outputs; default ``machine.frame`` (the machine file's
+        ``[requirements] frame``, else ``"tool"``, Eq. 18). A given ``jacobian`` must be in
+        that frame.
+
     Returns
     -------
     FosmResult
     """
+    if frame is not None:
+        machine = replace(machine, frame=check_frame(frame))
     t = machine.check_tolerances(tolerances)
     if t.ndim != 1:
         raise InputError(f"tolerances must be one allocation of shape ({machine.n_errors},)")
@@ -321,7 +332,7 @@ def fosm(machine, tolerances, poses, *, k: float = 3.0, means=None,
         worst_pose=worst,
         contributions=_contributions(machine, worst_jacobian[rows, rows], sigma_x),
         axes=machine.axes, units=axis_units(machine), machine=machine.name, k=float(k),
-        distribution=distribution, **fields,
+        distribution=distribution, frame=machine.frame, **fields,
     )
 
 
@@ -350,7 +361,8 @@ def pose_sigma(machine, poses, sigma_x, *, jacobian=None, memory: int | None = N
             part_jacobian = machine.jacobian(poses[part]) if jacobian is None else jacobian[part]
             sigma[part] = output_sigma(part_jacobian, sigma_x, correlation)
         elif jacobian is None:
-            sigma[part] = np.sqrt(output_variance(machine, poses[part], variance_x))
+            sigma[part] = np.sqrt(output_variance(machine, poses[part], variance_x,
+                                                  machine.frame))
         else:
             sigma[part] = np.sqrt(np.square(jacobian[part]) @ variance_x)  # Eq. (20)
     return sigma

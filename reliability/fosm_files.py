@@ -25,7 +25,7 @@ def fosm_summary(result, top: int = 3) -> str:
     verdict = "every target met" if not short else f"short: {', '.join(short)}"
     name = f" of {result.machine}" if result.machine else ""
     lines = [f"FOSM reliability{name}: {len(result.poses)} poses, tolerances read as "
-             f"±{result.k:g}σ ({result.distribution})",
+             f"±{result.k:g}σ ({result.distribution}); outputs in the {result.frame} frame",
              f"Worst pose, two-sided: {int(meets.sum())} of {len(OUTPUTS)} targets met; "
              f"{verdict}", "", _verdict_table(result).to_string(), "",
              "Worst pose of each output (axis positions)",
@@ -65,7 +65,8 @@ def _worst_pose_table(result) -> pd.DataFrame:
 def save_fosm(result, path, overwrite: bool = False):
     """Write ``result`` as JSON (see :mod:`reliability.saved`)."""
     payload = {"machine": result.machine, "axes": result.axes, "units": result.units,
-               "k": result.k, "distribution": result.distribution, "poses": result.poses,
+               "k": result.k, "distribution": result.distribution, "frame": result.frame,
+               "poses": result.poses,
                "limits": result.limits, "targets": result.targets, "mean": result.mean,
                "sigma": result.sigma, "beta": result.beta, "one_sided": result.one_sided,
                "two_sided": result.two_sided, "worst_pose": result.worst_pose,
@@ -108,7 +109,9 @@ def load_fosm(cls, path):
     return cls(poses=poses, limits=limits, targets=targets, mean=mean, sigma=sigma,
                worst_pose=worst, contributions=contributions, axes=axes, units=units,
                machine=data.text("machine"), k=data.number("k", positive=True),
-               distribution=data.text("distribution", ("normal", "truncated")), **fields)
+               distribution=data.text("distribution", ("normal", "truncated")),
+               frame=data.text("frame", ("tool", "workpiece")) if "frame" in data.data
+               else "tool", **fields)
 
 
 def _check_consistent(data, fields, expected) -> None:

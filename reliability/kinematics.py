@@ -18,6 +18,11 @@ of the segment through the ideal factors that follow it, ``B_k = G_k … G_m``, 
 in chain order, exactly (the ``B_k B_k⁻¹`` telescope). The product is formed on deviations
 from the identity, so rounding is relative to the errors rather than to the 500 mm of the
 chain. Its first-order part, ``Σ_k Ad(B_k⁻¹) ξ_k``, is the analytic Jacobian.
+
+**Frames.** Eq. (18) reads ``E`` in the tool frame, which turns with the rotary axes. In the
+workpiece frame the same six-vector is expressed in workpiece axes: ``δ_w = R(q) δ_t`` and
+``ε_w = R(q) ε_t``, with ``R(q)`` the ideal rotation of the tool frame in the workpiece frame
+(the rotation block of ``M``); the Jacobian is ``blockdiag(R, R) J`` likewise.
 """
 
 from __future__ import annotations
@@ -26,6 +31,43 @@ import numpy as np
 
 from .errors import InputError
 from .transforms import AXIS_INDEX, adjoint_to_frame, read_pose_error, rotation, skew, translation
+
+
+#: The frames the six outputs can be expressed in.
+FRAMES = ("tool", "workpiece")
+
+
+def check_frame(frame) -> str:
+    """``frame`` if it is one of :data:`FRAMES`, else an InputError naming it."""
+    if frame not in FRAMES:
+        raise InputError(f"frame must be 'tool' or 'workpiece'; got {frame!r}")
+    return frame
+
+
+def ideal_rotation(machine, q) -> np.ndarray:
+    """``R(q)``, the ideal rotation of the tool frame in the workpiece frame, ``(..., 3, 3)``."""
+    q = machine.check_positions(q)
+    factors, _ = chain_factors(machine, q)
+    rotation_ = np.broadcast_to(np.eye(3), q.shape[:-1] + (3, 3))
+    for factor in factors:
+        rotation_ = rotation_ @ np.asarray(factor)[..., :3, :3]
+    return rotation_
+
+
+def vectors_in_frame(values, rotation_) -> np.ndarray:
+    """Six-vectors ``(..., 6)`` of the tool frame expressed in the workpiece frame:
+    ``blockdiag(R, R)`` applied to the translation and the rotation part."""
+    values = np.asarray(values)
+    return np.concatenate([np.einsum("...ij,...j->...i", rotation_, values[..., :3]),
+                           np.einsum("...ij,...j->...i", rotation_, values[..., 3:])], axis=-1)
+
+
+def rows_in_frame(rows, rotation_) -> np.ndarray:
+    """Sensitivity rows ``(..., 6, n)`` of the tool frame expressed in the workpiece frame:
+    ``blockdiag(R, R) @ rows``."""
+    rows = np.asarray(rows)
+    return np.concatenate([rotation_ @ rows[..., :3, :], rotation_ @ rows[..., 3:, :]],
+                          axis=-2)
 
 
 def ideal_motion(axis, position) -> np.ndarray:
@@ -117,7 +159,7 @@ def twist_matrix(twist) -> np.ndarray:
     return out
 
 
-def jacobian(machine, q) -> np.ndarray:
+def jacobian(machine, q, frame: str = "tool") -> np.ndarray:
     """Analytic first-order sensitivities of the comprehensive error (docs/model.md).
 
     Parameters
@@ -125,6 +167,8 @@ def jacobian(machine, q) -> np.ndarray:
     machine : Machine
     q : array_like
         ``(..., n_axes)`` positions.
+    frame : {'tool', 'workpiece'}
+        Frame the outputs are expressed in (module docstring).
 
     Returns
     -------
@@ -137,10 +181,13 @@ def jacobian(machine, q) -> np.ndarray:
     columns = [None] * len(blocks)
     for block, adjoint in zip(blocks, transports(factors)):
         columns[block] = np.broadcast_to(adjoint, q.shape[:-1] + (6, 6))
-    return np.concatenate(columns, axis=-1)
+    out = np.concatenate(columns, axis=-1)
+    if check_frame(frame) == "workpiece":
+        out = rows_in_frame(out, ideal_rotation(machine, q))
+    return out
 
 
-def comprehensive_error(machine, q, x) -> np.ndarray:
+def comprehensive_error(machine, q, x, frame: str = "tool") -> np.ndarray:
     """Exact comprehensive error of Eq. (18) for batched poses and errors.
 
     Parameters
@@ -150,12 +197,14 @@ def comprehensive_error(machine, q, x) -> np.ndarray:
         ``(..., n_axes)`` positions (mm, rad).
     x : array_like
         ``(..., n_errors)`` geometric errors (mm, rad); leading dimensions broadcast with q.
+    frame : {'tool', 'workpiece'}
+        Frame the outputs are expressed in (module docstring).
 
     Returns
     -------
     numpy.ndarray
         ``(..., 6)`` = δx δy δz εx εy εz of ``E = M⁻¹ M_e``, read as in
-        :func:`reliability.transforms.read_pose_error`.
+        :func:`reliability.transforms.read_pose_error` (tool frame), or rotated by ``R(q)``.
     """
     q = machine.check_positions(q)
     x = machine.check_errors(x)
@@ -166,10 +215,14 @@ def comprehensive_error(machine, q, x) -> np.ndarray:
     factors, blocks = chain_factors(machine, q)
     twists = [x[..., 6 * b: 6 * b + 6] for b in blocks]
     deviation = segment_deviation(factors, twists)
-    return np.broadcast_to(read_pose_error(deviation), shape + (6,))
+    out = np.broadcast_to(read_pose_error(deviation), shape + (6,))
+    if check_frame(frame) == "workpiece":
+        out = vectors_in_frame(out, ideal_rotation(machine, q))
+    return out
 
 
-def jacobian_and_derivative(machine, q) -> tuple[np.ndarray, np.ndarray]:
+def jacobian_and_derivative(machine, q, frame: str = "tool"
+                            ) -> tuple[np.ndarray, np.ndarray]:
     """The Jacobian and its derivative with respect to every axis position, analytically.
 
     A gap's column block is ``Ad(B⁻¹)`` with ``B = G_k … G_m``. Moving axis ``a`` turns its
@@ -180,13 +233,17 @@ def jacobian_and_derivative(machine, q) -> tuple[np.ndarray, np.ndarray]:
         ∂ Ad(B⁻¹) / ∂q_a = −ad(ζ_a) Ad(B⁻¹)
 
     for every gap up to and including axis ``a``'s motion error (later gaps do not see
-    ``q_a``), with ``ad(v, ω) = [[ω^, v^], [0, ω^]]``.
+    ``q_a``), with ``ad(v, ω) = [[ω^, v^], [0, ω^]]``. In the workpiece frame ``R`` turns
+    too: ``dR/dq_a = R ω_ζ^`` with ``ω_ζ`` the rotation part of ``ζ_a``, so
+    ``∂(R̄ J)/∂q_a = R̄ (Ω̄ J + ∂J/∂q_a)`` with ``R̄ = blockdiag(R, R)`` and
+    ``Ω̄ = blockdiag(ω_ζ^, ω_ζ^)``.
 
     Parameters
     ----------
     machine : Machine
     q : array_like
         ``(..., n_axes)`` positions.
+    frame : {'tool', 'workpiece'}
 
     Returns
     -------
@@ -194,6 +251,7 @@ def jacobian_and_derivative(machine, q) -> tuple[np.ndarray, np.ndarray]:
     derivative : ndarray (..., n_axes, 6, n_errors)
         ``derivative[..., a, o, i] = ∂J[..., o, i]/∂q_a`` (per mm or per rad).
     """
+    q = machine.check_positions(q)
     jac = jacobian(machine, q)
     n = len(machine.axis_specs)
     derivative = np.zeros(jac.shape[:-2] + (n,) + jac.shape[-2:])
@@ -208,10 +266,18 @@ def jacobian_and_derivative(machine, q) -> tuple[np.ndarray, np.ndarray]:
         seen[:6 * (a + 1)] = True  # motion errors of axes up to a
         seen[6 * n:6 * (n + a)] = True  # assembly errors of the joints before a
         derivative[..., a, :, :] = -(ad @ jac) * seen
+        if check_frame(frame) == "workpiece":
+            turn = skew(zeta[..., 3:])
+            derivative[..., a, :, :] += np.concatenate([turn @ jac[..., :3, :],
+                                                        turn @ jac[..., 3:, :]], axis=-2)
+    if frame == "workpiece":
+        rotation_ = ideal_rotation(machine, q)
+        jac = rows_in_frame(jac, rotation_)
+        derivative = rows_in_frame(derivative, rotation_[..., None, :, :])
     return jac, derivative
 
 
-def output_variance(machine, q, variance_x) -> np.ndarray:
+def output_variance(machine, q, variance_x, frame: str = "tool") -> np.ndarray:
     """``Σ_i J_oi² var_i`` at every pose (Eq. 20's σ²) without forming the Jacobian.
 
     Accumulates each gap's block ``Ad(B⁻¹)² @ var_block`` in turn: the same sum as
@@ -224,6 +290,9 @@ def output_variance(machine, q, variance_x) -> np.ndarray:
         ``(..., n_axes)`` positions.
     variance_x : array_like
         ``(n_errors,)`` error variances.
+    frame : {'tool', 'workpiece'}
+        With independent errors the variance of a workpiece-frame output is still
+        ``Σ_i J_w,oi² var_i``, each block rotated first.
 
     Returns
     -------
@@ -233,7 +302,10 @@ def output_variance(machine, q, variance_x) -> np.ndarray:
     q = machine.check_positions(q)
     variance_x = np.asarray(variance_x, dtype=float)
     factors, blocks = chain_factors(machine, q)
+    rotation_ = ideal_rotation(machine, q) if check_frame(frame) == "workpiece" else None
     out = np.zeros(q.shape[:-1] + (6,))
     for block, adjoint in zip(blocks, transports(factors)):
+        if rotation_ is not None:
+            adjoint = rows_in_frame(adjoint, rotation_)
         out = out + np.square(adjoint) @ variance_x[6 * block:6 * block + 6]
     return out

@@ -149,6 +149,7 @@ class Machine:
     tool_offset: tuple[float, float, float] = (0.0, 0.0, 0.0)
     correlation: np.ndarray | None = field(default=None, repr=False)
     tolerance_bounds: np.ndarray | None = field(default=None, repr=False)
+    frame: str = "tool"
     _index: Mapping[str, int] = field(init=False, repr=False, compare=False)
 
     def __post_init__(self):
@@ -162,6 +163,7 @@ class Machine:
         if self.correlation is not None:
             object.__setattr__(self, "correlation",
                                check_correlation_matrix(self.correlation, self.error_names))
+        kinematics.check_frame(self.frame)
         if self.tolerance_bounds is not None:
             object.__setattr__(self, "tolerance_bounds",
                                _checked_bounds(self.tolerance_bounds, self.error_names))
@@ -267,8 +269,10 @@ class Machine:
         return with_correlation(self, pairs)
 
     # ----- model -------------------------------------------------------------------
-    def comprehensive_error(self, q, x) -> np.ndarray:
-        """Exact tool–workpiece pose error, Eqs. (16)–(18); see :mod:`reliability.kinematics`.
+    def comprehensive_error(self, q, x, frame: str | None = None) -> np.ndarray:
+        """Exact tool–workpiece pose error, Eqs. (16)–(18), in ``frame`` (default
+        :attr:`frame`: ``"tool"``, Eq. 18, or ``"workpiece"``); see
+        :mod:`reliability.kinematics`.
 
         A low-level evaluation of the chain: ``q`` may lie outside the strokes (the
         kinematics extend smoothly, e.g. X = 10 000 mm on a 0–400 mm stroke), which is
@@ -277,11 +281,12 @@ class Machine:
         ``allow_outside_stroke=True``; check a pose with
         :func:`reliability.checks.poses_in_strokes` before calling this directly.
         """
-        return kinematics.comprehensive_error(self, q, x)
+        return kinematics.comprehensive_error(self, q, x, frame or self.frame)
 
-    def jacobian(self, q) -> np.ndarray:
-        """First-order sensitivities ``(..., 6, n_errors)``; see :mod:`reliability.kinematics`."""
-        return kinematics.jacobian(self, q)
+    def jacobian(self, q, frame: str | None = None) -> np.ndarray:
+        """First-order sensitivities ``(..., 6, n_errors)`` in ``frame`` (default
+        :attr:`frame`); see :mod:`reliability.kinematics`."""
+        return kinematics.jacobian(self, q, frame or self.frame)
 
     def check_positions(self, q) -> np.ndarray:
         """Return ``q`` as a float array of shape ``(..., n_axes)`` or raise InputError.
@@ -381,7 +386,8 @@ def machine_from_dict(data: Mapping, source: str = "machine") -> Machine:
                       "tool_offset", "correlation", "bounds"}, source)
     axes = _parse_axes(_require(data, "axes", source), source)
     names = tuple(a.name for a in axes)
-    limits, targets = _parse_requirements(_require(data, "requirements", source), source)
+    requirements = _require(data, "requirements", source)
+    limits, targets = _parse_requirements(requirements, source)
     machine = Machine(
         name=str(data.get("name", source)),
         axis_specs=tuple(axes),
@@ -394,6 +400,7 @@ def machine_from_dict(data: Mapping, source: str = "machine") -> Machine:
         tool_offset=_vector3(data.get("tool_offset", (0, 0, 0)), f"{source}: tool_offset"),
         tolerance_bounds=None if "bounds" not in data else
         _parse_bounds(data["bounds"], error_names(names), source),
+        frame=_parse_frame(requirements.get("frame", "tool"), f"{source}: requirements.frame"),
     )
     if "correlation" in data:
         machine = parse_correlation(machine, data["correlation"], source)
@@ -523,7 +530,7 @@ def _parse_stroke(entry, full_turn: bool, where: str, kind: str) -> tuple[float,
 
 def _parse_requirements(table, source: str) -> tuple[np.ndarray, np.ndarray]:
     where = f"{source}: requirements"
-    _only_keys(table, set(OUTPUTS), where)
+    _only_keys(table, set(OUTPUTS) | {"frame"}, where)
     limits, targets = [], []
     for output in OUTPUTS:
         entry = _require(table, output, where)
@@ -535,6 +542,14 @@ def _parse_requirements(table, source: str) -> tuple[np.ndarray, np.ndarray]:
             raise MachineDescriptionError(f"{at}.target: must lie in (0, 1), got {target}")
         targets.append(target)
     return np.array(limits), np.array(targets)
+
+
+def _parse_frame(value, where: str) -> str:
+    """``[requirements] frame = "tool" | "workpiece"``: where the outputs are read."""
+    if value not in kinematics.FRAMES:
+        raise MachineDescriptionError(f"{where}: expected \"tool\" (Eq. 18, turns with the "
+                                      f"rotary axes) or \"workpiece\"; got {value!r}")
+    return value
 
 
 COST_KEYS = {"linear": "ab", "rotary": "cd"}  # coefficients each kind of axis needs
@@ -661,6 +676,8 @@ def machine_to_dict(machine: Machine) -> dict:
         table["correlation"] = correlation_to_toml(machine)
     if machine.tolerance_bounds is not None:
         table["bounds"] = _bounds_to_dict(machine)
+    if machine.frame != "tool":
+        table["requirements"]["frame"] = machine.frame
     return table
 
 

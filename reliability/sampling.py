@@ -28,7 +28,8 @@ from .chunks import chunk_size
 from .correlation import correlation_factor, draw_correlated, draw_grid_errors
 from .errors import InputError
 from .fosm import error_sigma, one_sided_probability, output_sigma, two_sided_probability
-from .kinematics import deviation_from_transports, ideal_motion, offset_transform, transports
+from .kinematics import (deviation_from_transports, ideal_motion, ideal_rotation,
+                         offset_transform, transports, vectors_in_frame)
 from .poses import grid_axis_points, random_poses
 from .measured import grid_means
 from .profiles import IndependentProfile, axis_profiles, draw_motion_errors, travel_factors
@@ -128,6 +129,8 @@ class GridExperiment:
         self._tail_transports = transports(tail_factors)
         self._tail_ideal = self._product(tail_factors, n - self.n_head)
         self._tail_ideal_inverse = rigid_inverse(self._tail_ideal)
+        self._rotation = ideal_rotation(machine, self.poses) \
+            if machine.frame == "workpiece" else None  # outputs in the workpiece frame
 
     @property
     def n_poses(self) -> int:
@@ -203,7 +206,8 @@ class GridExperiment:
         through_head = head[:, :, :3, :].reshape(repeats, -1, 12) @ coupling
         out = through_head.reshape(repeats, head.shape[1], tail.shape[1], 6)
         out += read_pose_error(tail)[:, None, :, :]
-        return out.reshape(repeats, -1, 6)
+        out = out.reshape(repeats, -1, 6)
+        return out if self._rotation is None else vectors_in_frame(out, self._rotation)
 
     def _deviation(self, adjoints, gaps, first: int, motion, assembly) -> np.ndarray:
         """Deviation of a segment for every repeat and every combination of its points."""

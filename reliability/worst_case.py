@@ -126,7 +126,7 @@ def _negative_sigma_and_gradient(machine, q, sigma_x, output: int):
     ``σ_o² = jᵀ Σ j`` with ``Σ = D R D`` (Eq. 20 for R = I: ``Σ_i J_oi² σ_i²``), so
     ``∂σ_o/∂q_a = (∂j/∂q_a)ᵀ Σ j / σ_o``; R is ``machine.correlation`` or the identity.
     """
-    jac, derivative = jacobian_and_derivative(machine, q)
+    jac, derivative = jacobian_and_derivative(machine, q, machine.frame)
     if machine.correlation is None:
         weighted = jac[output] * np.square(sigma_x)  # Σ j, (n_errors,)
     else:

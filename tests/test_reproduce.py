@@ -14,14 +14,6 @@ def small_study():
     return rp.run_study(seed=7, repeats=3, wolves=12, iterations=30, random_samples=2000)
 
 
-def test_same_seed_same_tables(small_study):
-    again = rp.run_study(seed=7, repeats=3, wolves=12, iterations=30, random_samples=2000)
-    first, second = rp.tables(small_study), rp.tables(again)
-    assert first.keys() == second.keys()
-    for name in first:
-        pd.testing.assert_frame_equal(first[name], second[name], obj=name)
-
-
 def test_required_tables_and_columns(small_study):
     tables = rp.tables(small_study)
     table6 = tables["table6_allocation.csv"]

@@ -38,6 +38,7 @@ def add_parser(subparsers):
     parser.add_argument("--target", type=options.probability, metavar="R",
                         help="one reliability target for every output (default: the file's)")
     options.add_points(parser)
+    options.add_frame(parser)
     options.add_bounds(parser)
     parser.set_defaults(bounds=None)  # to tell an explicit --bounds from the default
     parser.add_argument("--lock", nargs="+", default=(), metavar="NAME",

@@ -18,7 +18,7 @@ from allocation.result_files import gap_bound, gap_text
 from reliability.display import target_text
 from reliability.errors import InputError
 from reliability.files import SIGNIFICANT, write_csv
-from reliability.machine import OUTPUTS, load_machine
+from reliability.machine import OUTPUTS
 from reliability.poses import workspace_grid
 
 from . import options
@@ -43,6 +43,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                              "(default: 20)")
     options.add_bounds(parser)
     options.add_points(parser)
+    options.add_frame(parser)
     parser.add_argument("--out", type=Path, default=None, help="write the table as CSV")
     parser.add_argument("--overwrite", action="store_true",
                         help="replace an existing --out file")
@@ -56,11 +57,11 @@ def run(args) -> int:
     bounds = options.check_bounds(args.bounds)
     if args.out is not None:
         options.destination(args.out, args.overwrite)
-    machine = load_machine(args.machine)
+    machine = options.machine(args)
     poses = workspace_grid(machine, args.points)
     box = options.box_words(machine, bounds)
     options.say(f"front of {machine.name}: {len(targets)} target(s), {args.side}, {box}, "
-                f"{args.points}-point grid")
+                f"{args.points}-point grid, outputs in the {machine.frame} frame")
     front = cost_reliability_front(machine, targets, side=args.side, poses=poses,
                                    bounds=bounds)
     if not front["feasible"].any():

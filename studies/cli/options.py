@@ -6,6 +6,7 @@ in terms of options, and printing. The computations live in the library."""
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import sys
 from pathlib import Path
 
@@ -16,6 +17,7 @@ from allocation.result_files import read_allocation_csv
 from reliability import display
 from reliability.errors import InputError
 from reliability.files import check_destination
+from reliability.kinematics import FRAMES
 from reliability.machine import load_machine
 
 SIDE_CHOICES = ("one_sided", "two_sided")
@@ -154,9 +156,19 @@ def destination(path, overwrite: bool, option: str = "--out", *, folder: bool = 
                          f"exist") from None
 
 
+def add_frame(parser) -> None:
+    parser.add_argument("--frame", choices=FRAMES, default=None,
+                        help="frame of the six outputs: tool (Eq. 18, turns with the rotary "
+                             "axes) or workpiece (default: the machine file's [requirements] "
+                             "frame, else tool)")
+
+
 def machine(args):
-    """Load ``args.machine`` (a MachineDescriptionError or OSError names the file)."""
-    return load_machine(args.machine)
+    """Load ``args.machine`` (a MachineDescriptionError or OSError names the file), in the
+    frame ``--frame`` asks for when the command has that option."""
+    loaded = load_machine(args.machine)
+    frame = getattr(args, "frame", None)
+    return loaded if frame is None else dataclasses.replace(loaded, frame=frame)
 
 
 def read_tolerances(path, machine) -> np.ndarray:

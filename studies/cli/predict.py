@@ -23,6 +23,7 @@ def add_parser(subparsers):
                         help="allocation to assess (columns error, allocated, as written by "
                              "'allocate'); default the file's initial allocation")
     options.add_points(parser)
+    options.add_frame(parser)
     options.add_side(parser)
     return parser
 
@@ -34,7 +35,8 @@ def run(args) -> int:
     result = fosm(machine, t, workspace_grid(machine, args.points))
     source = "initial allocation" if args.tolerances is None else args.tolerances
     print(f"FOSM of the {source} of {machine.name!r} over the {args.points}-point grid "
-          f"({len(result.poses)} poses); target judged {args.side.replace('_', '-')}\n")
+          f"({len(result.poses)} poses); target judged {args.side.replace('_', '-')}; "
+          f"outputs in the {machine.frame} frame\n")
     print(prediction_table(machine, result, args.side).to_string())
     failing = [o for o, met in zip(OUTPUTS, result.meets_targets(args.side))
                if not met]

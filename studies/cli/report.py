@@ -25,6 +25,7 @@ def add_parser(subparsers):
     parser.add_argument("--out", required=True, metavar="DIR", help="output folder")
     options.add_monte_carlo(parser)
     options.add_points(parser)
+    options.add_frame(parser)
     options.add_side(parser)
     options.add_bounds(parser)
     parser.add_argument("--skip", nargs="+", default=(), choices=EXTRAS, metavar="SECTION",

@@ -41,6 +41,7 @@ def add_parser(subparsers):
                         metavar="N", help="exact-model evaluations --rare may use "
                                           "(default 20000)")
     options.add_points(parser)
+    options.add_frame(parser)
     return parser
 
 
@@ -51,7 +52,8 @@ def run(args) -> int:
                     samples=args.samples, rng=args.seed, progress=options.say,
                     bar=options.progress_bar)
     print(f"Monte-Carlo verification of {args.tolerances} on {machine.name!r} "
-          f"(seed {args.seed}); two-sided probabilities in %; Monte-Carlo errors drawn "
+          f"(seed {args.seed}); outputs in the {machine.frame} frame; two-sided "
+          f"probabilities in %; Monte-Carlo errors drawn "
           f"normal with sigma = t/3 truncated at +-t\n")
     print(report_tables(machine, result))
     worst = result.worst_poses

@@ -40,7 +40,9 @@ def answers(study: MachineStudy) -> str:
              if p < t]
     meets = ("**yes**: every output meets its target" if not short else
              f"**no**: {'; '.join(short)}")
-    choices = (f"Choices behind every number below: outputs in the tool frame (Eq. 18); a "
+    frame = ("tool frame (Eq. 18, turning with the rotary axes)"
+             if machine.frame == "tool" else "workpiece frame (δ_w = R δ_t, ε_w = R ε_t)")
+    choices = (f"Choices behind every number below: outputs in the {frame}; a "
                f"tolerance t read as a normal error with σ = t/3 (FOSM and allocation; the "
                f"Monte-Carlo draws it truncated at ±t); {reading}; "
                f"{box_text(study)}; cost Eq. 28, {cost_units_text(study.problem.cost)}.\n")

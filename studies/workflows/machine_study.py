@@ -153,6 +153,7 @@ def summary(study: MachineStudy) -> dict:
         "machine": study.machine.name,
         "points_per_axis": study.points,
         "side": study.side,
+        "frame": study.machine.frame,
         "bounds": None if study.bounds is None else list(study.bounds),
         "bounds_source": BOUNDS_SOURCES[study.problem.bounds_source],
         "reachable": study.reachable,
