@@ -17,8 +17,6 @@ from studies.report.writer import SIGNIFICANT
 
 from . import options
 
-DEFAULT_BOUNDS = (0.5, 1.5)
-
 
 def add_parser(subparsers):
     parser = subparsers.add_parser(
@@ -40,7 +38,6 @@ def add_parser(subparsers):
     options.add_points(parser)
     options.add_frame(parser)
     options.add_bounds(parser)
-    parser.set_defaults(bounds=None)  # to tell an explicit --bounds from the default
     parser.add_argument("--lock", nargs="+", default=(), metavar="NAME",
                         help="errors held at their initial tolerance (e.g. X.dx)")
     parser.add_argument("--method", choices=("exact", "gwo"), default="exact",
@@ -68,7 +65,7 @@ def run(args) -> int:
                           ("--tolerances-out", args.tolerances_out)):
         if value is not None:
             raise InputError(f"{option} is used with --catalogue only")
-    bounds = options.check_bounds(DEFAULT_BOUNDS if args.bounds is None else args.bounds)
+    bounds = options.check_bounds(args.bounds)
     out = options.destination(args.out, args.overwrite)
     machine = options.machine(args)
     for name in args.lock:
