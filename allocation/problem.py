@@ -200,14 +200,16 @@ class AllocationProblem:
         return replace(problem, rows=problem._screen()) if workspace == "worst" else problem
 
     def box_text(self) -> str:
-        """The box in words, for a report: its source and its extent."""
-        if self.bounds_source == "factors of the initial allocation":
-            low, high = (float(np.median(b / self.reference)) for b in (self.lower,
-                                                                         self.upper))
-            return f"[{low:g}, {high:g}] × the initial allocation"
-        return (f"the {self.bounds_source}'s tolerance bounds (translations "
-                f"{_span(self.lower, self.upper, self.machine, False)} mm, rotations "
-                f"{_span(self.lower, self.upper, self.machine, True)} rad)")
+        """The box in words, for a report: ``[0.5, 1.5] × the initial allocation`` when it is
+        made of factors of the reference, else its extent and where it comes from."""
+        free = ~self.locked
+        low, high = self.lower[free] / self.reference[free], self.upper[free] / self.reference[free]
+        if low.size and np.ptp(low) <= 1e-12 * low.max() and np.ptp(high) <= 1e-12 * high.max():
+            return f"[{low[0]:.6g}, {high[0]:.6g}] × the initial allocation"
+        where = {"machine file": "the machine file's [bounds]"}.get(self.bounds_source,
+                                                                    "the given bounds")
+        return (f"{where} (translations {_span(self.lower, self.upper, self.machine, False)} "
+                f"mm, rotations {_span(self.lower, self.upper, self.machine, True)} rad)")
 
     def with_reading(self, side: str) -> "AllocationProblem":
         """The same poses, bounds and costs under another reliability reading.

@@ -83,12 +83,12 @@ def answers(study: MachineStudy) -> str:
 
 def box_text(study: MachineStudy) -> str:
     """The search box and where it comes from, e.g. ``search box [0.5, 1.5] × the initial
-    allocation (the default factors)``."""
-    source = {"machine file": "from the machine file's [bounds]",
-              "factors of the initial allocation": "the default factors; the machine file "
-                                                   "has no [bounds]",
-              "given": "from --bounds"}[study.problem.bounds_source]
-    return f"search box {study.problem.box_text()} ({source})"
+    allocation (the default; the machine file has no [bounds])``."""
+    source = {"machine file": "",
+              "factors of the initial allocation": " (the default; the machine file has no "
+                                                   "[bounds])",
+              "given": " (from --bounds)"}[study.problem.bounds_source]
+    return f"search box {study.problem.box_text()}{source}"
 
 
 def unreachable_text(study: MachineStudy) -> str:
