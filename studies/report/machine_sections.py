@@ -161,7 +161,8 @@ def fosm_table(machine, result, side: str) -> pd.DataFrame:
     with its unit, β, probabilities, top contributors."""
     frame = result.to_frame()
     rows = np.arange(len(OUTPUTS))
-    table = pd.DataFrame({"output": list(OUTPUTS), "unit": list(OUTPUT_UNITS)})
+    table = pd.DataFrame({"output": list(OUTPUTS), "frame": result.frame,
+                          "unit": list(OUTPUT_UNITS)})
     poses = pose_frame(result.poses[result.worst_pose], machine.axes, axis_units(machine),
                        style="csv")
     for column in poses:
