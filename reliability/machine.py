@@ -589,36 +589,28 @@ def _parse_cost_units(table, where: str) -> tuple[str, str] | None:
 
 
 def _parse_initial(table, names: tuple[str, ...], source: str) -> np.ndarray:
-    where = f"{source}: initial_allocation"
-    _only_keys(table, {"translation", "rotation", "items"}, where)
-    translation = _number(_require(table, "translation", where), f"{where}.translation",
-                          positive=True)
-    rotation = _number(_require(table, "rotation", where), f"{where}.rotation", positive=True)
-    angular = np.array([n.split(".")[1].startswith("e") for n in names])
-    initial = np.where(angular, rotation, translation)
-    items = table.get("items", {})
-    index = {n: i for i, n in enumerate(names)}
-    index.update({n: i for i, n in enumerate(iso_names(names))})
-    _only_keys(items, set(index), f"{where}.items")
-    given = {}
-    for name, value in items.items():
-        if index[name] in given:
-            raise MachineDescriptionError(f"{where}.items: {given[index[name]]!r} and "
-                                          f"{name!r} name the same error")
-        given[index[name]] = name
-        initial[index[name]] = _number(value, f"{where}.items.{name}", positive=True)
-    return initial
+    """``[initial_allocation]``: one tolerance per error, ``(n_errors,)``."""
+    def tolerance(value, where):
+        return _number(value, where, positive=True)
+
+    return _per_error(table, names, f"{source}: initial_allocation", tolerance)
 
 
 def _parse_bounds(table, names: tuple[str, ...], source: str) -> np.ndarray:
     """``[bounds]``: ``translation = [lo, hi]`` (mm), ``rotation = [lo, hi]`` (rad) and
     ``items = { "X.dx" = [lo, hi] }``, the achievable tolerances; ``(2, n_errors)``."""
-    where = f"{source}: bounds"
+    return _per_error(table, names, f"{source}: bounds", _pair).T
+
+
+def _per_error(table, names: tuple[str, ...], where: str, read) -> np.ndarray:
+    """A table of ``translation`` and ``rotation`` defaults and per-error ``items``
+    (by paper name or ISO symbol), each value read by ``read(value, where)``; one row per
+    error."""
     _only_keys(table, {"translation", "rotation", "items"}, where)
-    translation = _pair(_require(table, "translation", where), f"{where}.translation")
-    rotation = _pair(_require(table, "rotation", where), f"{where}.rotation")
-    angular = np.array([n.split(".")[1].startswith("e") for n in names])
-    bounds = np.where(angular, np.array(rotation)[:, None], np.array(translation)[:, None])
+    translation = read(_require(table, "translation", where), f"{where}.translation")
+    rotation = read(_require(table, "rotation", where), f"{where}.rotation")
+    angular = [n.split(".")[1].startswith("e") for n in names]
+    values = np.array([rotation if a else translation for a in angular], dtype=float)
     items = table.get("items", {})
     index = {n: i for i, n in enumerate(names)}
     index.update({n: i for i, n in enumerate(iso_names(names))})
@@ -629,8 +621,8 @@ def _parse_bounds(table, names: tuple[str, ...], source: str) -> np.ndarray:
             raise MachineDescriptionError(f"{where}.items: {given[index[name]]!r} and "
                                           f"{name!r} name the same error")
         given[index[name]] = name
-        bounds[:, index[name]] = _pair(value, f"{where}.items.{name}")
-    return bounds
+        values[index[name]] = read(value, f"{where}.items.{name}")
+    return values
 
 
 def _pair(value, where: str) -> tuple[float, float]:
