@@ -129,6 +129,7 @@ class Machine:
     cost_coefficients: CostCoefficients
     tool_offset: tuple[float, float, float] = (0.0, 0.0, 0.0)
     correlation: np.ndarray | None = field(default=None, repr=False)
+    distribution: str = "normal"
     _index: Mapping[str, int] = field(init=False, repr=False, compare=False)
 
     def __post_init__(self):
@@ -142,6 +143,9 @@ class Machine:
         if self.correlation is not None:
             object.__setattr__(self, "correlation",
                                check_correlation_matrix(self.correlation, self.error_names))
+        if self.distribution not in DISTRIBUTIONS:
+            raise InputError(f"distribution must be 'normal' or 'truncated'; got "
+                             f"{self.distribution!r}")
 
     def __reduce__(self):
         """Pickle and copy through the constructor (the name index is rebuilt)."""
@@ -358,7 +362,8 @@ def machine_from_dict(data: Mapping, source: str = "machine") -> Machine:
                       "tool_offset", "correlation"}, source)
     axes = _parse_axes(_require(data, "axes", source), source)
     names = tuple(a.name for a in axes)
-    limits, targets = _parse_requirements(_require(data, "requirements", source), source)
+    requirements = _require(data, "requirements", source)
+    limits, targets = _parse_requirements(requirements, source)
     machine = Machine(
         name=str(data.get("name", source)),
         axis_specs=tuple(axes),
@@ -369,6 +374,7 @@ def machine_from_dict(data: Mapping, source: str = "machine") -> Machine:
         cost_coefficients=_parse_cost(_require(data, "cost", source), joint_names(names),
                                       {a.kind for a in axes}, source),
         tool_offset=_vector3(data.get("tool_offset", (0, 0, 0)), f"{source}: tool_offset"),
+        distribution=_parse_distribution(requirements, source),
     )
     if "correlation" in data:
         machine = parse_correlation(machine, data["correlation"], source)
@@ -493,7 +499,7 @@ def _parse_stroke(entry, full_turn: bool, where: str, kind: str) -> tuple[float,
 
 def _parse_requirements(table, source: str) -> tuple[np.ndarray, np.ndarray]:
     where = f"{source}: requirements"
-    _only_keys(table, set(OUTPUTS), where)
+    _only_keys(table, set(OUTPUTS) | {"distribution"}, where)
     limits, targets = [], []
     for output in OUTPUTS:
         entry = _require(table, output, where)
@@ -505,6 +511,20 @@ def _parse_requirements(table, source: str) -> tuple[np.ndarray, np.ndarray]:
             raise MachineDescriptionError(f"{at}.target: must lie in (0, 1), got {target}")
         targets.append(target)
     return np.array(limits), np.array(targets)
+
+
+#: Readings of a tolerance t: σ = t/3 of a normal, or that normal truncated at ±t.
+DISTRIBUTIONS = ("normal", "truncated")
+
+
+def _parse_distribution(table, source: str) -> str:
+    """``[requirements] distribution``: how every computation of the study reads a
+    tolerance (``"normal"`` by default)."""
+    value = table.get("distribution", "normal")
+    if value not in DISTRIBUTIONS:
+        raise MachineDescriptionError(f"{source}: requirements.distribution: expected "
+                                      f"'normal' or 'truncated'; got {value!r}")
+    return value
 
 
 COST_KEYS = {"linear": "ab", "rotary": "cd"}  # coefficients each kind of axis needs
@@ -562,6 +582,8 @@ def machine_to_dict(machine: Machine) -> dict:
     }
     if not any(machine.tool_offset):
         del table["tool_offset"]
+    if machine.distribution != "normal":
+        table["requirements"]["distribution"] = machine.distribution
     if machine.correlation is not None:
         table["correlation"] = correlation_to_toml(machine)
     return table

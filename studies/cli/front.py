@@ -18,7 +18,7 @@ from allocation.result_files import gap_bound, gap_text
 from reliability.display import target_text
 from reliability.errors import InputError
 from reliability.files import SIGNIFICANT, write_csv
-from reliability.machine import OUTPUTS, load_machine
+from reliability.machine import OUTPUTS
 from reliability.poses import workspace_grid
 
 from . import options
@@ -43,6 +43,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                              "(default: 20)")
     options.add_bounds(parser)
     options.add_points(parser)
+    options.add_distribution(parser)
     parser.add_argument("--out", type=Path, default=None, help="write the table as CSV")
     parser.add_argument("--overwrite", action="store_true",
                         help="replace an existing --out file")
@@ -56,7 +57,7 @@ def run(args) -> int:
     bounds = options.check_bounds(args.bounds)
     if args.out is not None:
         options.destination(args.out, args.overwrite)
-    machine = load_machine(args.machine)
+    machine = options.machine(args)
     poses = workspace_grid(machine, args.points)
     box = f"box {bounds[0]:g}–{bounds[1]:g} × initial allocation"
     options.say(f"front of {machine.name}: {len(targets)} target(s), {args.side}, {box}, "
@@ -71,7 +72,8 @@ def run(args) -> int:
     shown["relative_gap"] = [gap_bound(g) for g in shown["relative_gap"]]
     reached = shown[front["feasible"]]
     print(f"certified front ({args.side}, {box}, every target at every pose of the "
-          f"{args.points}-point grid); failure = 1 − target; relative_gap is an upper bound")
+          f"{args.points}-point grid; {options.reading_text(machine)}); failure = 1 − "
+          f"target; relative_gap is an upper bound")
     print(reached.to_string(index=False, formatters={
         "target": target_text, "failure": "{:.3g}".format}, float_format="{:.6g}".format))
     missed = front.loc[~front["feasible"], "target"]

@@ -6,6 +6,7 @@ in terms of options, and printing. The computations live in the library."""
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import sys
 from pathlib import Path
 
@@ -18,6 +19,7 @@ from reliability.files import check_destination
 from reliability.machine import load_machine
 
 SIDE_CHOICES = ("one_sided", "two_sided")
+DISTRIBUTION_CHOICES = ("normal", "truncated")
 
 
 # ----- argument types (argparse reports their errors as one line, exit 2) ---------------
@@ -88,6 +90,15 @@ def add_side(parser) -> None:
                              "the paper's one-sided Phi(beta)")
 
 
+def add_distribution(parser) -> None:
+    """``--distribution``: the reading of a tolerance for every computation of the
+    command; the machine file's ``[requirements] distribution`` by default."""
+    parser.add_argument("--distribution", choices=DISTRIBUTION_CHOICES, default=None,
+                        help="reading of a tolerance t: normal with sigma = t/3, or that "
+                             "normal truncated at +-t (default: the machine file's "
+                             "[requirements] distribution, else normal)")
+
+
 def add_points(parser, default: int = 5) -> None:
     parser.add_argument("--points", type=grid_points, default=default, metavar="P",
                         help=f"grid points per axis over each stroke (default {default})")
@@ -140,8 +151,18 @@ def destination(path, overwrite: bool, option: str = "--out", *, folder: bool = 
 
 
 def machine(args):
-    """Load ``args.machine`` (a MachineDescriptionError or OSError names the file)."""
-    return load_machine(args.machine)
+    """Load ``args.machine`` (a MachineDescriptionError or OSError names the file), with
+    the reading of ``--distribution`` when the command has it and it is given."""
+    loaded = load_machine(args.machine)
+    reading = getattr(args, "distribution", None)
+    return loaded if reading is None else dataclasses.replace(loaded, distribution=reading)
+
+
+def reading_text(machine) -> str:
+    """The study's reading of a tolerance, as printed beside every answer."""
+    return ("tolerances read as normal, sigma = t/3, truncated at +-t (distribution "
+            "'truncated')" if machine.distribution == "truncated" else
+            "tolerances read as normal, sigma = t/3 (distribution 'normal')")
 
 
 def read_tolerances(path, machine) -> np.ndarray:

@@ -100,11 +100,13 @@ def run(machine, *, points: int = 5, side: str = "two_sided", bounds=(0.5, 1.5),
     progress(f"FOSM of the initial allocation on the {points}-point grid")
     problem = AllocationProblem.build(machine, workspace_grid(machine, points), side=side,
                                       bounds=bounds)
-    initial = fosm(machine, problem.reference, problem.poses, jacobian=problem.jacobian)
+    initial = fosm(machine, problem.reference, problem.poses, jacobian=problem.jacobian,
+                   distribution=machine.distribution)
     progress("certified cheapest allocation (convex solver)")
     optimum = problem.solve_exact()
     written = as_written(optimum.tolerances)
-    optimal = fosm(machine, written, problem.poses, jacobian=problem.jacobian)
+    optimal = fosm(machine, written, problem.poses, jacobian=problem.jacobian,
+                   distribution=machine.distribution)
     checks = {}
     for name, t, prediction in (("initial", problem.reference, initial),
                                 ("optimum", written, optimal)):
@@ -125,6 +127,8 @@ def summary(study: MachineStudy) -> dict:
         "points_per_axis": study.points,
         "side": study.side,
         "bounds": list(study.bounds),
+        "workspace": "grid",
+        "distribution": study.machine.distribution,
         "initial_cost": initial_cost,
         "optimal_cost": study.optimum.cost,
         "relative_cost": study.optimum.cost / initial_cost,

@@ -48,7 +48,8 @@ PAPER_MACHINE = "hobbing"
 INDEPENDENT = "independent"
 SIDES = ("one_sided", "two_sided")
 SPEC_KEYS = {"machines", "sides", "targets", "profiles", "seeds", "repeats",
-             "points_per_axis", "bounds"}
+             "points_per_axis", "bounds", "distribution"}
+DISTRIBUTIONS = ("normal", "truncated")
 #: The search box of every task when the spec gives none (factors of the initial allocation).
 DEFAULT_BOUNDS = (0.5, 1.5)
 RESULTS_FILE = "results.csv"
@@ -76,6 +77,9 @@ class SweepTask:
         Grid of the allocation and of the verification.
     bounds : (float, float)
         Search box of the allocation, as factors of the initial allocation.
+    distribution : {'normal', 'truncated'} or None
+        The reading of a tolerance for the allocation and the verification; None: the
+        machine file's (``[requirements] distribution``).
     """
 
     machine: str
@@ -86,11 +90,16 @@ class SweepTask:
     repeats: int
     points_per_axis: int
     bounds: tuple[float, float] = DEFAULT_BOUNDS
+    distribution: str | None = None
 
     def parameters(self, machine=None) -> dict:
-        """The task's parameters as stored and hashed: the machine by its content."""
+        """The task's parameters as stored and hashed: the machine by its content (a task
+        without a ``distribution`` of its own hashes as before the key existed)."""
         machine = _load_machine(self.machine) if machine is None else machine
-        return dict(asdict(self), machine_fingerprint=machine_fingerprint(machine))
+        parameters = asdict(self)
+        if self.distribution is None:
+            del parameters["distribution"]
+        return dict(parameters, machine_fingerprint=machine_fingerprint(machine))
 
 
 @dataclass(frozen=True)
@@ -98,7 +107,9 @@ class SweepSpec:
     """The lists a sweep combines; :meth:`tasks` expands them in a fixed order.
 
     Build from a TOML file with :meth:`from_toml` (keys as the attributes). ``bounds`` is
-    one box ``[LO, HI]`` (factors of the initial allocation) for every task.
+    one box ``[LO, HI]`` (factors of the initial allocation) for every task;
+    ``distribution`` (``"normal"`` or ``"truncated"``) one reading of a tolerance for every
+    task, by default each machine file's own.
     """
 
     machines: tuple[str, ...]
@@ -109,6 +120,7 @@ class SweepSpec:
     repeats: tuple[int, ...] = (20,)
     points_per_axis: int = 5
     bounds: tuple[float, float] = DEFAULT_BOUNDS
+    distribution: str | None = None
 
     def __post_init__(self):
         for name in ("machines", "sides", "targets", "profiles", "seeds", "repeats"):
@@ -120,6 +132,9 @@ class SweepSpec:
                 raise InputError(f"sweep spec: {name!r} is empty; give at least one entry")
             object.__setattr__(self, name, value)
         object.__setattr__(self, "bounds", _check_bounds(self.bounds))
+        if self.distribution is not None and self.distribution not in DISTRIBUTIONS:
+            raise InputError(f"sweep spec: distribution {self.distribution!r} must be "
+                             f"'normal' or 'truncated'")
         _check_spec(self)
 
     @classmethod
@@ -154,7 +169,7 @@ class SweepSpec:
     def tasks(self) -> list[SweepTask]:
         """Every combination, machines slowest and repeats fastest."""
         return [SweepTask(machine, side, float(target), profile, int(seed), int(repeats),
-                          int(self.points_per_axis), self.bounds)
+                          int(self.points_per_axis), self.bounds, self.distribution)
                 for machine, side, target, profile, seed, repeats in itertools.product(
                     self.machines, self.sides, self.targets, self.profiles, self.seeds,
                     self.repeats)]
@@ -221,11 +236,14 @@ def run_task(task: SweepTask, allocated: dict | None = None) -> dict:
             return {"status": allocated["status"], "reason": allocated["reason"],
                     "relative_cost": None, "certified": False,
                     "fraction": [None] * len(OUTPUTS), "yield": None}
-        experiment = _experiment(machine, task.target, task.points_per_axis, task.profile)
+        experiment = _experiment(machine, task.target, task.points_per_axis, task.profile,
+                                 task.distribution)
         rng = verification_streams(task.seed)[0]
         verified = experiment.run(allocated["tolerances"], repeats=task.repeats, rng=rng,
-                                  keep_values="none")
-    return {"status": "ok", "reason": "", "relative_cost": allocated["relative_cost"],
+                                  keep_values="none",
+                                  distribution=experiment.machine.distribution)
+    return {"status": "ok", "reason": "", "distribution": experiment.machine.distribution,
+            "relative_cost": allocated["relative_cost"],
             "certified": allocated["certified"],
             "fraction": verified.fractions.mean(axis=0).tolist(),
             "yield": float(np.mean(verified.all_inside))}
@@ -298,6 +316,7 @@ def results_frame(tasks, results) -> pd.DataFrame:
     for task, result in zip(tasks, results):
         row = asdict(task)
         row["bounds_low"], row["bounds_high"] = row.pop("bounds")
+        row["distribution"] = result.get("distribution", task.distribution)
         row["status"] = result["status"]
         row["reason"] = result.get("reason", "")
         row["relative_cost"] = result["relative_cost"]
@@ -404,27 +423,31 @@ def _load_machine(name: str):
 # The caches below are keyed by (file name, fingerprint of its content): a machine file
 # edited during a session is a new machine.
 @functools.lru_cache(maxsize=64)
-def _task_machine(machine: tuple[str, str], target: float):
-    """The machine with every output's target set to ``target``."""
-    return replace(_load_machine(machine[0]), targets=np.full(len(OUTPUTS), float(target)))
+def _task_machine(machine: tuple[str, str], target: float, distribution: str | None = None):
+    """The machine with every output's target set to ``target`` and, when given, the
+    reading ``distribution``."""
+    loaded = _load_machine(machine[0])
+    return replace(loaded, targets=np.full(len(OUTPUTS), float(target)),
+                   distribution=distribution or loaded.distribution)
 
 
 def _allocation_key(task: SweepTask, fingerprint: str) -> tuple:
     """What a task's allocation depends on (tasks differing only in profile, seed or
     repeats share it)."""
     return (task.machine, fingerprint, task.side, task.target, task.points_per_axis,
-            task.bounds)
+            task.bounds, task.distribution)
 
 
 @functools.lru_cache(maxsize=64)
 def solve_allocation(name: str, fingerprint: str, side: str, target: float,
-                     points: int, bounds: tuple[float, float] = DEFAULT_BOUNDS) -> dict:
+                     points: int, bounds: tuple[float, float] = DEFAULT_BOUNDS,
+                     distribution: str | None = None) -> dict:
     """Certified optimum of one machine (file ``name`` with content ``fingerprint``) and
     reading in the box ``bounds``: ``status`` ('ok' or 'unreachable', with ``reason``),
     ``tolerances``, ``relative_cost`` and ``certified``. Deterministic, so solving it
     anywhere, once or many times, gives the same numbers."""
     with threadpool_limits(limits=1):
-        machine = _task_machine((name, fingerprint), target)
+        machine = _task_machine((name, fingerprint), target, distribution)
         problem = AllocationProblem.build(machine, workspace_grid(machine, points),
                                           side=side, bounds=bounds)
         try:
@@ -438,5 +461,6 @@ def solve_allocation(name: str, fingerprint: str, side: str, target: float,
 
 @functools.lru_cache(maxsize=64)
 def _experiment(machine: tuple[str, str], target: float, points: int,
-                profile: str) -> GridExperiment:
-    return GridExperiment(_task_machine(machine, target), points, profile=profile)
+                profile: str, distribution: str | None = None) -> GridExperiment:
+    return GridExperiment(_task_machine(machine, target, distribution), points,
+                          profile=profile)
