@@ -47,7 +47,8 @@ def system(study):
 def rare(study, samples: int = 100_000):
     """Worst-pose Monte-Carlo and rare-event estimates of the optimal allocation."""
     return rare_section(study.machine, study.allocated, label="optimum",
-                        samples=samples, rng=extra_stream(study.seed, 1))
+                        samples=samples, distribution=study.machine.distribution,
+                        rng=extra_stream(study.seed, 1))
 
 
 def profiles(study, repeats: int = 200):

@@ -49,8 +49,9 @@ def answers(study: MachineStudy) -> str:
     tighten, relax = (_changes_text(changes) for changes in tolerance_changes(study))
     return "\n".join([
         f"Choices behind every number below: outputs in the tool frame (Eq. 18); a "
-        f"tolerance t read as a normal error with σ = t/3 (FOSM and allocation; the "
-        f"Monte-Carlo draws it truncated at ±t); {reading}; search box "
+        f"tolerance t read as {_reading(study.machine)} (FOSM, allocation and "
+        f"Monte-Carlo alike; distribution '{study.machine.distribution}'); {reading}; "
+        f"workspace: the {study.points}-point grid; search box "
         f"[{study.bounds[0]:g}, {study.bounds[1]:g}] × the initial allocation; cost Eq. 28 "
         f"with t in mm and rad.\n",
         f"- Does the initial allocation meet the targets? {meets}.",
@@ -136,7 +137,8 @@ def fosm_section(study: MachineStudy) -> Section:
               "fosm_optimum.csv": fosm_table(study.machine, study.optimal_fosm, study.side)}
     formats = {"beta": "{:.4f}".format, "worst_one_sided": PERCENT,
                "worst_two_sided": PERCENT}
-    text = (f"First-order second-moment reliability (Eqs. 19–23, normal errors) at each "
+    text = (f"First-order second-moment reliability (Eqs. 19–23; tolerances read as "
+            f"{_reading(study.machine)}) at each "
             f"output's worst pose of the {study.points}-point grid, given as axis positions "
             f"(mm, rotary axes in degrees); `sigma` in the output's `unit`; "
             f"`top_contributors` are the errors with the largest share of the output's "
@@ -200,8 +202,8 @@ def verification_section(study: MachineStudy) -> Section:
                                     "fosm_worst_two_sided", "estimate", "lower", "upper")}
     check = study.checks["optimum"]
     text = "\n\n".join([
-        "Errors drawn normal with σ = t/3, truncated at ±t. Three checks of the FOSM "
-        "prediction, each with a 95 % interval:",
+        f"Errors drawn {_reading(machine)}, and FOSM with the same reading. Three checks "
+        f"of the FOSM prediction, each with a 95 % interval:",
         f"Grid experiments ({check.grid.repeats} per allocation, {check.grid.n_poses} poses "
         f"each; one error draw per experiment shared by its poses): mean share of poses in "
         f"tolerance, Wilson interval on the effective sample size from the spread between "
@@ -216,11 +218,12 @@ def verification_section(study: MachineStudy) -> Section:
                                              "estimate", "lower", "upper"]], percent,
                        index=False),
         "At each output's FOSM worst grid pose (mm, rotary axes in degrees), Wilson "
-        "interval, beside FOSM with the σ of the truncated draws (`fosm_two_sided` here is "
-        "FOSM, truncated errors; above it is FOSM, normal errors):",
+        "interval, beside FOSM and the exact probability of the linearised output "
+        "(`exact_linear`; equal to FOSM under the normal reading):",
         markdown_table(worst.reset_index()[["allocation", "output", *pose_columns_of(machine),
-                                            "fosm_two_sided", "mc_estimate", "mc_lower",
-                                            "mc_upper"]], percent, index=False)])
+                                            "fosm_two_sided", "exact_linear", "mc_estimate",
+                                            "mc_lower", "mc_upper"]],
+                       {**percent, "exact_linear": PERCENT}, index=False)])
     return Section("Monte-Carlo verification", text,
                    figures=_verification_figures(study, grid, repeats),
                    tables={"fosm_vs_mc.csv": grid, "random_pose.csv": random,
@@ -242,6 +245,12 @@ def _shown_poses(machine, frame: pd.DataFrame) -> pd.DataFrame:
     for i, column in enumerate(shown):
         out.insert(1 + i, column, shown[column].to_numpy())
     return out
+
+
+def _reading(machine) -> str:
+    """The study's reading of a tolerance t, in words."""
+    return ("a normal error with σ = t/3 truncated at ±t" if machine.distribution ==
+            "truncated" else "a normal error with σ = t/3")
 
 
 def _verification_figures(study, grid, repeats) -> dict:
