@@ -121,7 +121,8 @@ class AllocationProblem:
               bounds=None, lower=None, upper=None, locked=(), reference=None,
               k: float = 3.0, cost_factors=(1.0, 1.0, 1.0), targets=None, limits=None,
               allow_outside_stroke: bool = False, budget: int | None = None,
-              memory: int | None = None, frame: str | None = None) -> "AllocationProblem":
+              memory: int | None = None, frame: str | None = None,
+              distribution: str | None = None) -> "AllocationProblem":
         """Set up the problem.
 
         Parameters
@@ -166,8 +167,15 @@ class AllocationProblem:
             Frame the requirements hold in; default ``machine.frame`` (the machine file's
             ``[requirements] frame``, else ``"tool"``, Eq. 18). The problem's ``machine``
             carries it.
+        distribution : {'normal', 'truncated'}, optional
+            How a tolerance is read (default ``machine.distribution``): under 'truncated'
+            every σ constraint uses the truncated normal's standard deviation
+            (:func:`reliability.fosm.error_sigma`). The problem's ``machine`` carries it.
         """
         _check_choice(side, SIDES, "side")
+        if distribution is not None:
+            _check_choice(distribution, ("normal", "truncated"), "distribution")
+            machine = replace(machine, distribution=distribution)
         _check_choice(workspace, WORKSPACES, "workspace")
         if getattr(machine, "correlation", None) is not None:
             raise InputError("machine: its errors are correlated (machine.correlation) but "
@@ -281,6 +289,17 @@ class AllocationProblem:
         return t if self.side == "stack" else np.square(t)
 
     @property
+    def distribution(self) -> str:
+        """How a tolerance is read: ``'normal'`` or ``'truncated'`` (the machine's)."""
+        return self.machine.distribution
+
+    @property
+    def spread(self) -> float:
+        """σ of an error per unit of its tolerance: ``1/k``, or under the truncated reading
+        the truncated normal's ``0.9866/k`` (k = 3)."""
+        return float(error_sigma(1.0, self.k, self.distribution))
+
+    @property
     def required_index(self) -> np.ndarray:
         """β each output needs at zero mean: ``z_o`` for the chosen side."""
         return required_index(self.machine.targets, self.side)
@@ -291,14 +310,15 @@ class AllocationProblem:
         return self.machine.limits / self.required_index
 
     def row_matrix(self, jacobian=None) -> np.ndarray:
-        """Rows ``J_oi² / (k² (I_o/z_o)²)`` (or ``|J_oi| / I_o`` for the stack) as
+        """Rows ``J_oi² s² / (I_o/z_o)²`` with ``s`` = :attr:`spread` (``1/k`` under the
+        normal reading), or ``|J_oi| / I_o`` for the stack, as
         ``(n_poses, 6, n_errors)``, of the problem's poses or of the given sensitivities."""
         if jacobian is None:
             jacobian = self.machine.jacobian(self.poses) if self.jacobian is None \
                 else self.jacobian
         if self.side == "stack":
             return np.abs(jacobian) / self.machine.limits[:, None]
-        return np.square(jacobian / self.k) / np.square(self.allowed_sigma)[:, None]
+        return np.square(jacobian * self.spread) / np.square(self.allowed_sigma)[:, None]
 
     def loads(self, u) -> np.ndarray:
         """Row loads ``row @ u`` of every output at every pose, ``(n_poses, 6)``, in
@@ -339,7 +359,7 @@ class AllocationProblem:
     # ----- evaluation ----------------------------------------------------------------
     def sigma(self, t) -> np.ndarray:
         """σ of every output at every pose, ``(..., n_poses, 6)`` for ``t (..., n)``."""
-        variance_x = np.square(error_sigma(t, self.k))
+        variance_x = np.square(error_sigma(t, self.k, self.distribution))
         out = np.empty(variance_x.shape[:-1] + (len(self.poses), len(OUTPUTS)))
         for part, block in self.jacobian_chunks():
             out[..., part, :] = np.sqrt(np.einsum("pon,...n->...po", np.square(block),
@@ -376,7 +396,8 @@ class AllocationProblem:
 
     def evaluate(self, t) -> pd.DataFrame:
         """Per output: worst-pose and mean probability (both sides) and the verdict."""
-        result = fosm(self.machine, t, self.poses, k=self.k, jacobian=self.jacobian)
+        result = fosm(self.machine, t, self.poses, k=self.k, jacobian=self.jacobian,
+                      distribution=self.distribution)
         frame = result.to_frame()
         if self.side == "stack":
             frame["worst_stack"] = self.stack(t).max(axis=0)

@@ -107,6 +107,9 @@ class SavedProblem:
         Poses the constraints were held at.
     cost : CostModel
         The cost weights, so :meth:`AllocationResult.breakdown` still works.
+    distribution : str
+        How tolerances were read (``'normal'`` or ``'truncated'``); files written before
+        the field existed were all ``'normal'``.
     """
 
     machine_name: str
@@ -121,6 +124,7 @@ class SavedProblem:
     k: float
     n_poses: int
     cost: CostModel
+    distribution: str = "normal"
 
     @property
     def locked(self) -> np.ndarray:
@@ -137,7 +141,8 @@ def _context(problem) -> SavedProblem | object:
                         units=axis_units(machine), names=tuple(problem.names),
                         reference=problem.reference, lower=problem.lower,
                         upper=problem.upper, side=problem.side, workspace=problem.workspace,
-                        k=problem.k, n_poses=len(problem.poses), cost=problem.cost)
+                        k=problem.k, n_poses=len(problem.poses), cost=problem.cost,
+                        distribution=problem.distribution)
 
 
 # ----- printing ------------------------------------------------------------------------
@@ -150,7 +155,8 @@ def allocation_summary(result, top: int = 5) -> str:
     lines = [] if result.feasible else [_not_feasible_line(result)]
     lines += [f"Allocation by {_method_text(result)} for {context.machine_name}: "
               f"{READINGS[context.workspace]} over {context.n_poses} poses, "
-              f"{context.side.replace('_', '-')} probability, tolerances ±{context.k:g}σ",
+              f"{context.side.replace('_', '-')} probability, tolerances ±{context.k:g}σ "
+              f"({context.distribution})",
               f"Cost {result.cost / reference_cost:.4f} × the reference allocation "
               f"(F = {result.cost:.4g} against {reference_cost:.4g})",
               _status_line(result), ""]
@@ -302,7 +308,7 @@ def save_allocation(result, path, overwrite: bool = False):
         "machine": context.machine_name, "axes": context.axes, "units": context.units,
         "names": context.names, "reference": context.reference, "lower": context.lower,
         "upper": context.upper, "side": context.side, "workspace": context.workspace,
-        "k": context.k, "n_poses": context.n_poses,
+        "k": context.k, "n_poses": context.n_poses, "distribution": context.distribution,
         "cost_weights": context.cost.weights, "cost_groups": context.cost.groups,
         "cost_owners": context.cost.owners, "cost_k": context.cost.k,
         "method": result.method, "tolerances": result.tolerances, "cost": result.cost,
@@ -368,7 +374,9 @@ def _saved_problem(data) -> SavedProblem:
         reference=data.array("reference", (n,), positive=True), lower=lower, upper=upper,
         side=data.text("side", ("one_sided", "two_sided")),
         workspace=data.text("workspace", ("worst", "mean")),
-        k=data.number("k", positive=True), n_poses=data.integer("n_poses", low=1), cost=cost)
+        k=data.number("k", positive=True), n_poses=data.integer("n_poses", low=1), cost=cost,
+        distribution=data.text("distribution", ("normal", "truncated"))
+        if "distribution" in data.data else "normal")
 
 
 def _check_certificate(data, certificate: dict, method: str) -> None:

@@ -14,7 +14,9 @@ Two probabilities are reported:
 
 An allocated tolerance ``t`` is read as ``±kσ`` (k = 3): ``σ = t/k``. Sampling that truncates
 the normal at ``±t`` (Sec. 5.3) has a slightly smaller spread; ``distribution='truncated'``
-uses that standard deviation instead.
+uses that standard deviation instead, and ``exact_two_sided`` is then the exact probability
+of the linearised output under truncated errors (:mod:`reliability.linear_exact`), not the
+normal approximation; under ``'normal'`` the two coincide.
 """
 
 from __future__ import annotations
@@ -32,10 +34,13 @@ from .display import axis_units
 from .errors import InputError
 from .fosm_files import fosm_summary, load_fosm, save_fosm
 from .kinematics import check_frame, output_variance
+from .linear_exact import linear_two_sided
 from .machine import OUTPUTS
 from .ties import worst_rows
 
 SIDES = ("one_sided", "two_sided")
+#: The readings of a tolerance: σ = t/k of a normal, or that normal truncated at ±t.
+DISTRIBUTIONS = ("normal", "truncated")
 
 
 def error_sigma(tolerances, k: float = 3.0, distribution: str = "normal") -> np.ndarray:
@@ -139,7 +144,12 @@ class FosmResult:
     mean, sigma, beta : ndarray (n_poses, 6)
         Output mean, standard deviation and reliability index (Eqs. 20–21).
     one_sided, two_sided : ndarray (n_poses, 6)
-        Φ(β) (Eq. 22) and the exact P(|y| < I).
+        Φ(β) (Eq. 22) and P(|y| < I) for a normal output (the normal approximation).
+    exact_two_sided : ndarray (n_poses, 6)
+        The exact P(|y| < I) of the linearised output under the study's reading: equal to
+        ``two_sided`` under ``'normal'``; under ``'truncated'`` the probability for a sum of
+        truncated-normal terms (:func:`reliability.linear_exact.linear_two_sided`, exact to
+        1e-9).
     worst_pose : ndarray (6,) of int
         Per output, the pose of lowest two-sided probability.
     contributions : DataFrame (n_errors × 6)
@@ -178,6 +188,13 @@ class FosmResult:
     k: float = 3.0
     distribution: str = "normal"
     frame: str = "tool"
+    exact_two_sided: np.ndarray | None = None
+
+    def __post_init__(self):
+        if self.exact_two_sided is None:
+            if self.distribution != "normal":
+                raise InputError("exact_two_sided is required under the 'truncated' reading")
+            object.__setattr__(self, "exact_two_sided", self.two_sided)
 
     def summary(self, top: int = 3) -> str:
         """Readable verdicts, worst poses as axis positions and the ``top`` contributors."""
@@ -237,6 +254,7 @@ class FosmResult:
             "beta": self.beta[worst, rows],
             "worst_one_sided": self.worst("one_sided"),
             "worst_two_sided": self.worst("two_sided"),
+            "exact_two_sided": self.exact_two_sided[worst, rows],
             "mean_one_sided": self.workspace_mean("one_sided"),
             "mean_two_sided": self.workspace_mean("two_sided"),
             "meets_one_sided": self.meets_targets("one_sided"),
@@ -273,7 +291,9 @@ def fosm(machine, tolerances, poses, *, k: float = 3.0, means=None,
         (Eq. 20). σ uses the sensitivities at zero error; the paper takes them at the means,
         which differs only at second order.
     distribution : {'normal', 'truncated'}
-        How σ follows from t, see :func:`error_sigma`.
+        How σ follows from t, see :func:`error_sigma`; under 'truncated' the result also
+        holds the exact probability of the linearised output (``exact_two_sided``), which
+        needs independent errors.
     jacobian : ndarray, optional
         Precomputed ``machine.jacobian(poses)`` to reuse across allocations.
     allow_outside_stroke : bool
@@ -306,7 +326,12 @@ def fosm(machine, tolerances, poses, *, k: float = 3.0, means=None,
                          f"one pose; got {poses.shape}")
     checks.poses_in_strokes(machine, poses, "poses", allow_outside_stroke)
     checks.finite_float(k, "coverage factor k", 0.0, low_open=True)
-    checks.choice(distribution, "distribution", ("normal", "truncated"))
+    checks.choice(distribution, "distribution", DISTRIBUTIONS)
+    if distribution == "truncated" and machine.correlation is not None:
+        raise InputError("distribution='truncated': the exact linear probability of "
+                         "truncated-normal errors assumes independent errors, but this "
+                         "machine's errors are correlated (machine.correlation); use "
+                         "distribution='normal'")
     checks.require_size(len(poses), 6 * 6 * 8, budget,
                         "the FOSM results (mean, σ, β and probabilities per pose and output)",
                         "evaluate fewer poses per call (split the pose set into chunks)")
@@ -324,6 +349,9 @@ def fosm(machine, tolerances, poses, *, k: float = 3.0, means=None,
             part_means = error_means if error_means.ndim == 1 else error_means[part]
             mean[part] = machine.comprehensive_error(poses[part], part_means)  # Eq. (20)
     fields = FosmResult.reliability_fields(machine.limits, sigma, mean)
+    if distribution == "truncated":
+        fields["exact_two_sided"] = exact_linear_two_sided(
+            machine, poses, t, k, mean, jacobian=jacobian, memory=memory)
     worst = worst_poses(machine.limits, sigma, mean, poses)
     rows = np.arange(len(OUTPUTS))
     worst_jacobian = machine.jacobian(poses[worst]) if jacobian is None else jacobian[worst]
@@ -366,6 +394,20 @@ def pose_sigma(machine, poses, sigma_x, *, jacobian=None, memory: int | None = N
         else:
             sigma[part] = np.sqrt(np.square(jacobian[part]) @ variance_x)  # Eq. (20)
     return sigma
+
+
+def exact_linear_two_sided(machine, poses, tolerances, k, mean, *, jacobian=None,
+                           memory: int | None = None) -> np.ndarray:
+    """Exact ``P(|μ + Σ_i J_oi x_i| < I_o)`` at every pose for independent errors
+    ``x_i`` ~ N(0, (t_i/k)²) truncated at ±t_i, ``(n_poses, 6)``
+    (:func:`reliability.linear_exact.linear_two_sided`), in chunks of poses."""
+    scale_x = np.asarray(tolerances, dtype=float) / k  # the untruncated σ of each error
+    out = np.empty((len(poses), len(OUTPUTS)))
+    for part in chunks(len(poses), jacobian_bytes(machine), memory):
+        part_jacobian = machine.jacobian(poses[part]) if jacobian is None else jacobian[part]
+        out[part] = linear_two_sided(machine.limits, np.abs(part_jacobian) * scale_x, k=k,
+                                     mean=mean[part], memory=memory)
+    return out
 
 
 def _contributions(machine, worst_rows, sigma_x) -> pd.DataFrame:

@@ -41,11 +41,14 @@ def _verdict_table(result) -> pd.DataFrame:
     rows = np.arange(len(OUTPUTS))
     worst = result.worst_pose
     sigma = [f"{s:.4g} {u}" for s, u in zip(result.sigma[worst, rows], OUTPUT_UNITS)]
+    exact = {} if result.distribution == "normal" else \
+        {"P worst exact linear": result.exact_two_sided.min(axis=0).round(6)}
     return pd.DataFrame({
         "limit": output_limits_text(result.limits),
         "target": result.targets,
         "P worst 2-sided": result.worst("two_sided").round(6),
         "P worst 1-sided": result.worst("one_sided").round(6),
+        **exact,
         "P mean 2-sided": result.workspace_mean("two_sided").round(6),
         "β at worst": result.beta[worst, rows].round(3),
         "σ at worst": sigma,
@@ -69,7 +72,8 @@ def save_fosm(result, path, overwrite: bool = False):
                "poses": result.poses,
                "limits": result.limits, "targets": result.targets, "mean": result.mean,
                "sigma": result.sigma, "beta": result.beta, "one_sided": result.one_sided,
-               "two_sided": result.two_sided, "worst_pose": result.worst_pose,
+               "two_sided": result.two_sided, "exact_two_sided": result.exact_two_sided,
+               "worst_pose": result.worst_pose,
                "contributions": encode_frame(result.contributions)}
     return save_payload(path, KIND, payload, overwrite)
 
@@ -80,7 +84,9 @@ def load_fosm(cls, path):
     :class:`~reliability.errors.SavedResultError` naming the file and the field.
 
     The saved β and probabilities are checked against ``cls.reliability_fields`` of the
-    saved limits, means and σ.
+    saved limits, means and σ; under the normal reading ``exact_two_sided`` must equal
+    ``two_sided``, and a file written before that field existed loads (the field is
+    ``two_sided``) unless its reading was 'truncated'.
     """
     data = load_payload(path, KIND)
     axes = data.texts("axes", unique=True)
@@ -106,12 +112,29 @@ def load_fosm(cls, path):
                                        "(first pose among ties)")
     contributions = data.frame("contributions", columns=OUTPUTS)
     _check_contributions(data, contributions)
+    distribution = data.text("distribution", ("normal", "truncated"))
+    fields["exact_two_sided"] = _exact_two_sided(data, distribution, fields["two_sided"])
     return cls(poses=poses, limits=limits, targets=targets, mean=mean, sigma=sigma,
                worst_pose=worst, contributions=contributions, axes=axes, units=units,
                machine=data.text("machine"), k=data.number("k", positive=True),
-               distribution=data.text("distribution", ("normal", "truncated")),
+               distribution=distribution,
                frame=data.text("frame", ("tool", "workpiece")) if "frame" in data.data
                else "tool", **fields)
+
+
+def _exact_two_sided(data, distribution: str, two_sided: np.ndarray) -> np.ndarray:
+    """The saved exact linear probability; ``two_sided`` itself under the normal reading
+    (where it is the exact value), also for files written before the field existed."""
+    if "exact_two_sided" not in data.data:
+        if distribution == "truncated":
+            raise data.error("exact_two_sided", "missing (a file of the 'truncated' reading "
+                                                "written before the field existed; recompute "
+                                                "the result)")
+        return two_sided
+    exact = data.array("exact_two_sided", two_sided.shape, low=0.0, high=1.0)
+    if distribution == "normal" and not np.array_equal(exact, two_sided):
+        raise data.error("exact_two_sided", "differs from two_sided under the normal reading")
+    return exact
 
 
 def _check_consistent(data, fields, expected) -> None:

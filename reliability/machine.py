@@ -150,6 +150,7 @@ class Machine:
     correlation: np.ndarray | None = field(default=None, repr=False)
     tolerance_bounds: np.ndarray | None = field(default=None, repr=False)
     frame: str = "tool"
+    distribution: str = "normal"
     _index: Mapping[str, int] = field(init=False, repr=False, compare=False)
 
     def __post_init__(self):
@@ -164,6 +165,9 @@ class Machine:
             object.__setattr__(self, "correlation",
                                check_correlation_matrix(self.correlation, self.error_names))
         kinematics.check_frame(self.frame)
+        if self.distribution not in DISTRIBUTIONS:
+            raise InputError(f"distribution must be 'normal' or 'truncated'; got "
+                             f"{self.distribution!r}")
         if self.tolerance_bounds is not None:
             object.__setattr__(self, "tolerance_bounds",
                                _checked_bounds(self.tolerance_bounds, self.error_names))
@@ -401,6 +405,7 @@ def machine_from_dict(data: Mapping, source: str = "machine") -> Machine:
         tolerance_bounds=None if "bounds" not in data else
         _parse_bounds(data["bounds"], error_names(names), source),
         frame=_parse_frame(requirements.get("frame", "tool"), f"{source}: requirements.frame"),
+        distribution=_parse_distribution(requirements, source),
     )
     if "correlation" in data:
         machine = parse_correlation(machine, data["correlation"], source)
@@ -530,7 +535,7 @@ def _parse_stroke(entry, full_turn: bool, where: str, kind: str) -> tuple[float,
 
 def _parse_requirements(table, source: str) -> tuple[np.ndarray, np.ndarray]:
     where = f"{source}: requirements"
-    _only_keys(table, set(OUTPUTS) | {"frame"}, where)
+    _only_keys(table, set(OUTPUTS) | {"frame", "distribution"}, where)
     limits, targets = [], []
     for output in OUTPUTS:
         entry = _require(table, output, where)
@@ -549,6 +554,20 @@ def _parse_frame(value, where: str) -> str:
     if value not in kinematics.FRAMES:
         raise MachineDescriptionError(f"{where}: expected \"tool\" (Eq. 18, turns with the "
                                       f"rotary axes) or \"workpiece\"; got {value!r}")
+    return value
+
+
+#: Readings of a tolerance t: σ = t/3 of a normal, or that normal truncated at ±t.
+DISTRIBUTIONS = ("normal", "truncated")
+
+
+def _parse_distribution(table, source: str) -> str:
+    """``[requirements] distribution``: how every computation of the study reads a
+    tolerance (``"normal"`` by default)."""
+    value = table.get("distribution", "normal")
+    if value not in DISTRIBUTIONS:
+        raise MachineDescriptionError(f"{source}: requirements.distribution: expected "
+                                      f"'normal' or 'truncated'; got {value!r}")
     return value
 
 
@@ -664,6 +683,8 @@ def machine_to_dict(machine: Machine) -> dict:
     }
     if not any(machine.tool_offset):
         del table["tool_offset"]
+    if machine.distribution != "normal":
+        table["requirements"]["distribution"] = machine.distribution
     if machine.correlation is not None:
         table["correlation"] = correlation_to_toml(machine)
     if machine.tolerance_bounds is not None:

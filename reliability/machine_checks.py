@@ -186,9 +186,17 @@ def describe(machine) -> str:
              _axis_table(machine).to_string(index=False),
              f"Tool offset: {_vector(machine.tool_offset)} mm", "",
              "Requirements (|error| < limit with probability ≥ target)",
-             _requirement_table(machine).to_string(), "",
+             _requirement_table(machine).to_string(), _distribution_line(machine), "",
              _initial_line(machine), _cost_line(machine)]
     return "\n".join(lines)
+
+
+def _distribution_line(machine) -> str:
+    """How a tolerance t is read in every computation of the study."""
+    if machine.distribution == "truncated":
+        return ("Tolerances read as normal with σ = t/3 truncated at ±t (distribution = "
+                "'truncated')")
+    return "Tolerances read as normal with σ = t/3 (distribution = 'normal')"
 
 
 def _axis_table(machine) -> pd.DataFrame:

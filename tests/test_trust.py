@@ -203,7 +203,8 @@ def test_result_objects_print_readable_summaries(mill3):
     assert "ProportionEstimate(" not in text
     assert "0.9935" in text and "clopper-pearson" in text and "2000 trials" in text
     check = verify(mill3, mill3.initial_allocation, points=3, repeats=2, samples=200, rng=1)
-    assert "worst_fosm_truncated" in repr(check) and "grid_fosm_normal" in repr(check)
+    assert "worst_exact_linear" in repr(check) and "grid_fosm" in repr(check)
+    assert "σ = t/3 (not truncated)" in repr(check)  # the reading of the study, named
 
 
 def test_reproduce_paper_refuses_bad_options_in_one_line(tmp_path, capsys):

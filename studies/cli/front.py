@@ -44,6 +44,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     options.add_bounds(parser)
     options.add_points(parser)
     options.add_frame(parser)
+    options.add_distribution(parser)
     parser.add_argument("--out", type=Path, default=None, help="write the table as CSV")
     parser.add_argument("--overwrite", action="store_true",
                         help="replace an existing --out file")
@@ -72,7 +73,8 @@ def run(args) -> int:
     shown["relative_gap"] = [gap_bound(g) for g in shown["relative_gap"]]
     reached = shown[front["feasible"]]
     print(f"certified front ({args.side}, {box}, every target at every pose of the "
-          f"{args.points}-point grid); failure = 1 − target; relative_gap is an upper bound")
+          f"{args.points}-point grid; {options.reading_text(machine)}); failure = 1 − "
+          f"target; relative_gap is an upper bound")
     print(reached.to_string(index=False, formatters={
         "target": target_text, "failure": "{:.3g}".format}, float_format="{:.6g}".format))
     missed = front.loc[~front["feasible"], "target"]

@@ -21,6 +21,7 @@ from reliability.kinematics import FRAMES
 from reliability.machine import load_machine
 
 SIDE_CHOICES = ("one_sided", "two_sided")
+DISTRIBUTION_CHOICES = ("normal", "truncated")
 
 
 # ----- argument types (argparse reports their errors as one line, exit 2) ---------------
@@ -89,6 +90,15 @@ def add_side(parser) -> None:
     parser.add_argument("--side", choices=SIDE_CHOICES, default="two_sided",
                         help="probability reading: exact two-sided P(|y| < I) (default) or "
                              "the paper's one-sided Phi(beta)")
+
+
+def add_distribution(parser) -> None:
+    """``--distribution``: the reading of a tolerance for every computation of the
+    command; the machine file's ``[requirements] distribution`` by default."""
+    parser.add_argument("--distribution", choices=DISTRIBUTION_CHOICES, default=None,
+                        help="reading of a tolerance t: normal with sigma = t/3, or that "
+                             "normal truncated at +-t (default: the machine file's "
+                             "[requirements] distribution, else normal)")
 
 
 def add_points(parser, default: int = 5) -> None:
@@ -165,10 +175,19 @@ def add_frame(parser) -> None:
 
 def machine(args):
     """Load ``args.machine`` (a MachineDescriptionError or OSError names the file), in the
-    frame ``--frame`` asks for when the command has that option."""
+    frame of ``--frame`` and with the reading of ``--distribution`` when the command has
+    those options and they are given."""
     loaded = load_machine(args.machine)
-    frame = getattr(args, "frame", None)
-    return loaded if frame is None else dataclasses.replace(loaded, frame=frame)
+    chosen = {name: getattr(args, name, None) for name in ("frame", "distribution")}
+    chosen = {name: value for name, value in chosen.items() if value is not None}
+    return dataclasses.replace(loaded, **chosen) if chosen else loaded
+
+
+def reading_text(machine) -> str:
+    """The study's reading of a tolerance, as printed beside every answer."""
+    return ("tolerances read as normal, sigma = t/3, truncated at +-t (distribution "
+            "'truncated')" if machine.distribution == "truncated" else
+            "tolerances read as normal, sigma = t/3 (distribution 'normal')")
 
 
 def read_tolerances(path, machine) -> np.ndarray:

@@ -25,6 +25,7 @@ def add_parser(subparsers):
     options.add_points(parser)
     options.add_frame(parser)
     options.add_side(parser)
+    options.add_distribution(parser)
     return parser
 
 
@@ -32,11 +33,12 @@ def run(args) -> int:
     machine = options.machine(args)
     t = machine.initial_allocation if args.tolerances is None else \
         options.read_tolerances(args.tolerances, machine)
-    result = fosm(machine, t, workspace_grid(machine, args.points))
+    result = fosm(machine, t, workspace_grid(machine, args.points),
+                  distribution=machine.distribution)
     source = "initial allocation" if args.tolerances is None else args.tolerances
     print(f"FOSM of the {source} of {machine.name!r} over the {args.points}-point grid "
           f"({len(result.poses)} poses); target judged {args.side.replace('_', '-')}; "
-          f"outputs in the {machine.frame} frame\n")
+          f"outputs in the {machine.frame} frame; {options.reading_text(machine)}\n")
     print(prediction_table(machine, result, args.side).to_string())
     failing = [o for o, met in zip(OUTPUTS, result.meets_targets(args.side))
                if not met]
@@ -61,6 +63,8 @@ def prediction_table(machine, result, side: str) -> pd.DataFrame:
             "beta": f"{row['beta']:.4f}",
             "P one-sided": options.percent(row["worst_one_sided"]),
             "P two-sided": options.percent(row["worst_two_sided"]),
+            **({"P exact linear": options.percent(row["exact_two_sided"])}
+               if result.distribution == "truncated" else {}),
             "meets": "yes" if row[f"meets_{side}"] else "NO",
             "top contributors (% of variance)": top_contributors(
                 result.contributions, output),

@@ -28,6 +28,7 @@ def add_parser(subparsers):
     options.add_frame(parser)
     options.add_side(parser)
     options.add_bounds(parser)
+    options.add_distribution(parser)
     parser.add_argument("--skip", nargs="+", default=(), choices=EXTRAS, metavar="SECTION",
                         help="leave out optional sections: " + ", ".join(EXTRAS)
                              + " (default: include all)")

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import dataclasses
 import sys
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
@@ -17,6 +18,8 @@ from tqdm import tqdm
 
 from reliability.errors import InputError
 from studies.workflows.sweep import RESULTS_FILE, SweepSpec, run_sweep
+
+from . import options
 
 EXECUTORS = ("serial", "processes", "dask")
 
@@ -36,6 +39,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                              "of CPUs for processes)")
     parser.add_argument("--scheduler", default=None,
                         help="address of a running Dask scheduler (with --executor dask)")
+    options.add_distribution(parser)
     return parser
 
 
@@ -43,6 +47,8 @@ def run(args) -> int:
     """Run the sweep; prints the resumed count and where the results are."""
     _check(args)
     spec = SweepSpec.from_toml(args.spec)
+    if args.distribution is not None:  # the command line overrides the spec's reading
+        spec = dataclasses.replace(spec, distribution=args.distribution)
     total = len(spec.tasks())
     with _executor(args) as executor, tqdm(total=total, file=sys.stderr, unit="task",
                                           desc="sweep") as bar:

@@ -18,7 +18,7 @@ def add_parser(subparsers):
                     "from the spread between experiments), "
                     "random poses (Wilson interval) and Monte-Carlo at each output's worst "
                     "pose (Wilson interval), each beside the FOSM prediction. Errors are "
-                    "drawn normal, sigma = t/3, truncated at +-t.")
+                    "drawn under the study's reading of a tolerance (--distribution).")
     options.add_machine(parser)
     parser.add_argument("--tolerances", required=True, metavar="CSV",
                         help="allocation (columns error, allocated), e.g. from 'allocate'")
@@ -42,6 +42,7 @@ def add_parser(subparsers):
                                           "(default 20000)")
     options.add_points(parser)
     options.add_frame(parser)
+    options.add_distribution(parser)
     return parser
 
 
@@ -53,8 +54,7 @@ def run(args) -> int:
                     bar=options.progress_bar)
     print(f"Monte-Carlo verification of {args.tolerances} on {machine.name!r} "
           f"(seed {args.seed}); outputs in the {machine.frame} frame; two-sided "
-          f"probabilities in %; Monte-Carlo errors drawn "
-          f"normal with sigma = t/3 truncated at +-t\n")
+          f"probabilities in %; Monte-Carlo and FOSM with {options.reading_text(machine)}\n")
     print(report_tables(machine, result))
     worst = result.worst_poses
     short = worst[worst["mc_upper"] < machine.targets]["output"].tolist()
@@ -82,7 +82,8 @@ def precision_text(machine, tolerances, precision: float, max_samples: int, *, r
     if not events:
         return note.lstrip("\n")
     result = sample_at_poses(machine, tolerances, precision=precision,
-                             max_samples=max_samples, events=events, rng=rng)
+                             max_samples=max_samples, events=events, rng=rng,
+                             distribution=machine.distribution)
     return result.summary() + note
 
 
@@ -92,7 +93,7 @@ def rare_text(machine, tolerances, args, *, rng) -> str:
                              target_cov=args.target_cov,
                              max_evaluations=args.max_evaluations, rng=rng)
     return (f"Failure probability at each event's worst grid pose ({args.rare_method}, exact "
-            f"model, normal errors):\n"
+            f"model, {machine.distribution} errors):\n"
             + table.drop(columns=["distribution"]).to_string(float_format="{:.4g}".format))
 
 
@@ -100,14 +101,14 @@ def report_tables(machine, result) -> str:
     """The three comparisons as text tables."""
     grid = result.grid_comparison
     grid_table = pd.DataFrame({
-        "FOSM grid mean, normal errors": _pct(grid["fosm_two_sided"]),
+        "FOSM grid mean": _pct(grid["fosm_two_sided"]),
         "MC mean": _pct(grid["mc_estimate"]),
         "95% Wilson (Kish n_eff)": _interval(grid["mc_lower"], grid["mc_upper"]),
-        "FOSM worst pose, normal errors": _pct(grid["fosm_worst_two_sided"]),
+        "FOSM worst pose": _pct(grid["fosm_worst_two_sided"]),
     }, index=pd.Index(grid["output"], name="output"))
     random = result.random_poses
     random_table = pd.DataFrame({
-        "FOSM, normal errors": _pct(random["fosm_two_sided"]),
+        "FOSM": _pct(random["fosm_two_sided"]),
         "MC": _pct(random["estimate"]),
         "95% Wilson": _interval(random["lower"], random["upper"]),
     }, index=pd.Index(random["output"], name="output"))
@@ -115,7 +116,8 @@ def report_tables(machine, result) -> str:
     worst_table = pd.DataFrame({
         "worst pose": [options.pose_text(machine, row) for row in
                        worst[list(machine.axes)].to_numpy()],
-        "FOSM, truncated errors": _pct(worst["fosm_two_sided"]),
+        "FOSM": _pct(worst["fosm_two_sided"]),
+        "exact linear": _pct(worst["exact_linear"]),
         "MC": _pct(worst["mc_estimate"]),
         "95% Wilson": _interval(worst["mc_lower"], worst["mc_upper"]),
     }, index=pd.Index(worst["output"], name="output"))

@@ -57,7 +57,8 @@ def rare(study, samples: int = 100_000):
     initial one when the targets are out of reach)."""
     label, tolerances = list(allocations(study).items())[-1]
     return rare_section(study.machine, tolerances, label=label,
-                        samples=samples, rng=extra_stream(study.seed, 1))
+                        samples=samples, distribution=study.machine.distribution,
+                        rng=extra_stream(study.seed, 1))
 
 
 def profiles(study, repeats: int = 200):

@@ -43,9 +43,10 @@ def answers(study: MachineStudy) -> str:
     frame = ("tool frame (Eq. 18, turning with the rotary axes)"
              if machine.frame == "tool" else "workpiece frame (δ_w = R δ_t, ε_w = R ε_t)")
     choices = (f"Choices behind every number below: outputs in the {frame}; a "
-               f"tolerance t read as a normal error with σ = t/3 (FOSM and allocation; the "
-               f"Monte-Carlo draws it truncated at ±t); {reading}; "
-               f"{box_text(study)}; cost Eq. 28, {cost_units_text(study.problem.cost)}.\n")
+               f"tolerance t read as {_reading(machine)} (FOSM, allocation and Monte-Carlo "
+               f"alike; distribution '{machine.distribution}'); {reading}; workspace: the "
+               f"{study.points}-point grid; {box_text(study)}; cost Eq. 28, "
+               f"{cost_units_text(study.problem.cost)}.\n")
     if not study.reachable:
         return "\n".join([choices, f"- Does the initial allocation meet the targets? {meets}.",
                           unreachable_text(study)])
@@ -184,7 +185,8 @@ def fosm_section(study: MachineStudy) -> Section:
         tables["fosm_optimum.csv"] = fosm_table(study.machine, study.optimal_fosm, study.side)
     formats = {"beta": "{:.4f}".format, "worst_one_sided": PERCENT,
                "worst_two_sided": PERCENT}
-    text = (f"First-order second-moment reliability (Eqs. 19–23, normal errors) at each "
+    text = (f"First-order second-moment reliability (Eqs. 19–23; tolerances read as "
+            f"{_reading(study.machine)}) at each "
             f"output's worst pose of the {study.points}-point grid, given as axis positions "
             f"(mm, rotary axes in degrees); `sigma` in the output's `unit`; "
             f"`top_contributors` are the errors with the largest share of the output's "
@@ -282,8 +284,8 @@ def verification_section(study: MachineStudy) -> Section:
                                     "fosm_worst_two_sided", "estimate", "lower", "upper")}
     check = study.checks[_last_checked(study)]
     text = "\n\n".join([
-        "Errors drawn normal with σ = t/3, truncated at ±t. Three checks of the FOSM "
-        "prediction, each with a 95 % interval:",
+        f"Errors drawn {_reading(machine)}, and FOSM with the same reading. Three checks "
+        f"of the FOSM prediction, each with a 95 % interval:",
         f"Grid experiments ({check.grid.repeats} per allocation, {check.grid.n_poses} poses "
         f"each; one error draw per experiment shared by its poses): mean share of poses in "
         f"tolerance, Wilson interval on the effective sample size from the spread between "
@@ -298,11 +300,12 @@ def verification_section(study: MachineStudy) -> Section:
                                              "estimate", "lower", "upper"]], percent,
                        index=False),
         "At each output's FOSM worst grid pose (mm, rotary axes in degrees), Wilson "
-        "interval, beside FOSM with the σ of the truncated draws (`fosm_two_sided` here is "
-        "FOSM, truncated errors; above it is FOSM, normal errors):",
+        "interval, beside FOSM and the exact probability of the linearised output "
+        "(`exact_linear`; equal to FOSM under the normal reading):",
         markdown_table(worst.reset_index()[["allocation", "output", *pose_columns_of(machine),
-                                            "fosm_two_sided", "mc_estimate", "mc_lower",
-                                            "mc_upper"]], percent, index=False)])
+                                            "fosm_two_sided", "exact_linear", "mc_estimate",
+                                            "mc_lower", "mc_upper"]],
+                       {**percent, "exact_linear": PERCENT}, index=False)])
     return Section("Monte-Carlo verification", text,
                    figures=_verification_figures(study, grid, repeats),
                    tables={"fosm_vs_mc.csv": grid, "random_pose.csv": random,
@@ -329,6 +332,12 @@ def _shown_poses(machine, frame: pd.DataFrame) -> pd.DataFrame:
     for i, column in enumerate(shown):
         out.insert(1 + i, column, shown[column].to_numpy())
     return out
+
+
+def _reading(machine) -> str:
+    """The study's reading of a tolerance t, in words."""
+    return ("a normal error with σ = t/3 truncated at ±t" if machine.distribution ==
+            "truncated" else "a normal error with σ = t/3")
 
 
 def _verification_figures(study, grid, repeats) -> dict:

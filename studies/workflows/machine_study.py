@@ -113,7 +113,8 @@ def run(machine, *, points: int = 5, side: str = "two_sided", bounds=None,
     progress(f"FOSM of the initial allocation on the {points}-point grid")
     problem = AllocationProblem.build(machine, workspace_grid(machine, points), side=side,
                                       bounds=bounds)
-    initial = fosm(machine, problem.reference, problem.poses, jacobian=problem.jacobian)
+    initial = fosm(machine, problem.reference, problem.poses, jacobian=problem.jacobian,
+                   distribution=machine.distribution)
     progress("certified cheapest allocation (convex solver)")
     verified = [("initial", problem.reference, initial)]
     optimum = optimal = unreachable = None
@@ -124,7 +125,8 @@ def run(machine, *, points: int = 5, side: str = "two_sided", bounds=None,
         progress(f"targets out of reach in the box: {exc}")
     if optimum is not None:
         written = as_written(optimum.tolerances)
-        optimal = fosm(machine, written, problem.poses, jacobian=problem.jacobian)
+        optimal = fosm(machine, written, problem.poses, jacobian=problem.jacobian,
+                       distribution=machine.distribution)
         verified.append(("optimum", written, optimal))
     checks = {}
     for name, t, prediction in verified:
@@ -154,6 +156,8 @@ def summary(study: MachineStudy) -> dict:
         "points_per_axis": study.points,
         "side": study.side,
         "frame": study.machine.frame,
+        "distribution": study.machine.distribution,
+        "workspace": "grid",
         "bounds": None if study.bounds is None else list(study.bounds),
         "bounds_source": BOUNDS_SOURCES[study.problem.bounds_source],
         "reachable": study.reachable,

@@ -53,7 +53,8 @@ PAPER_MACHINE = "hobbing"
 INDEPENDENT = "independent"
 SIDES = ("one_sided", "two_sided")
 SPEC_KEYS = {"machines", "sides", "targets", "profiles", "seeds", "repeats",
-             "points_per_axis", "bounds", "catalogue"}
+             "points_per_axis", "bounds", "catalogue", "distribution"}
+DISTRIBUTIONS = ("normal", "truncated")
 RESULTS_FILE = "results.csv"
 TASKS_FOLDER = "tasks"
 
@@ -82,6 +83,9 @@ class SweepTask:
         machine file's ``[bounds]``, else [0.5, 1.5].
     catalogue : str or None
         A catalogue file: the allocation is then its certified cheapest choice of classes.
+    distribution : {'normal', 'truncated'} or None
+        The reading of a tolerance for the allocation and the verification; None: the
+        machine file's (``[requirements] distribution``).
     """
 
     machine: str
@@ -93,13 +97,17 @@ class SweepTask:
     points_per_axis: int
     bounds: tuple[float, float] | None = None
     catalogue: str | None = None
+    distribution: str | None = None
 
     def parameters(self, machine=None) -> dict:
         """The task's parameters as stored and hashed: the machine and the catalogue by
-        their content (without a catalogue, exactly the parameters of a plain sweep)."""
+        their content (a task without a catalogue or a ``distribution`` of its own hashes
+        as before those keys existed)."""
         machine = _load_machine(self.machine) if machine is None else machine
         parameters = dict(asdict(self), machine_fingerprint=machine_fingerprint(machine))
         del parameters["catalogue"]
+        if self.distribution is None:
+            del parameters["distribution"]
         if self.catalogue is not None:
             parameters.update(catalogue=self.catalogue,
                               catalogue_fingerprint=catalogue_fingerprint(self.catalogue))
@@ -112,7 +120,9 @@ class SweepSpec:
 
     Build from a TOML file with :meth:`from_toml` (keys as the attributes). ``bounds`` is
     one box ``[LO, HI]`` (factors of the initial allocation) for every task; without it
-    each machine's own ``[bounds]`` table, else [0.5, 1.5].
+    each machine's own ``[bounds]`` table, else [0.5, 1.5]. ``distribution``
+    (``"normal"`` or ``"truncated"``) is one reading of a tolerance for every task, by
+    default each machine file's own.
     """
 
     machines: tuple[str, ...]
@@ -124,6 +134,7 @@ class SweepSpec:
     points_per_axis: int = 5
     bounds: tuple[float, float] | None = None
     catalogue: str | None = None
+    distribution: str | None = None
 
     def __post_init__(self):
         for name in ("machines", "sides", "targets", "profiles", "seeds", "repeats"):
@@ -135,6 +146,9 @@ class SweepSpec:
                 raise InputError(f"sweep spec: {name!r} is empty; give at least one entry")
             object.__setattr__(self, name, value)
         object.__setattr__(self, "bounds", _check_bounds(self.bounds))
+        if self.distribution is not None and self.distribution not in DISTRIBUTIONS:
+            raise InputError(f"sweep spec: distribution {self.distribution!r} must be "
+                             f"'normal' or 'truncated'")
         _check_spec(self)
 
     @classmethod
@@ -172,7 +186,8 @@ class SweepSpec:
     def tasks(self) -> list[SweepTask]:
         """Every combination, machines slowest and repeats fastest."""
         return [SweepTask(machine, side, float(target), profile, int(seed), int(repeats),
-                          int(self.points_per_axis), self.bounds, self.catalogue)
+                          int(self.points_per_axis), self.bounds, self.catalogue,
+                          self.distribution)
                 for machine, side, target, profile, seed, repeats in itertools.product(
                     self.machines, self.sides, self.targets, self.profiles, self.seeds,
                     self.repeats)]
@@ -243,11 +258,14 @@ def run_task(task: SweepTask, allocated: dict | None = None) -> dict:
                     "bounds_source": allocated["bounds_source"],
                     "relative_cost": None, "certified": False,
                     "fraction": [None] * len(OUTPUTS), "yield": None, **chosen}
-        experiment = _experiment(machine, task.target, task.points_per_axis, task.profile)
+        experiment = _experiment(machine, task.target, task.points_per_axis, task.profile,
+                                 task.distribution)
         rng = verification_streams(task.seed)[0]
         verified = experiment.run(allocated["tolerances"], repeats=task.repeats, rng=rng,
-                                  keep_values="none")
+                                  keep_values="none",
+                                  distribution=experiment.machine.distribution)
     return {"status": "ok", "reason": "", "bounds_source": allocated["bounds_source"],
+            "distribution": experiment.machine.distribution,
             "relative_cost": allocated["relative_cost"],
             "certified": allocated["certified"],
             "fraction": verified.fractions.mean(axis=0).tolist(),
@@ -325,6 +343,7 @@ def results_frame(tasks, results) -> pd.DataFrame:
             del row["catalogue"]
         row["bounds_low"], row["bounds_high"] = row.pop("bounds") or (None, None)
         row["bounds_source"] = result.get("bounds_source", "")
+        row["distribution"] = result.get("distribution", task.distribution)
         row["status"] = result["status"]
         row["reason"] = result.get("reason", "")
         row["relative_cost"] = result["relative_cost"]
@@ -441,16 +460,19 @@ def _load_machine(name: str):
 # The caches below are keyed by (file name, fingerprint of its content): a machine file
 # edited during a session is a new machine.
 @functools.lru_cache(maxsize=64)
-def _task_machine(machine: tuple[str, str], target: float):
-    """The machine with every output's target set to ``target``."""
-    return replace(_load_machine(machine[0]), targets=np.full(len(OUTPUTS), float(target)))
+def _task_machine(machine: tuple[str, str], target: float, distribution: str | None = None):
+    """The machine with every output's target set to ``target`` and, when given, the
+    reading ``distribution``."""
+    loaded = _load_machine(machine[0])
+    return replace(loaded, targets=np.full(len(OUTPUTS), float(target)),
+                   distribution=distribution or loaded.distribution)
 
 
 def _allocation_key(task: SweepTask, fingerprint: str) -> tuple:
     """What a task's allocation depends on (tasks differing only in profile, seed or
     repeats share it)."""
     key = (task.machine, fingerprint, task.side, task.target, task.points_per_axis,
-           task.bounds)
+           task.bounds, task.distribution)
     if task.catalogue is None:
         return key
     return key + (task.catalogue, catalogue_fingerprint(task.catalogue))
@@ -459,7 +481,7 @@ def _allocation_key(task: SweepTask, fingerprint: str) -> tuple:
 @functools.lru_cache(maxsize=64)
 def solve_allocation(name: str, fingerprint: str, side: str, target: float,
                      points: int, bounds: tuple[float, float] | None = None,
-                     catalogue: str | None = None,
+                     distribution: str | None = None, catalogue: str | None = None,
                      catalogue_content: str | None = None) -> dict:
     """Certified optimum of one machine (file ``name`` with content ``fingerprint``) and
     reading in the box ``bounds`` (None: the machine file's, else the default factors):
@@ -469,7 +491,7 @@ def solve_allocation(name: str, fingerprint: str, side: str, target: float,
     ``price`` and ``choice`` (``bounds_source`` is then ``"catalogue classes"``).
     Deterministic, so solving it anywhere, once or many times, gives the same numbers."""
     with threadpool_limits(limits=1):
-        machine = _task_machine((name, fingerprint), target)
+        machine = _task_machine((name, fingerprint), target, distribution)
         problem = AllocationProblem.build(machine, workspace_grid(machine, points),
                                           side=side, bounds=bounds)
         try:
@@ -515,5 +537,6 @@ def _catalogue(path: str, content: str):
 
 @functools.lru_cache(maxsize=64)
 def _experiment(machine: tuple[str, str], target: float, points: int,
-                profile: str) -> GridExperiment:
-    return GridExperiment(_task_machine(machine, target), points, profile=profile)
+                profile: str, distribution: str | None = None) -> GridExperiment:
+    return GridExperiment(_task_machine(machine, target, distribution), points,
+                          profile=profile)
