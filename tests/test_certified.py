@@ -110,3 +110,34 @@ def test_bad_inputs(mill3):
     with pytest.raises(InputError, match="correlated"):
         certified_worst(mill3.with_correlation({("X.dx", "Y.dx"): 0.5}),
                         mill3.initial_allocation)
+
+
+def test_verify_samples_at_the_certified_worst_poses(trunnion5, trunnion_table):
+    """verify(worst_poses=...) samples each output at its certified worst pose under the
+    study's reading and says whether the interval reaches the target; the exact linear
+    probability there is the one FOSM gives at that pose."""
+    from reliability.verification import verify
+
+    poses = trunnion_table[list(trunnion5.axes)].to_numpy()
+    check = verify(trunnion5, trunnion5.initial_allocation, points=3, repeats=2,
+                   samples=2000, rng=4, worst_poses=poses, distribution="truncated")
+    worst = check.worst_poses
+    np.testing.assert_array_equal(worst[list(trunnion5.axes)].to_numpy(), poses)
+    assert check.distribution == "truncated"
+    np.testing.assert_array_equal(worst["reaches_target"],
+                                  worst["mc_upper"] >= trunnion5.targets)
+    with pytest.raises(InputError, match="worst_poses"):
+        verify(trunnion5, trunnion5.initial_allocation, points=3, repeats=1, samples=10,
+               worst_poses=poses[:2])
+
+
+def test_cli_certify(capsys):
+    from pathlib import Path
+
+    from studies import cli
+
+    mill = str(Path(__file__).parent / "machines" / "mill3.toml")
+    assert cli.main(["predict", mill, "--points", "3", "--certify"]) == 0
+    out = capsys.readouterr().out
+    assert "certified to 0.001 in sigma" in out and "sigma bound" in out
+    assert cli.main(["predict", mill, "--certify", "--rtol", "2"]) == 2
