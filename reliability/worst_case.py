@@ -6,7 +6,8 @@ axis.
 FOSM's σ varies smoothly with the pose, so the grid can miss a slightly worse pose between
 its points. This module starts a bounded local search (L-BFGS-B on σ over the strokes) from
 each output's worst grid poses and reports how much worse the continuous workspace is.
-The search uses the analytic gradient of σ
+:func:`certified_worst` (:mod:`reliability.certified`) bounds σ over the whole stroke box
+rigorously instead (docs/certified-workspace.md). The search uses the analytic gradient of σ
 (:func:`reliability.kinematics.jacobian_and_derivative`), and σ over the grid can be passed
 in when the caller already has it, so the grid is not evaluated again.
 """
@@ -18,11 +19,14 @@ import pandas as pd
 from scipy.optimize import minimize
 
 from . import checks
+from .certified import certified_worst
 from .errors import InputError
 from .fosm import error_sigma, one_sided_probability, pose_sigma, two_sided_probability
 from .kinematics import jacobian_and_derivative
 from .machine import OUTPUTS
 from .ties import SEARCH_RTOL, worst_rows
+
+__all__ = ["certified_worst", "continuous_worst", "snap_to_resolution", "worst_first"]
 
 #: Resolution of a searched pose, as a fraction of each axis' stroke.
 POSE_RESOLUTION = 1e-4
