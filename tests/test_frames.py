@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from reliability.errors import MachineDescriptionError
+from reliability.errors import InputError, MachineDescriptionError
 from reliability.fosm import fosm
 from reliability.kinematics import ideal_rotation, jacobian_and_derivative
 from reliability.machine import load_machine, machine_from_dict
@@ -114,3 +114,10 @@ def test_frame_is_read_and_refused_by_name(tmp_path):
         load_machine(path)
     machine = load_machine(GANTRY)
     assert machine_from_dict(tomllib.loads(machine.to_toml())) == machine
+
+
+def test_the_continuous_certificate_refuses_the_workpiece_frame_by_name(gantry):
+    from reliability.worst_case import certified_worst
+
+    with pytest.raises(InputError, match="'workpiece' frame"):
+        certified_worst(gantry, gantry.initial_allocation)
