@@ -62,7 +62,8 @@ def answers(study: MachineStudy) -> str:
     tighten, relax = (_changes_text(changes.drop(free, errors="ignore"))
                       for changes in tolerance_changes(study))
     free_note = (f"- {len(free)} items sit at a bound carrying under 0.1 % of the cost each "
-                 f"(nearly free in {cost_units_text(study.problem.cost)}): their tolerance is "
+                 f"(nearly free with t in {' and '.join(study.problem.cost.units or ('mm', 'rad'))}"
+                 f" inside the cost): their tolerance is "
                  f"decided by the box, not by cost, so they are left out of the advice "
                  f"below." if free else "")
     return "\n".join([
