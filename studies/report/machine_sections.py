@@ -49,8 +49,9 @@ def answers(study: MachineStudy) -> str:
     tighten, relax = (_changes_text(changes) for changes in tolerance_changes(study))
     return "\n".join([
         f"Choices behind every number below: outputs in the tool frame (Eq. 18); a "
-        f"tolerance t read as {_reading(study.machine)} (FOSM, allocation and "
-        f"Monte-Carlo alike; distribution '{study.machine.distribution}'); {reading}; "
+        f"tolerance t read as {_reading(study.machine.distribution)} by FOSM and the "
+        f"allocation (distribution '{study.machine.distribution}'), and drawn as "
+        f"{_reading(study.checks['optimum'].distribution)} by the Monte-Carlo; {reading}; "
         f"workspace: the {study.points}-point grid; search box "
         f"[{study.bounds[0]:g}, {study.bounds[1]:g}] × the initial allocation; cost Eq. 28 "
         f"with t in mm and rad.\n",
@@ -138,7 +139,7 @@ def fosm_section(study: MachineStudy) -> Section:
     formats = {"beta": "{:.4f}".format, "worst_one_sided": PERCENT,
                "worst_two_sided": PERCENT}
     text = (f"First-order second-moment reliability (Eqs. 19–23; tolerances read as "
-            f"{_reading(study.machine)}) at each "
+            f"{_reading(study.machine.distribution)}) at each "
             f"output's worst pose of the {study.points}-point grid, given as axis positions "
             f"(mm, rotary axes in degrees); `sigma` in the output's `unit`; "
             f"`top_contributors` are the errors with the largest share of the output's "
@@ -202,8 +203,8 @@ def verification_section(study: MachineStudy) -> Section:
                                     "fosm_worst_two_sided", "estimate", "lower", "upper")}
     check = study.checks["optimum"]
     text = "\n\n".join([
-        f"Errors drawn {_reading(machine)}, and FOSM with the same reading. Three checks "
-        f"of the FOSM prediction, each with a 95 % interval:",
+        f"Errors drawn as {_reading(check.distribution)}; FOSM beside them with the same "
+        f"reading. Three checks of the FOSM prediction, each with a 95 % interval:",
         f"Grid experiments ({check.grid.repeats} per allocation, {check.grid.n_poses} poses "
         f"each; one error draw per experiment shared by its poses): mean share of poses in "
         f"tolerance, Wilson interval on the effective sample size from the spread between "
@@ -247,10 +248,10 @@ def _shown_poses(machine, frame: pd.DataFrame) -> pd.DataFrame:
     return out
 
 
-def _reading(machine) -> str:
-    """The study's reading of a tolerance t, in words."""
-    return ("a normal error with σ = t/3 truncated at ±t" if machine.distribution ==
-            "truncated" else "a normal error with σ = t/3")
+def _reading(distribution: str) -> str:
+    """A reading of a tolerance t, in words."""
+    return ("a normal error with σ = t/3 truncated at ±t" if distribution == "truncated"
+            else "a normal error with σ = t/3")
 
 
 def _verification_figures(study, grid, repeats) -> dict:
