@@ -295,9 +295,9 @@ class AllocationProblem:
 
     @property
     def spread(self) -> float:
-        """σ of an error per unit of its tolerance: ``1/k``, or under the truncated reading
-        the truncated normal's ``0.9866/k`` (k = 3)."""
-        return float(error_sigma(1.0, self.k, self.distribution))
+        """σ of an error per unit of its tolerance over ``1/k``: 1 under the normal reading,
+        the truncated normal's 0.9866 (k = 3) under the truncated one."""
+        return float(error_sigma(1.0, self.k, self.distribution)) * self.k
 
     @property
     def required_index(self) -> np.ndarray:
@@ -310,7 +310,7 @@ class AllocationProblem:
         return self.machine.limits / self.required_index
 
     def row_matrix(self, jacobian=None) -> np.ndarray:
-        """Rows ``J_oi² s² / (I_o/z_o)²`` with ``s`` = :attr:`spread` (``1/k`` under the
+        """Rows ``(J_oi s/k)² / (I_o/z_o)²`` with ``s`` = :attr:`spread` (1 under the
         normal reading), or ``|J_oi| / I_o`` for the stack, as
         ``(n_poses, 6, n_errors)``, of the problem's poses or of the given sensitivities."""
         if jacobian is None:
@@ -318,7 +318,8 @@ class AllocationProblem:
                 else self.jacobian
         if self.side == "stack":
             return np.abs(jacobian) / self.machine.limits[:, None]
-        return np.square(jacobian * self.spread) / np.square(self.allowed_sigma)[:, None]
+        rows = np.square(jacobian / self.k * self.spread)
+        return rows / np.square(self.allowed_sigma)[:, None]
 
     def loads(self, u) -> np.ndarray:
         """Row loads ``row @ u`` of every output at every pose, ``(n_poses, 6)``, in

@@ -371,7 +371,7 @@ class _MeanConstraint:
     """``h_o(u) = mean_p P_o(β_p) − R_o`` with ``β_p = I_o/√(a_p·u)``, and its cuts."""
 
     def __init__(self, problem):
-        self.a = np.square(problem.jacobian * problem.spread)  # (P, 6, n): σ² = a @ u
+        self.a = np.square(problem.jacobian / problem.k * problem.spread)  # σ² = a @ u
         self.limits = problem.machine.limits
         self.targets = problem.machine.targets
         self.side = problem.side

@@ -43,8 +43,10 @@ def answers(study: MachineStudy) -> str:
     frame = ("tool frame (Eq. 18, turning with the rotary axes)"
              if machine.frame == "tool" else "workpiece frame (δ_w = R δ_t, ε_w = R ε_t)")
     choices = (f"Choices behind every number below: outputs in the {frame}; a "
-               f"tolerance t read as {_reading(machine)} (FOSM, allocation and Monte-Carlo "
-               f"alike; distribution '{machine.distribution}'); {reading}; workspace: the "
+               f"tolerance t read as {_reading(machine.distribution)} by FOSM and the "
+               f"allocation (distribution '{machine.distribution}') and drawn as "
+               f"{_reading(next(iter(study.checks.values())).distribution)} by the "
+               f"Monte-Carlo; {reading}; workspace: the "
                f"{study.points}-point grid; {box_text(study)}; cost Eq. 28, "
                f"{cost_units_text(study.problem.cost)}.\n")
     if not study.reachable:
@@ -187,7 +189,7 @@ def fosm_section(study: MachineStudy) -> Section:
     formats = {"beta": "{:.4f}".format, "worst_one_sided": PERCENT,
                "worst_two_sided": PERCENT}
     text = (f"First-order second-moment reliability (Eqs. 19–23; tolerances read as "
-            f"{_reading(study.machine)}) at each "
+            f"{_reading(study.machine.distribution)}) at each "
             f"output's worst pose of the {study.points}-point grid, given as axis positions "
             f"(mm, rotary axes in degrees); `sigma` in the output's `unit`; "
             f"`top_contributors` are the errors with the largest share of the output's "
@@ -285,8 +287,8 @@ def verification_section(study: MachineStudy) -> Section:
                                     "fosm_worst_two_sided", "estimate", "lower", "upper")}
     check = study.checks[_last_checked(study)]
     text = "\n\n".join([
-        f"Errors drawn {_reading(machine)}, and FOSM with the same reading. Three checks "
-        f"of the FOSM prediction, each with a 95 % interval:",
+        f"Errors drawn as {_reading(check.distribution)}; FOSM beside them with the same "
+        f"reading. Three checks of the FOSM prediction, each with a 95 % interval:",
         f"Grid experiments ({check.grid.repeats} per allocation, {check.grid.n_poses} poses "
         f"each; one error draw per experiment shared by its poses): mean share of poses in "
         f"tolerance, Wilson interval on the effective sample size from the spread between "
@@ -335,10 +337,10 @@ def _shown_poses(machine, frame: pd.DataFrame) -> pd.DataFrame:
     return out
 
 
-def _reading(machine) -> str:
-    """The study's reading of a tolerance t, in words."""
-    return ("a normal error with σ = t/3 truncated at ±t" if machine.distribution ==
-            "truncated" else "a normal error with σ = t/3")
+def _reading(distribution: str) -> str:
+    """A reading of a tolerance t, in words."""
+    return ("a normal error with σ = t/3 truncated at ±t" if distribution == "truncated"
+            else "a normal error with σ = t/3")
 
 
 def _verification_figures(study, grid, repeats) -> dict:
