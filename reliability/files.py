@@ -35,7 +35,14 @@ NEW_FILE_MODE, NEW_FOLDER_MODE = 0o666, 0o777
 
 
 def current_umask() -> int:
-    """The process's umask (read by setting it and setting it back)."""
+    """The process's umask: read from ``/proc/self/status`` where the system has it (no
+    change of process state), else by setting it and setting it back."""
+    try:
+        for line in Path("/proc/self/status").read_text().splitlines():
+            if line.startswith("Umask:"):
+                return int(line.split()[1], 8)
+    except OSError:
+        pass
     mask = os.umask(0o022)
     os.umask(mask)
     return mask
