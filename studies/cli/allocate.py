@@ -37,9 +37,8 @@ def add_parser(subparsers):
     parser.add_argument("--target", type=options.probability, metavar="R",
                         help="one reliability target for every output (default: the file's)")
     options.add_points(parser)
-    options.add_frame(parser)
+    options.add_study_model(parser)
     options.add_bounds(parser)
-    options.add_distribution(parser)
     parser.add_argument("--lock", nargs="+", default=(), metavar="NAME",
                         help="errors held at their initial tolerance (e.g. X.dx)")
     parser.add_argument("--method", choices=("exact", "gwo"), default="exact",

@@ -43,8 +43,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                              "(default: 20)")
     options.add_bounds(parser)
     options.add_points(parser)
-    options.add_frame(parser)
-    options.add_distribution(parser)
+    options.add_study_model(parser)
     parser.add_argument("--out", type=Path, default=None, help="write the table as CSV")
     parser.add_argument("--overwrite", action="store_true",
                         help="replace an existing --out file")

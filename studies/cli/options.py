@@ -101,6 +101,24 @@ def add_distribution(parser) -> None:
                              "[requirements] distribution, else normal)")
 
 
+def add_study_model(parser) -> None:
+    """``--frame`` and ``--distribution``: how the command reads the outputs and the
+    tolerances, overriding the machine file's ``[requirements]`` (see :func:`machine`)."""
+    parser.add_argument("--frame", choices=FRAMES, default=None,
+                        help="frame of the six outputs: tool (Eq. 18, turns with the rotary "
+                             "axes) or workpiece (default: the machine file's [requirements] "
+                             "frame, else tool)")
+    add_distribution(parser)
+
+
+def add_certify(parser, what: str) -> None:
+    """``--certify`` (doing ``what``) and its ``--rtol``."""
+    parser.add_argument("--certify", action="store_true", help=what)
+    parser.add_argument("--rtol", type=probability, default=1e-3, metavar="R",
+                        help="relative gap between the certified bound of sigma and sigma "
+                             "at which --certify stops (default 0.001)")
+
+
 def add_points(parser, default: int = 5) -> None:
     parser.add_argument("--points", type=grid_points, default=default, metavar="P",
                         help=f"grid points per axis over each stroke (default {default})")
@@ -164,13 +182,6 @@ def destination(path, overwrite: bool, option: str = "--out", *, folder: bool = 
     except FileNotFoundError:
         raise InputError(f"{option} {path}: folder {Path(path).parent} does not "
                          f"exist") from None
-
-
-def add_frame(parser) -> None:
-    parser.add_argument("--frame", choices=FRAMES, default=None,
-                        help="frame of the six outputs: tool (Eq. 18, turns with the rotary "
-                             "axes) or workpiece (default: the machine file's [requirements] "
-                             "frame, else tool)")
 
 
 def machine(args):

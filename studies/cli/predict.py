@@ -25,16 +25,11 @@ def add_parser(subparsers):
                         help="allocation to assess (columns error, allocated, as written by "
                              "'allocate'); default the file's initial allocation")
     options.add_points(parser)
-    options.add_frame(parser)
+    options.add_study_model(parser)
     options.add_side(parser)
-    options.add_distribution(parser)
-    parser.add_argument("--certify", action="store_true",
-                        help="also bound sigma over the whole stroke box (branch and bound "
-                             "with a rigorous bound, docs/certified-workspace.md) and print "
-                             "each output's certified worst pose")
-    parser.add_argument("--rtol", type=options.probability, default=1e-3, metavar="R",
-                        help="relative gap between the bound and sigma at which --certify "
-                             "stops (default 0.001)")
+    options.add_certify(parser, "also bound sigma over the whole stroke box (branch and "
+                                "bound with a rigorous bound, docs/certified-workspace.md) "
+                                "and print each output's certified worst pose")
     return parser
 
 

@@ -25,10 +25,9 @@ def add_parser(subparsers):
     parser.add_argument("--out", required=True, metavar="DIR", help="output folder")
     options.add_monte_carlo(parser)
     options.add_points(parser)
-    options.add_frame(parser)
+    options.add_study_model(parser)
     options.add_side(parser)
     options.add_bounds(parser)
-    options.add_distribution(parser)
     parser.add_argument("--skip", nargs="+", default=(), choices=EXTRAS, metavar="SECTION",
                         help="leave out optional sections: " + ", ".join(EXTRAS)
                              + " (default: include all)")

@@ -42,14 +42,10 @@ def add_parser(subparsers):
                         metavar="N", help="exact-model evaluations --rare may use "
                                           "(default 20000)")
     options.add_points(parser)
-    options.add_frame(parser)
-    options.add_distribution(parser)
-    parser.add_argument("--certify", action="store_true",
-                        help="sample each output at its certified worst pose over the "
-                             "continuous workspace (docs/certified-workspace.md) instead of "
-                             "its worst grid pose")
-    parser.add_argument("--rtol", type=options.probability, default=1e-3, metavar="R",
-                        help="relative gap of the certificate of --certify (default 0.001)")
+    options.add_study_model(parser)
+    options.add_certify(parser, "sample each output at its certified worst pose over the "
+                                "continuous workspace (docs/certified-workspace.md) instead "
+                                "of its worst grid pose")
     return parser
 
 

@@ -24,11 +24,6 @@ from reliability.poses import workspace_grid
 from reliability.files import as_written
 from reliability.verification import verify
 
-#: ``summary.json``'s ``bounds_source`` for each :attr:`AllocationProblem.bounds_source`
-#: (bounds given to :func:`run` come from ``--bounds`` on the command line).
-BOUNDS_SOURCES = {"machine file": "machine file",
-                  "factors of the initial allocation": "factors of the initial allocation",
-                  "given": "command line"}
 #: Relative change of a tolerance below which it counts as unchanged.
 UNCHANGED = 0.01
 
@@ -159,7 +154,7 @@ def summary(study: MachineStudy) -> dict:
         "distribution": study.machine.distribution,
         "workspace": "grid",
         "bounds": None if study.bounds is None else list(study.bounds),
-        "bounds_source": BOUNDS_SOURCES[study.problem.bounds_source],
+        "bounds_source": _bounds_source(study.problem),
         "reachable": study.reachable,
         "reaching_factor": None if study.reachable else study.problem.reaching_factor(),
         "initial_cost": initial_cost,
@@ -185,3 +180,9 @@ def tolerance_changes(study: MachineStudy) -> tuple[pd.Series, pd.Series]:
     tighten = rate[rate < -UNCHANGED].sort_values(kind="stable")
     relax = rate[rate > UNCHANGED].sort_values(ascending=False, kind="stable")
     return tighten, relax
+
+
+def _bounds_source(problem) -> str:
+    """``summary.json``'s ``bounds_source``: the problem's, bounds given to :func:`run`
+    being those of ``--bounds`` on the command line."""
+    return "command line" if problem.bounds_source == "given" else problem.bounds_source
