@@ -32,6 +32,7 @@ from .correlation import (check_correlation_matrix, correlation_to_toml, parse_c
                           with_correlation)
 from .errors import InputError, InputTypeError, MachineDescriptionError
 from .iso import iso_names
+from .profiles import profile_model
 
 COMPONENTS = ("dx", "dy", "dz", "ex", "ey", "ez")
 OUTPUTS = COMPONENTS
@@ -151,6 +152,7 @@ class Machine:
     tolerance_bounds: np.ndarray | None = field(default=None, repr=False)
     frame: str = "tool"
     distribution: str = "normal"
+    profile: str = "constant"
     _index: Mapping[str, int] = field(init=False, repr=False, compare=False)
 
     def __post_init__(self):
@@ -168,6 +170,7 @@ class Machine:
         if self.distribution not in DISTRIBUTIONS:
             raise InputError(f"distribution must be 'normal' or 'truncated'; got "
                              f"{self.distribution!r}")
+        object.__setattr__(self, "profile", _checked_profile(self.profile))
         if self.tolerance_bounds is not None:
             object.__setattr__(self, "tolerance_bounds",
                                _checked_bounds(self.tolerance_bounds, self.error_names))
@@ -406,6 +409,7 @@ def machine_from_dict(data: Mapping, source: str = "machine") -> Machine:
         _parse_bounds(data["bounds"], error_names(names), source),
         frame=_parse_frame(requirements.get("frame", "tool"), f"{source}: requirements.frame"),
         distribution=_parse_distribution(requirements, source),
+        profile=_parse_profile(requirements, source),
     )
     if "correlation" in data:
         machine = parse_correlation(machine, data["correlation"], source)
@@ -535,7 +539,7 @@ def _parse_stroke(entry, full_turn: bool, where: str, kind: str) -> tuple[float,
 
 def _parse_requirements(table, source: str) -> tuple[np.ndarray, np.ndarray]:
     where = f"{source}: requirements"
-    _only_keys(table, set(OUTPUTS) | {"frame", "distribution"}, where)
+    _only_keys(table, set(OUTPUTS) | {"frame", "distribution", "profile"}, where)
     limits, targets = [], []
     for output in OUTPUTS:
         entry = _require(table, output, where)
@@ -569,6 +573,23 @@ def _parse_distribution(table, source: str) -> str:
         raise MachineDescriptionError(f"{source}: requirements.distribution: expected "
                                       f"'normal' or 'truncated'; got {value!r}")
     return value
+
+
+def _checked_profile(value) -> str:
+    """The error-profile model's name (:func:`reliability.profiles.profile_model`)."""
+    if not isinstance(value, str):
+        raise InputError(f"profile must be 'independent', 'constant' or 'gp:<length mm>'; "
+                         f"got {value!r}")
+    return str(profile_model(value))
+
+
+def _parse_profile(table, source: str) -> str:
+    """``[requirements] profile``: how a built machine's errors hang together along travel
+    (``"constant"`` by default; ``"independent"`` is the paper's grid experiment)."""
+    try:
+        return _checked_profile(table.get("profile", "constant"))
+    except InputError as error:
+        raise MachineDescriptionError(f"{source}: requirements.profile: {error}") from None
 
 
 COST_KEYS = {"linear": "ab", "rotary": "cd"}  # coefficients each kind of axis needs
@@ -685,6 +706,8 @@ def machine_to_dict(machine: Machine) -> dict:
         del table["tool_offset"]
     if machine.distribution != "normal":
         table["requirements"]["distribution"] = machine.distribution
+    if machine.profile != "constant":
+        table["requirements"]["profile"] = machine.profile
     if machine.correlation is not None:
         table["correlation"] = correlation_to_toml(machine)
     if machine.tolerance_bounds is not None:

@@ -186,7 +186,7 @@ def describe(machine) -> str:
              _axis_table(machine).to_string(index=False),
              f"Tool offset: {_vector(machine.tool_offset)} mm", "",
              "Requirements (|error| < limit with probability ≥ target)",
-             _requirement_table(machine).to_string(), _distribution_line(machine), "",
+             _requirement_table(machine).to_string(), _distribution_line(machine), _profile_line(machine), "",
              _initial_line(machine), _cost_line(machine)]
     return "\n".join(lines)
 
@@ -197,6 +197,15 @@ def _distribution_line(machine) -> str:
         return ("Tolerances read as normal with σ = t/3 truncated at ±t (distribution = "
                 "'truncated')")
     return "Tolerances read as normal with σ = t/3 (distribution = 'normal')"
+
+
+def _profile_line(machine) -> str:
+    """How a built machine's errors hang together along travel, for the machine yield."""
+    words = {"constant": "one value per built machine along each travel",
+             "independent": "a fresh value at every grid point (the paper's Sec. 5.3)"}
+    meaning = words.get(machine.profile, "a Gaussian process along travel with correlation "
+                                         f"length {machine.profile[3:]} mm")
+    return f"Machine yield: errors {meaning} (profile = '{machine.profile}')"
 
 
 def _axis_table(machine) -> pd.DataFrame:

@@ -111,6 +111,24 @@ def add_study_model(parser) -> None:
     add_distribution(parser)
 
 
+#: Built machines a yield is estimated from when ``--machines`` is not given.
+DEFAULT_MACHINES = 4000
+
+
+def add_yield_model(parser) -> None:
+    """``--profile`` and ``--machines``: how built machines are simulated for the machine
+    yield (the machine file's ``[requirements] profile`` by default, see :func:`machine`)."""
+    parser.add_argument("--profile", default=None, metavar="P",
+                        help="error profile along travel of a built machine: constant, "
+                             "independent (the paper's grid experiment) or gp:<length mm> "
+                             "(default: the machine file's [requirements] profile, else "
+                             "constant)")
+    parser.add_argument("--machines", type=positive_int, default=DEFAULT_MACHINES,
+                        metavar="N",
+                        help=f"built machines simulated for the yield (default "
+                             f"{DEFAULT_MACHINES})")
+
+
 def add_certify(parser, what: str) -> None:
     """``--certify`` (doing ``what``) and its ``--rtol``."""
     parser.add_argument("--certify", action="store_true", help=what)
@@ -186,12 +204,16 @@ def destination(path, overwrite: bool, option: str = "--out", *, folder: bool = 
 
 def machine(args):
     """Load ``args.machine`` (a MachineDescriptionError or OSError names the file), in the
-    frame of ``--frame`` and with the reading of ``--distribution`` when the command has
-    those options and they are given."""
+    frame of ``--frame``, with the reading of ``--distribution`` and the error profile of
+    ``--profile`` when the command has those options and they are given (a bad
+    ``--profile`` is an InputError naming it)."""
     loaded = load_machine(args.machine)
-    chosen = {name: getattr(args, name, None) for name in ("frame", "distribution")}
+    chosen = {name: getattr(args, name, None) for name in ("frame", "distribution", "profile")}
     chosen = {name: value for name, value in chosen.items() if value is not None}
-    return dataclasses.replace(loaded, **chosen) if chosen else loaded
+    try:
+        return dataclasses.replace(loaded, **chosen) if chosen else loaded
+    except InputError as error:
+        raise InputError(f"--profile: {error}") from None
 
 
 def reading_text(machine) -> str:
