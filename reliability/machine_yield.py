@@ -226,15 +226,15 @@ class YieldEstimate:
                f"machines, {self.failures:,} failing; crude sampling would need about "
                f"{_count_text(self.crude_equivalent)} machines for the same CoV")
         lines = [
-            f"machine yield {_probability_text(self.estimate)} ({level} interval "
-            f"[{_probability_text(self.lower)}, {_probability_text(self.upper)}]); "
+            f"machine yield {yield_text(self.estimate)} ({level} interval "
+            f"[{yield_text(self.lower)}, {yield_text(self.upper)}]); "
             f"failure probability {self.failure_probability:.3g}, CoV {self.cov:.3g}",
             f"  share of built machines with all six outputs within their limits at every "
             f"pose; {self.model_text()}",
             f"  {how} ({self.method_reason})",
             f"  first-order bounds (linearised model, union bound and best single row): "
-            f"{_probability_text(self.first_order_lower)} ≤ yield ≤ "
-            f"{_probability_text(self.first_order_upper)}"]
+            f"{yield_text(self.first_order_lower)} ≤ yield ≤ "
+            f"{yield_text(self.first_order_upper)}"]
         if len(self.failure_shares):
             shares = self.failure_shares.head(SHOWN_SHARES).copy()
             for column in ("share", "lower", "upper"):
@@ -473,7 +473,7 @@ class YieldModel:
             edges, unit = np.degrees(edges), "deg"
         else:
             unit = "mm"
-        return f"{axis.name} {THIRDS[third]} ({edges[0]:.4g}–{edges[1]:.4g} {unit})"
+        return f"{axis.name} {THIRDS[third]} ({edges[0]:.4g} to {edges[1]:.4g} {unit})"
 
 
 def machine_yield(machine, tolerances, *, profile=None, distribution=None,
@@ -677,8 +677,9 @@ def _one_allocation(machine, tolerances) -> np.ndarray:
     return t
 
 
-def _probability_text(value: float) -> str:
-    """A yield readable near 1: ``0.8350`` or ``0.999871`` (never a rounded 1)."""
+def yield_text(value: float) -> str:
+    """A yield readable near 1: ``0.8350`` or ``0.999871`` (never a rounded 1): at least
+    four decimals, and two digits of the failure probability."""
     failure = 1.0 - value
     if failure <= 0:
         return "1"
