@@ -404,12 +404,12 @@ class YieldModel:
         if method == "crude":
             return method, "method 'crude' asked for", None
         if method == "importance":
-            events = _Events.dominant(self, t, failure)
+            events = RowEvents.dominant(self, t, failure)
             return method, "method 'importance' asked for", events
         if machines * failure.max() >= MIN_FAILURES:
             return "crude", (f"the worst row alone gives {machines * failure.max():,.0f} "
                              f"expected failing machines ≥ {MIN_FAILURES}"), None
-        events = _Events.dominant(self, t, failure)
+        events = RowEvents.dominant(self, t, failure)
         if events.size == 0:
             return "crude", "no row of the linearised model can fail in double precision", None
         expected = machines * min(1.0, events.linear_failure(rng) + events.left_out)
@@ -523,8 +523,9 @@ def machine_yield(machine, tolerances, *, profile=None, distribution=None,
 
 
 # ----- the importance proposal ------------------------------------------------------------
-class _Events:
-    """The dominant linearised row events ``S`` and the ALOE mixture over them."""
+class RowEvents:
+    """The dominant linearised row events ``S = {|a_r·u| ≥ I_r}`` and the ALOE mixture
+    over them (:meth:`draw`, :meth:`weight`); built by :meth:`dominant`."""
 
     def __init__(self, vectors, thresholds, probabilities, left_out):
         self.vectors = vectors  # (K, D) a_r
