@@ -95,7 +95,7 @@ from scipy.special import ndtr, ndtri
 from scipy.stats import norm
 
 from . import checks, streams
-from .chunks import chunk_size
+from .chunks import chunk_size, chunks, jacobian_bytes
 from .correlation import grid_factors, normal_to_marginal
 from .errors import InputError
 from .fosm import error_sigma, pose_sigma, two_sided_failure
@@ -359,11 +359,17 @@ class YieldModel:
 
     def row_vectors(self, rows, tolerances) -> np.ndarray:
         """``a_r`` of rows ``pose · 6 + output``: the linearised output in ``u``,
-        ``(len(rows), dimension)``, with ``|a_r|`` the row's FOSM σ."""
+        ``(len(rows), dimension)``, with ``|a_r|`` the row's FOSM σ (in chunks of rows)."""
         rows = np.asarray(rows)
+        spread = error_sigma(tolerances, self.k, self.distribution)
+        out = np.empty((len(rows), self.dimension))
+        for part in chunks(len(rows), jacobian_bytes(self.machine), self.memory):
+            out[part] = self._row_vectors(rows[part], spread)
+        return out
+
+    def _row_vectors(self, rows, spread) -> np.ndarray:
         pose, output = np.divmod(rows, len(OUTPUTS))
         n = len(self.machine.axis_specs)
-        spread = error_sigma(tolerances, self.k, self.distribution)
         jacobian = self.machine.jacobian(self.experiment.poses[pose])
         c = jacobian[np.arange(len(rows)), output] * spread
         travel = self._travel[np.arange(n), self._grid_index[pose]]  # (rows, n, P)
@@ -556,8 +562,12 @@ class RowEvents:
                    float(total - cumulative[count - 1]))
 
     def counts(self, u) -> np.ndarray:
-        """``N_S(u)``: the events of ``S`` that contain each draw."""
-        return np.count_nonzero(np.abs(u @ self.vectors.T) >= self.thresholds, axis=1)
+        """``N_S(u)``: the events of ``S`` that contain each draw (in chunks of draws)."""
+        out = np.empty(len(u), dtype=np.int64)
+        for part in chunks(len(u), 2 * 8 * self.size):
+            out[part] = np.count_nonzero(np.abs(u[part] @ self.vectors.T) >= self.thresholds,
+                                         axis=1)
+        return out
 
     def weight(self, u) -> np.ndarray:
         """``w(u) = 1/(α + (1 − α) N_S(u)/P_S)``, the exact ``φ/q`` (1 without events:
