@@ -16,6 +16,7 @@ The API (stable)::
     model = YieldModel(machine, profile=None, distribution=None, points_per_axis=5, k=3.0)
     model.estimate(tolerances, machines=..., rng=..., method=..., ...) -> YieldEstimate
     model.first_order_bounds(tolerances) -> (lower, upper)
+    model.linear_failure(tolerances, rng=None) -> float   # the linearised model's, no chain
 
 :class:`YieldModel` holds what does not depend on the tolerances (the grid, the profile's
 factors, the chain's transports), so a caller that estimates many allocations of one
@@ -367,10 +368,26 @@ class YieldModel:
             out[part] = self._row_vectors(rows[part], spread)
         return out
 
+    def row_signatures(self, rows, tolerances) -> np.ndarray:
+        """``(len(rows), 3)``: the projections of ``a_r/I_r`` on three fixed directions,
+        rounded to 1e-10; rows with the same event ``{|a_r·u| ≥ I_r}`` have the same
+        signature (in chunks of rows)."""
+        rows = np.asarray(rows)
+        spread = error_sigma(tolerances, self.k, self.distribution)
+        limits = np.tile(self.machine.limits, self.experiment.n_poses)
+        index = np.arange(self.dimension)[:, None] * np.array([0.7, 1.3, 2.9])
+        directions = np.cos(index + np.array([0.0, 1.0, 2.0]))  # fixed, not random
+        out = np.empty((len(rows), 3))
+        for part in chunks(len(rows), jacobian_bytes(self.machine), self.memory):
+            scaled = self._row_vectors(rows[part], spread) / limits[rows[part], None]
+            out[part] = np.round(scaled @ directions, 10)
+        return out
+
     def _row_vectors(self, rows, spread) -> np.ndarray:
         pose, output = np.divmod(rows, len(OUTPUTS))
         n = len(self.machine.axis_specs)
-        jacobian = self.machine.jacobian(self.experiment.poses[pose])
+        distinct, where = np.unique(pose, return_inverse=True)  # one Jacobian per pose
+        jacobian = self.machine.jacobian(self.experiment.poses[distinct])[where.ravel()]
         c = jacobian[np.arange(len(rows)), output] * spread
         travel = self._travel[np.arange(n), self._grid_index[pose]]  # (rows, n, P)
         motion = np.einsum("Kac,Kaq,acj->Kaqj", c[:, :6 * n].reshape(-1, n, 6), travel,
@@ -384,6 +401,16 @@ class YieldModel:
         t = _one_allocation(self.machine, tolerances)
         failure = two_sided_failure(self.machine.limits, self.row_sigma(t))
         return _bounds_from_rows(failure)
+
+    def linear_failure(self, tolerances, rng=None) -> float:
+        """The linearised model's failure probability (all rows at once), estimated without
+        the chain by ALOE (``P_S · mean 1/N_S`` over :data:`LINEAR_SAMPLES` draws of the
+        pure mixture) plus the ``p_r`` of the rows left out of ``S`` (an upper estimate
+        for them)."""
+        t = _one_allocation(self.machine, tolerances)
+        failure = two_sided_failure(self.machine.limits, self.row_sigma(t)).ravel()
+        events = RowEvents.dominant(self, t, failure)
+        return min(1.0, events.linear_failure(streams.generator(rng)) + events.left_out)
 
     # ----- the estimate -------------------------------------------------------------
     def estimate(self, tolerances, *, machines: int = DEFAULT_MACHINES, rng=None,
@@ -547,16 +574,23 @@ class RowEvents:
 
     @classmethod
     def dominant(cls, model, tolerances, failure):
-        """The fewest rows by decreasing ``p_r`` holding :data:`EVENT_MASS` of ``Σ p_r``,
-        at most :data:`MAX_EVENTS`, without rows whose ``p_r`` is 0 in double precision."""
-        order = np.argsort(-failure, kind="stable")
-        cumulative = np.cumsum(failure[order])
-        total = cumulative[-1]
-        if total <= 0:
+        """The distinct row events (rows with the same event, e.g. poses that differ only
+        along an axis the output does not depend on under the ``constant`` profile, count
+        once: :meth:`YieldModel.row_signatures`), the fewest by decreasing ``p_r`` holding
+        :data:`EVENT_MASS` of their ``Σ p_r``, at most :data:`MAX_EVENTS`, without rows
+        whose ``p_r`` is 0 in double precision. Any subset keeps the weights exact; a
+        larger one makes them more efficient."""
+        candidates = np.flatnonzero(failure > 0)
+        if len(candidates) == 0:
             return cls(np.zeros((0, model.dimension)), np.zeros(0), np.zeros(0), 0.0)
-        count = min(MAX_EVENTS, int(np.searchsorted(cumulative, EVENT_MASS * total)) + 1,
-                    int(np.count_nonzero(failure)))
-        rows = order[:count]
+        _, first = np.unique(model.row_signatures(candidates, tolerances), axis=0,
+                             return_index=True)
+        distinct = candidates[np.sort(first)]
+        distinct = distinct[np.argsort(-failure[distinct], kind="stable")]
+        cumulative = np.cumsum(failure[distinct])
+        total = cumulative[-1]
+        count = min(MAX_EVENTS, int(np.searchsorted(cumulative, EVENT_MASS * total)) + 1)
+        rows = distinct[:count]
         limits = np.tile(model.machine.limits, model.experiment.n_poses)
         return cls(model.row_vectors(rows, tolerances), limits[rows], failure[rows],
                    float(total - cumulative[count - 1]))
