@@ -232,7 +232,7 @@ class YieldEstimate:
             f"failure probability {self.failure_probability:.3g}, CoV {self.cov:.3g}",
             f"  share of built machines with all six outputs within their limits at every "
             f"pose; {self.model_text()}",
-            f"  {how} ({self.method_reason})",
+            f"  {how}; {self.method_reason}",
             f"  first-order bounds (linearised model, union bound and best single row): "
             f"{yield_text(self.first_order_lower)} ≤ yield ≤ "
             f"{yield_text(self.first_order_upper)}"]
@@ -724,11 +724,11 @@ def _one_allocation(machine, tolerances) -> np.ndarray:
 
 def yield_text(value: float) -> str:
     """A yield readable near 1: ``0.8350`` or ``0.999871`` (never a rounded 1): at least
-    four decimals, and two digits of the failure probability."""
+    four decimals, and two significant digits of the failure probability."""
     failure = 1.0 - value
     if failure <= 0:
         return "1"
-    digits = max(4, int(math.ceil(-math.log10(failure))) + 2)
+    digits = max(4, 1 - int(math.floor(math.log10(failure))))
     return f"{value:.{digits}f}"
 
 

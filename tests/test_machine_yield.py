@@ -222,3 +222,10 @@ def test_summary_opens_with_the_yield_of_both_allocations(mill):
     info = machine_study.summary(blocked)
     assert not info["reachable"]
     assert info["yield"]["optimal"] is None and info["yield_interval"]["optimal"] is None
+
+
+def test_yields_near_one_are_printed_with_their_failure_probability():
+    from reliability.machine_yield import yield_text
+    assert yield_text(0.835) == "0.8350"
+    assert yield_text(1 - 2.5e-7) == "0.99999975"
+    assert yield_text(1 - 1e-12) != "1" and yield_text(1.0) == "1"
