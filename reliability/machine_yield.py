@@ -197,6 +197,12 @@ class YieldEstimate:
         return 1.0 - self.estimate
 
     @property
+    def machine_evaluations(self) -> int:
+        """Evaluations of the exact chain at every grid pose: one per simulated machine,
+        whichever the method (``machines``); ``machines × n_poses`` pose evaluations."""
+        return self.machines
+
+    @property
     def interval(self) -> tuple[float, float]:
         """``(lower, upper)``."""
         return self.lower, self.upper
@@ -258,7 +264,8 @@ class YieldEstimate:
         return {
             "estimate": self.estimate, "lower": self.lower, "upper": self.upper,
             "confidence": self.confidence, "cov": None if math.isnan(self.cov) else self.cov,
-            "machines": self.machines, "method": self.method,
+            "machines": self.machines, "machine_evaluations": self.machine_evaluations,
+            "method": self.method,
             "method_reason": self.method_reason, "profile": self.profile,
             "distribution": self.distribution, "workspace": self.workspace,
             "n_poses": self.n_poses, "failures": self.failures,
