@@ -38,10 +38,11 @@ makes correlated normals ``z = L u``; the reading maps each to its error,
 * **crude** — ``N`` machines with ``u ~ N(0, I)``; the yield is the share that pass, with a
   Clopper–Pearson interval.
 * **importance** — the failure set is the union over rows ``r = (pose, output)`` of
-  ``{|y_r(u)| ≥ I_r}``. Linearised, ``y_r ≈ a_r·u`` with ``a_r = J_r σ L`` (the analytic
-  Jacobian at the row's pose, σ the spread of the reading) and each row event is a pair of
+  ``{|y_r(u)| ≥ I_r}``. Linearised at ``u = 0``, ``y_r ≈ a_r·u`` with ``a_r = J_r s L``
+  (the analytic Jacobian at the row's pose; ``s = ∂x/∂z`` at 0: ``t/k``, times
+  ``1 − 2Φ(−k)`` under the truncated reading) and each row event is a pair of
   half-spaces ``F_r = {|a_r·u| ≥ I_r}`` of probability ``p_r = 2Φ(−I_r/|a_r|)``
-  (``|a_r|`` is FOSM's σ of the row, Eq. 20). Following the ALOE construction of Owen,
+  (``|a_r|`` is Eq. 20's σ with ``s``: FOSM's σ of the row under the normal reading). Following the ALOE construction of Owen,
   Maximov & Chertkov (2019, "Importance sampling for the union of rare events in
   reliability"), the proposal is the defensive mixture
 
@@ -365,11 +366,26 @@ class YieldModel:
         spread = error_sigma(tolerances, self.k, self.distribution)
         return pose_sigma(self.machine, self.experiment.poses, spread, memory=self.memory)
 
+    def slope_spread(self, tolerances) -> np.ndarray:
+        """``∂x/∂z`` at ``z = 0`` of each error: ``t/k`` for the normal reading and
+        ``(t/k)(1 − 2Φ(−k))`` for the truncated one (the slope of its copula map at 0, a
+        closer linearisation in ``u`` than the truncated σ, ``0.9866 t/k``)."""
+        slope = 1.0 if self.distribution == "normal" else 1.0 - 2.0 * float(ndtr(-self.k))
+        return np.asarray(tolerances, dtype=float) / self.k * slope
+
+    def event_sigma(self, tolerances) -> np.ndarray:
+        """``|a_r|`` of every row, ``(n_poses, 6)``: Eq. (20) with :meth:`slope_spread`
+        (FOSM's σ under the normal reading)."""
+        return pose_sigma(self.machine, self.experiment.poses,
+                          self.slope_spread(tolerances), memory=self.memory)
+
     def row_vectors(self, rows, tolerances) -> np.ndarray:
-        """``a_r`` of rows ``pose · 6 + output``: the linearised output in ``u``,
-        ``(len(rows), dimension)``, with ``|a_r|`` the row's FOSM σ (in chunks of rows)."""
+        """``a_r`` of rows ``pose · 6 + output``: the linearised output in ``u`` (the
+        Jacobian times :meth:`slope_spread` times the profile's factor),
+        ``(len(rows), dimension)``, with ``|a_r|`` from :meth:`event_sigma` (in chunks of
+        rows)."""
         rows = np.asarray(rows)
-        spread = error_sigma(tolerances, self.k, self.distribution)
+        spread = self.slope_spread(tolerances)
         out = np.empty((len(rows), self.dimension))
         for part in chunks(len(rows), jacobian_bytes(self.machine), self.memory):
             out[part] = self._row_vectors(rows[part], spread)
@@ -380,7 +396,7 @@ class YieldModel:
         rounded to 1e-10; rows with the same event ``{|a_r·u| ≥ I_r}`` have the same
         signature (in chunks of rows)."""
         rows = np.asarray(rows)
-        spread = error_sigma(tolerances, self.k, self.distribution)
+        spread = self.slope_spread(tolerances)
         limits = np.tile(self.machine.limits, self.experiment.n_poses)
         index = np.arange(self.dimension)[:, None] * np.array([0.7, 1.3, 2.9])
         directions = np.cos(index + np.array([0.0, 1.0, 2.0]))  # fixed, not random
@@ -415,8 +431,7 @@ class YieldModel:
         pure mixture) plus the ``p_r`` of the rows left out of ``S`` (an upper estimate
         for them)."""
         t = _one_allocation(self.machine, tolerances)
-        failure = two_sided_failure(self.machine.limits, self.row_sigma(t)).ravel()
-        events = RowEvents.dominant(self, t, failure)
+        events = RowEvents.dominant(self, t)
         return min(1.0, events.linear_failure(streams.generator(rng)) + events.left_out)
 
     # ----- the estimate -------------------------------------------------------------
@@ -444,12 +459,12 @@ class YieldModel:
         if method == "crude":
             return method, "method 'crude' asked for", None
         if method == "importance":
-            events = RowEvents.dominant(self, t, failure)
+            events = RowEvents.dominant(self, t)
             return method, "method 'importance' asked for", events
         if machines * failure.max() >= MIN_FAILURES:
             return "crude", (f"the worst row alone gives {machines * failure.max():,.0f} "
                              f"expected failing machines ≥ {MIN_FAILURES}"), None
-        events = RowEvents.dominant(self, t, failure)
+        events = RowEvents.dominant(self, t)
         if events.size == 0:
             return "crude", "no row of the linearised model can fail in double precision", None
         expected = machines * min(1.0, events.linear_failure(rng) + events.left_out)
@@ -580,13 +595,15 @@ class RowEvents:
         return len(self.thresholds)
 
     @classmethod
-    def dominant(cls, model, tolerances, failure):
+    def dominant(cls, model, tolerances):
         """The distinct row events (rows with the same event, e.g. poses that differ only
         along an axis the output does not depend on under the ``constant`` profile, count
         once: :meth:`YieldModel.row_signatures`), the fewest by decreasing ``p_r`` holding
         :data:`EVENT_MASS` of their ``Σ p_r``, at most :data:`MAX_EVENTS`, without rows
-        whose ``p_r`` is 0 in double precision. Any subset keeps the weights exact; a
-        larger one makes them more efficient."""
+        whose ``p_r = 2Φ(−I_r/|a_r|)`` is 0 in double precision. Any subset keeps the
+        weights exact; a larger one makes them more efficient."""
+        limits = np.tile(model.machine.limits, model.experiment.n_poses)
+        failure = two_sided_failure(limits, model.event_sigma(tolerances).ravel())
         candidates = np.flatnonzero(failure > 0)
         if len(candidates) == 0:
             return cls(np.zeros((0, model.dimension)), np.zeros(0), np.zeros(0), 0.0)
@@ -598,7 +615,6 @@ class RowEvents:
         total = cumulative[-1]
         count = min(MAX_EVENTS, int(np.searchsorted(cumulative, EVENT_MASS * total)) + 1)
         rows = distinct[:count]
-        limits = np.tile(model.machine.limits, model.experiment.n_poses)
         return cls(model.row_vectors(rows, tolerances), limits[rows], failure[rows],
                    float(total - cumulative[count - 1]))
 

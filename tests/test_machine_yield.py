@@ -20,7 +20,6 @@ from reliability.errors import InputError
 from reliability.fosm import fosm
 from reliability.machine_yield import RowEvents, YieldModel, machine_yield
 from reliability.sampling import GridExperiment, draw_errors
-from reliability.fosm import two_sided_failure
 from studies import cli
 from studies.workflows import machine_study
 
@@ -98,8 +97,7 @@ def test_proposal_weights_are_the_exact_density_ratio(mill):
     w = φ/q exactly), checked at z = 4."""
     model = YieldModel(mill, profile="constant", distribution="normal", points_per_axis=3)
     t = 0.8 * mill.initial_allocation
-    failure = two_sided_failure(mill.limits, model.row_sigma(t)).ravel()
-    events = RowEvents.dominant(model, t, failure)
+    events = RowEvents.dominant(model, t)
     u = events.draw(np.random.default_rng(4), 40_000)
     w = events.weight(u)
     assert w.max() <= 1 / 0.1 + 1e-12
@@ -111,11 +109,17 @@ def test_proposal_weights_are_the_exact_density_ratio(mill):
             Z * terms.std() / np.sqrt(len(w)) + 1e-15
 
 
-def test_importance_sampling_agrees_with_crude_on_a_moderate_yield(mill):
-    t = 0.8 * mill.initial_allocation
-    crude = machine_yield(mill, t, points_per_axis=3, machines=40_000, rng=5, method="crude")
-    weighted = machine_yield(mill, t, points_per_axis=3, machines=4000, rng=6,
-                             method="importance", target_cov=0.01)
+@pytest.mark.parametrize("profile, distribution, scale", [("constant", "normal", 0.8),
+                                                          ("gp:300", "truncated", 0.85)])
+def test_importance_sampling_agrees_with_crude_on_a_moderate_yield(mill, profile,
+                                                                   distribution, scale):
+    """Unbiased for the true failure indicator: non-linear chain, and under 'truncated'
+    the copula map of the draws."""
+    t = scale * mill.initial_allocation
+    options = {"profile": profile, "distribution": distribution, "points_per_axis": 3}
+    crude = machine_yield(mill, t, machines=40_000, rng=5, method="crude", **options)
+    weighted = machine_yield(mill, t, machines=4000, rng=6, method="importance",
+                             target_cov=0.01, **options)
     p_crude, p_is = crude.failure_probability, weighted.failure_probability
     assert 50 < crude.failures  # a failure probability crude sampling resolves
     se = np.hypot(binomial_se(p_crude, 40_000), weighted.cov * p_is)
