@@ -150,6 +150,32 @@ def _bounds(k, n, confidence, method):
     return _frozen(lower), _frozen(upper)
 
 
+def share_interval(share, effective_n, confidence=0.95):
+    """Wilson score interval for a share observed on ``effective_n`` (possibly weighted,
+    non-integral) trials, e.g. Kish's ``(Σw)²/Σw²`` of weighted samples; inside [0, 1].
+
+    Parameters
+    ----------
+    share : array_like
+        Observed shares in [0, 1].
+    effective_n : array_like
+        Effective number of trials, > 0.
+    confidence : float, default 0.95
+
+    Returns
+    -------
+    (lower, upper) : ndarrays
+    """
+    confidence = _check_confidence(confidence)
+    p = checks.numeric_array(share, "share")
+    n = checks.numeric_array(effective_n, "effective_n")
+    if np.any(~np.isfinite(p) | (p < 0) | (p > 1)):
+        raise InputError(f"share must lie in [0, 1]; got {p!r}")
+    if np.any(~np.isfinite(n) | (n <= 0)):
+        raise InputError(f"effective_n must be finite and > 0; got {n!r}")
+    return _wilson_share(p, n, stats.norm.ppf(0.5 + confidence / 2))
+
+
 def binomial_interval(successes, trials, confidence=0.95, method="wilson"):
     """Two-sided confidence interval for a binomial proportion.
 

@@ -6,8 +6,9 @@ Extra, independent streams come from one of two named rules, so a reader can tel
 the call which draws a number depends on:
 
 - :func:`spawn` — ``n`` children of a seed or generator, for the steps of one computation
-  (:func:`verification_streams`, ``spawn(seed, 3)``, gives the grid, random-pose and
-  worst-pose streams of a verification);
+  (:func:`verification_streams`, ``spawn(seed, 4)``, gives the grid, random-pose,
+  worst-pose and machine-yield streams of a verification; the first three are those of
+  ``spawn(seed, 3)``);
 - :func:`extra_stream` — stream ``index`` of the family ``[seed, 1]``, for work added on top
   of a computation that already consumes ``spawn(seed, ...)``, so that adding it changes none
   of the earlier numbers (the optional report sections, ``precrel verify --precision`` and
@@ -79,9 +80,11 @@ def extra_stream(seed: int, index: int) -> np.random.Generator:
 
 
 def verification_streams(rng) -> list[np.random.Generator]:
-    """The grid-experiment, random-pose and worst-pose streams of a Monte-Carlo verification
-    with seed (or generator) ``rng``: ``spawn(rng, 3)``, whichever command runs it."""
-    return spawn(rng, 3)
+    """The grid-experiment, random-pose, worst-pose and machine-yield streams of a
+    Monte-Carlo verification with seed (or generator) ``rng``: ``spawn(rng, 4)``, whichever
+    command runs it (the first three are ``spawn(rng, 3)``, as before the yield was
+    added)."""
+    return spawn(rng, 4)
 
 
 def _seed(seed) -> int:

@@ -1,6 +1,10 @@
 """Monte-Carlo verification of one allocation, FOSM beside it (Sec. 5.3 generalised).
 
-:func:`verify` runs three independent checks of the FOSM prediction, each with its interval:
+:func:`verify` first answers the manufacturer's question, the machine yield: the share of
+built machines that keep all six outputs within their limits at every grid pose, under the
+study's error-profile model (``machine.profile``) and reading
+(:func:`reliability.machine_yield.machine_yield`). Below it, three independent checks of the
+per-output, per-pose FOSM prediction, each with its interval:
 
 - repeated grid experiments (one error draw per experiment shared by all grid poses):
   the mean share in tolerance against the grid mean of the FOSM probability, a Wilson
@@ -36,6 +40,7 @@ from .comparison import fosm_versus_monte_carlo
 from .errors import InputError
 from .fosm import fosm
 from .machine import OUTPUTS
+from .machine_yield import DEFAULT_MACHINES, YieldModel
 from .pose_sampling import EVENTS, sample_at_poses
 from .poses import workspace_grid
 from .rare import failure_probability, worst_grid_poses
@@ -63,6 +68,9 @@ class Verification:
         reaches the target (``reaches_target``: its upper end is at least the target).
     distribution : str
         The reading every check drew its errors under.
+    machine_yield : YieldEstimate or None
+        The share of built machines within every limit at every grid pose
+        (:func:`reliability.machine_yield.machine_yield`), under the profile it names.
     """
 
     fosm: object
@@ -71,6 +79,7 @@ class Verification:
     random_poses: pd.DataFrame
     worst_poses: pd.DataFrame
     distribution: str = "normal"
+    machine_yield: object = None
 
     def to_frame(self) -> pd.DataFrame:
         """Per output, the three Monte-Carlo estimates with their 95 % intervals beside
@@ -89,8 +98,9 @@ class Verification:
         })
 
     def summary(self) -> str:
-        """What was sampled, then :meth:`to_frame` in per cent."""
-        head = (f"Monte-Carlo verification: {self.grid.repeats} grid experiments of "
+        """The machine yield, what was sampled, then :meth:`to_frame` in per cent."""
+        first = "" if self.machine_yield is None else self.machine_yield.summary() + "\n\n"
+        head = first + (f"Monte-Carlo verification: {self.grid.repeats} grid experiments of "
                 f"{self.grid.n_poses} poses (Wilson interval on Kish's effective size), "
                 f"{int(self.random_poses['n'].iloc[0])} random poses and "
                 f"{int(self.worst_poses['samples'].iloc[0])} samples at each output's worst "
@@ -111,8 +121,9 @@ def reading_text(distribution: str) -> str:
 def verify(machine, tolerances, *, points: int = 5, repeats: int = 20,
            samples: int = 20_000, rng=None, progress=None, bar=None,
            prediction=None, distribution: str | None = None,
-           worst_poses=None) -> Verification:
-    """Run the three Monte-Carlo checks of ``tolerances``.
+           worst_poses=None, profile=None,
+           machines: int = DEFAULT_MACHINES) -> Verification:
+    """The machine yield of ``tolerances``, then the three Monte-Carlo checks.
 
     Parameters
     ----------
@@ -126,8 +137,8 @@ def verify(machine, tolerances, *, points: int = 5, repeats: int = 20,
         Random-pose samples, and samples at each worst pose.
     rng : None, int or numpy.random.Generator
         Split by :func:`reliability.streams.verification_streams` into the grid,
-        random-pose and worst-pose streams, in that order (the same seed gives the same
-        numbers here, in ``precrel verify``, ``precrel report`` and a sweep).
+        random-pose, worst-pose and machine-yield streams, in that order (the same seed
+        gives the same numbers here, in ``precrel verify``, ``precrel report`` and a sweep).
     progress : callable, optional
         ``progress(step)`` with a short description before each step.
     bar : callable, optional
@@ -154,7 +165,10 @@ def verify(machine, tolerances, *, points: int = 5, repeats: int = 20,
                              f"{len(machine.axes)}), one pose per output; got "
                              f"{worst_poses.shape}")
         checks.poses_in_strokes(machine, worst_poses, "worst_poses")
-    grid_rng, random_rng, worst_rng = verification_streams(rng)
+    machines = checks.positive_int(machines, "machines")
+    grid_rng, random_rng, worst_rng, yield_rng = verification_streams(rng)
+    yield_model = YieldModel(machine, profile=profile, distribution=distribution,
+                             points_per_axis=points)
     experiment = GridExperiment(machine, points)
     result = fosm(machine, tolerances, experiment.poses, distribution=distribution) \
         if prediction is None else prediction
@@ -164,6 +178,9 @@ def verify(machine, tolerances, *, points: int = 5, repeats: int = 20,
     if result.distribution != distribution:
         raise InputError(f"prediction was computed under the {result.distribution!r} "
                          f"reading; the verification draws under {distribution!r}")
+    progress(f"machine yield from up to {machines} built machines (profile "
+             f"{yield_model.profile})")
+    built = yield_model.estimate(tolerances, machines=machines, rng=yield_rng)
     progress(f"{repeats} grid experiments of {experiment.n_poses} poses")
     with bar(repeats, "grid experiments") as counter:
         grid = experiment.run(tolerances, repeats=repeats, rng=grid_rng,
@@ -179,7 +196,7 @@ def verify(machine, tolerances, *, points: int = 5, repeats: int = 20,
     return Verification(fosm=result, grid=grid,
                         grid_comparison=fosm_versus_monte_carlo(result, grid),
                         random_poses=random.to_frame().reset_index(), worst_poses=worst,
-                        distribution=distribution)
+                        distribution=distribution, machine_yield=built)
 
 
 def worst_pose_monte_carlo(machine, tolerances, poses, samples: int, rng, *,

@@ -48,7 +48,9 @@ def test_extra_streams_are_their_documented_family_and_independent_of_spawn():
 
 
 def test_verification_streams_are_spawn_of_the_seed():
-    grid, random_poses, worst = verification_streams(7)
-    expected = [g.random() for g in spawn(7, 3)]
-    assert [grid.random(), random_poses.random(), worst.random()] == expected
+    grid, random_poses, worst, machines = verification_streams(7)
+    expected = [g.random() for g in spawn(7, 4)]
+    assert [grid.random(), random_poses.random(), worst.random(),
+            machines.random()] == expected
+    assert [g.random() for g in spawn(7, 3)] == expected[:3]
 

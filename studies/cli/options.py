@@ -19,6 +19,7 @@ from reliability.errors import InputError
 from reliability.files import check_destination
 from reliability.kinematics import FRAMES
 from reliability.machine import load_machine
+from reliability.machine_yield import DEFAULT_MACHINES
 
 SIDE_CHOICES = ("one_sided", "two_sided")
 DISTRIBUTION_CHOICES = ("normal", "truncated")
@@ -111,10 +112,6 @@ def add_study_model(parser) -> None:
     add_distribution(parser)
 
 
-#: Built machines a yield is estimated from when ``--machines`` is not given.
-DEFAULT_MACHINES = 4000
-
-
 def add_yield_model(parser) -> None:
     """``--profile`` and ``--machines``: how built machines are simulated for the machine
     yield (the machine file's ``[requirements] profile`` by default, see :func:`machine`)."""
@@ -126,7 +123,8 @@ def add_yield_model(parser) -> None:
     parser.add_argument("--machines", type=positive_int, default=DEFAULT_MACHINES,
                         metavar="N",
                         help=f"built machines simulated for the yield (default "
-                             f"{DEFAULT_MACHINES})")
+                             f"{DEFAULT_MACHINES}; at most this many when few would fail "
+                             f"and importance sampling is used)")
 
 
 def add_certify(parser, what: str) -> None:

@@ -15,7 +15,9 @@ from . import options
 def add_parser(subparsers):
     parser = subparsers.add_parser(
         "verify", help="Monte-Carlo verification of an allocation, FOSM beside it",
-        description="Repeated grid experiments (Wilson interval on the effective sample size "
+        description="The machine yield (the share of built machines within every limit at "
+                    "every grid pose, under --profile), then repeated grid experiments "
+                    "(Wilson interval on the effective sample size "
                     "from the spread between experiments), "
                     "random poses (Wilson interval) and Monte-Carlo at each output's worst "
                     "pose (Wilson interval), each beside the FOSM prediction. Errors are "
@@ -43,6 +45,7 @@ def add_parser(subparsers):
                                           "(default 20000)")
     options.add_points(parser)
     options.add_study_model(parser)
+    options.add_yield_model(parser)
     options.add_certify(parser, "sample each output at its certified worst pose over the "
                                 "continuous workspace (docs/certified-workspace.md) instead "
                                 "of its worst grid pose")
@@ -59,12 +62,13 @@ def run(args) -> int:
         certificate = certified_worst(machine, t, rtol=args.rtol)
     result = verify(machine, t, points=args.points, repeats=args.repeats,
                     samples=args.samples, rng=args.seed, progress=options.say,
-                    bar=options.progress_bar,
+                    bar=options.progress_bar, machines=args.machines,
                     worst_poses=None if certificate is None else
                     certificate[list(machine.axes)].to_numpy(dtype=float))
     print(f"Monte-Carlo verification of {args.tolerances} on {machine.name!r} "
           f"(seed {args.seed}); outputs in the {machine.frame} frame; two-sided "
           f"probabilities in %; Monte-Carlo and FOSM with {options.reading_text(machine)}\n")
+    print(result.machine_yield.summary() + "\n")
     where = "grid" if certificate is None else \
         f"certified (continuous workspace, rtol {args.rtol:g})"
     print(report_tables(machine, result, where))

@@ -1,7 +1,8 @@
 """The sections of a machine report, made from a
 :class:`~studies.workflows.machine_study.MachineStudy`.
 
-The answers first, then the machine and its requirements, FOSM of the initial and the
+The answers first, then the machine yield (the share of built machines within every limit
+everywhere) and what decides it, the machine and its requirements, FOSM of the initial and the
 optimal allocation, the allocation with what binds, and the Monte-Carlo verification, each a
 :class:`~studies.report.section.Section` that :func:`studies.report.writer.write_report`
 lays out.
@@ -24,6 +25,7 @@ from reliability.machine import OUTPUTS
 from studies.workflows.machine_study import MachineStudy, summary, tolerance_changes
 
 from . import plots
+from .machine_yield import yield_section, yield_sentence
 from .markdown import markdown_table
 from .section import Section
 
@@ -50,7 +52,8 @@ def answers(study: MachineStudy) -> str:
                f"{study.points}-point grid; {box_text(study)}; cost Eq. 28, "
                f"{cost_units_text(study.problem.cost)}.\n")
     if not study.reachable:
-        return "\n".join([choices, f"- Does the initial allocation meet the targets? {meets}.",
+        return "\n".join([choices, yield_sentence(study),
+                          f"- Does the initial allocation meet the targets? {meets}.",
                           unreachable_text(study)])
     info = summary(study)
     certified = "certified optimal" if info["certified"] else "NOT certified"
@@ -70,6 +73,7 @@ def answers(study: MachineStudy) -> str:
                  f"below." if free else "")
     return "\n".join([
         choices,
+        yield_sentence(study),
         f"- Does the initial allocation meet the targets? {meets}.",
         f"- The cheapest allocation meeting them within the box costs "
         f"**{info['relative_cost']:.2%}** of the "
@@ -134,7 +138,7 @@ def sections(study: MachineStudy, extra=()) -> list[Section]:
     """
     allocation = allocation_section(study) if study.reachable else unreachable_section(study)
     return [Section("Answers", answers(study), summary=summary(study)),
-            machine_section(study), fosm_section(study), allocation,
+            yield_section(study), machine_section(study), fosm_section(study), allocation,
             verification_section(study), *(make(study) for make in extra)]
 
 

@@ -20,6 +20,7 @@ import pandas as pd
 from allocation import AllocationProblem, TargetUnreachableError
 from allocation.result_files import gap_bound
 from reliability.fosm import fosm
+from reliability.machine_yield import DEFAULT_MACHINES
 from reliability.poses import workspace_grid
 from reliability.files import as_written
 from reliability.verification import verify
@@ -43,6 +44,7 @@ class MachineStudy:
     optimal_fosm: object
     checks: dict  # allocation name -> reliability.verification.Verification
     unreachable: object = None  # the TargetUnreachableError when out of reach
+    machines: int = DEFAULT_MACHINES  # built machines per allocation's machine yield
 
     @property
     def reachable(self) -> bool:
@@ -62,6 +64,8 @@ class MachineStudy:
             f"study of {self.machine.name}: {self.side.replace('_', '-')} targets at every "
             f"pose of the {self.points}-point grid, box {self.problem.box_text()} "
             f"({self.problem.bounds_source}), seed {self.seed}",
+            *(f"{name}: {check.machine_yield.summary().splitlines()[0]}"
+              for name, check in self.checks.items()),
             f"initial allocation meets the targets: {info['initial_meets_targets']}",
             f"cheapest allocation: {info['relative_cost']:.4%} of the initial cost "
             f"({'certified' if info['certified'] else 'NOT certified'}, relative gap "
@@ -75,7 +79,7 @@ class MachineStudy:
 
 def run(machine, *, points: int = 5, side: str = "two_sided", bounds=None,
         seed: int = 0, repeats: int = 20, samples: int = 20_000, progress=None,
-        bar=None) -> MachineStudy:
+        bar=None, machines: int = DEFAULT_MACHINES) -> MachineStudy:
     """Run the study of ``machine``.
 
     Parameters
@@ -99,6 +103,9 @@ def run(machine, *, points: int = 5, side: str = "two_sided", bounds=None,
         ``progress(text)`` before each step.
     bar : callable, optional
         Progress-bar factory passed to :func:`reliability.verification.verify`.
+    machines : int
+        Built machines simulated for each allocation's machine yield, under
+        ``machine.profile`` (:func:`reliability.machine_yield.machine_yield`).
 
     When no allocation inside the bounds meets the targets the study still runs for the
     initial allocation: ``optimum`` and ``optimal_fosm`` are None and ``unreachable``
@@ -128,15 +135,17 @@ def run(machine, *, points: int = 5, side: str = "two_sided", bounds=None,
         progress(f"Monte-Carlo verification of the {name} allocation")
         checks[name] = verify(machine, t, points=points, repeats=repeats, samples=samples,
                               rng=seed, progress=lambda text: progress(f"  {text}"), bar=bar,
-                              prediction=prediction)
+                              prediction=prediction, machines=machines)
     return MachineStudy(machine=machine, points=points, side=side,
                         bounds=None if bounds is None else tuple(bounds),
                         seed=seed, problem=problem, initial_fosm=initial, optimum=optimum,
-                        optimal_fosm=optimal, checks=checks, unreachable=unreachable)
+                        optimal_fosm=optimal, checks=checks, unreachable=unreachable,
+                        machines=machines)
 
 
 def summary(study: MachineStudy) -> dict:
-    """The ``summary.json`` entries (the report's contract plus a few more).
+    """The ``summary.json`` entries (the report's contract plus a few more), opening with
+    the machine yield of each allocation (:func:`yield_summary`).
 
     ``reachable`` says whether an allocation inside the box meets the targets; when it is
     false, ``optimal_cost``, ``relative_cost``, ``relative_gap`` and
@@ -147,6 +156,7 @@ def summary(study: MachineStudy) -> dict:
     optimum = study.optimum
     checked = next(iter(study.checks.values()))  # every check uses the same counts
     return {
+        **yield_summary(study),
         "machine": study.machine.name,
         "points_per_axis": study.points,
         "side": study.side,
@@ -169,6 +179,28 @@ def summary(study: MachineStudy) -> dict:
         "seed": study.seed,
         "repeats": checked.grid.repeats,
         "samples": int(checked.worst_poses["samples"].iloc[0]),
+    }
+
+
+def yield_summary(study: MachineStudy) -> dict:
+    """``yield``, ``yield_interval`` (``optimal`` None when the targets are out of reach),
+    ``yield_profile``, ``yield_machines`` (built machines asked for per allocation; fewer
+    when importance sampling reached its CoV), and ``yield_method`` and
+    ``yield_first_order`` (first-order bounds of the linearised model) per allocation."""
+    estimates = {name: study.checks[check].machine_yield if check in study.checks else None
+                 for name, check in (("initial", "initial"), ("optimal", "optimum"))}
+
+    def each(value):
+        return {name: None if y is None else value(y) for name, y in estimates.items()}
+
+    first = estimates["initial"]
+    return {
+        "yield": each(lambda y: y.estimate),
+        "yield_interval": each(lambda y: [y.lower, y.upper]),
+        "yield_profile": first.profile,
+        "yield_machines": study.machines,
+        "yield_method": each(lambda y: y.method),
+        "yield_first_order": each(lambda y: [y.first_order_lower, y.first_order_upper]),
     }
 
 

@@ -1,0 +1,235 @@
+"""The machine yield: crude and importance-sampling estimates against independent
+computations, the exact proposal weights, first-order bounds, failure shares, the summary
+keys and bad inputs.
+
+Statistical checks compare two independent estimates with ``|a − b| ≤ z √(se_a² + se_b²)``
+at z = 4 (fixed seeds), unless said otherwise.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+from scipy.stats import norm
+
+from reliability import load_machine
+from reliability.errors import InputError
+from reliability.fosm import fosm
+from reliability.machine_yield import RowEvents, YieldModel, machine_yield
+from reliability.sampling import GridExperiment, draw_errors
+from studies import cli
+from studies.workflows import machine_study
+
+MILL = Path(__file__).parent / "machines" / "mill3.toml"
+Z = 4.0
+
+
+@pytest.fixture(scope="module")
+def mill():
+    return load_machine(MILL)
+
+
+def reference_yield(machine, tolerances, points, n, profile, distribution, seed):
+    """Yield by the straightforward per-pose exact model (``machine.comprehensive_error``
+    through :meth:`GridExperiment.reference_evaluate`), errors drawn directly: one value per
+    machine for ``constant``, one per grid point for ``independent``."""
+    experiment = GridExperiment(machine, points)
+    rng = np.random.default_rng(seed)
+    axes = len(machine.axes)
+    motion_t = tolerances[:6 * axes].reshape(axes, 6)
+    passed = 0
+    for start in range(0, n, 500):
+        size = min(500, n - start)
+        if profile == "constant":
+            motion = draw_errors(motion_t, (size,), distribution=distribution, rng=rng)
+            motion = np.broadcast_to(motion[:, :, None, :], (size, axes, points, 6))
+        else:
+            motion = draw_errors(np.broadcast_to(motion_t[:, None, :], (axes, points, 6)),
+                                 (size,), distribution=distribution, rng=rng)
+        assembly = draw_errors(tolerances[6 * axes:].reshape(axes - 1, 6), (size,),
+                               distribution=distribution, rng=rng)
+        values = experiment.reference_evaluate(motion, assembly)
+        passed += int(np.all(np.abs(values) < machine.limits, axis=(1, 2)).sum())
+    return passed / n
+
+
+def binomial_se(p, n):
+    return np.sqrt(p * (1 - p) / n)
+
+
+@pytest.mark.parametrize("profile, distribution", [("constant", "normal"),
+                                                   ("independent", "truncated")])
+def test_crude_yield_matches_a_direct_monte_carlo(mill, profile, distribution):
+    t = 1.15 * mill.initial_allocation
+    estimate = machine_yield(mill, t, profile=profile, distribution=distribution,
+                             points_per_axis=3, machines=6000, rng=1, method="crude")
+    reference = reference_yield(mill, t, 3, 12_000, profile, distribution, seed=2)
+    assert 0.2 < reference < 0.95  # a yield both estimators see well
+    se = np.hypot(binomial_se(estimate.estimate, 6000), binomial_se(reference, 12_000))
+    assert abs(estimate.estimate - reference) <= Z * se
+    assert estimate.method == "crude" and estimate.machines == 6000
+    assert estimate.lower <= estimate.estimate <= estimate.upper
+    assert estimate.profile == profile and estimate.distribution == distribution
+    assert estimate.workspace == "3-point grid (27 poses)"
+
+
+@pytest.mark.parametrize("profile", ["independent", "gp:300", "constant"])
+def test_row_vectors_are_the_linearised_chain_and_have_fosm_sigma(mill, profile):
+    model = YieldModel(mill, profile=profile, distribution="normal", points_per_axis=3)
+    t = mill.initial_allocation
+    rows = np.array([0, 7, 50, 100, 161])
+    vectors = model.row_vectors(rows, t)
+    sigma = fosm(mill, t, model.experiment.poses, distribution="normal").sigma
+    np.testing.assert_allclose(np.linalg.norm(vectors, axis=1),
+                               sigma.reshape(-1)[rows], rtol=1e-10)
+    u = np.random.default_rng(3).standard_normal((4, model.dimension))
+    eps = 1e-4  # the exact chain at small errors is its linearisation
+    exact = model.experiment.evaluate(*model.errors(eps * u, t)).reshape(4, -1)[:, rows] / eps
+    np.testing.assert_allclose(exact, u @ vectors.T, rtol=1e-3,
+                               atol=1e-6 * np.abs(exact).max())
+
+
+def test_proposal_weights_are_the_exact_density_ratio(mill):
+    """Under the proposal, E_q[w] = 1 and E_q[w 1(F_r)] = p_r for every row (because
+    w = φ/q exactly), checked at z = 4."""
+    model = YieldModel(mill, profile="constant", distribution="normal", points_per_axis=3)
+    t = 0.8 * mill.initial_allocation
+    events = RowEvents.dominant(model, t)
+    u = events.draw(np.random.default_rng(4), 40_000)
+    w = events.weight(u)
+    assert w.max() <= 1 / 0.1 + 1e-12
+    assert abs(w.mean() - 1) <= Z * w.std() / np.sqrt(len(w))
+    inside = np.abs(u @ events.vectors.T) >= events.thresholds
+    for r in range(min(events.size, 5)):
+        terms = w * inside[:, r]
+        assert abs(terms.mean() - events.probabilities[r]) <= \
+            Z * terms.std() / np.sqrt(len(w)) + 1e-15
+
+
+@pytest.mark.parametrize("profile, distribution, scale", [("constant", "normal", 0.8),
+                                                          ("gp:300", "truncated", 0.85)])
+def test_importance_sampling_agrees_with_crude_on_a_moderate_yield(mill, profile,
+                                                                   distribution, scale):
+    """Unbiased for the true failure indicator: non-linear chain, and under 'truncated'
+    the copula map of the draws."""
+    t = scale * mill.initial_allocation
+    options = {"profile": profile, "distribution": distribution, "points_per_axis": 3}
+    crude = machine_yield(mill, t, machines=40_000, rng=5, method="crude", **options)
+    weighted = machine_yield(mill, t, machines=4000, rng=6, method="importance",
+                             target_cov=0.01, **options)
+    p_crude, p_is = crude.failure_probability, weighted.failure_probability
+    assert 50 < crude.failures  # a failure probability crude sampling resolves
+    se = np.hypot(binomial_se(p_crude, 40_000), weighted.cov * p_is)
+    assert abs(p_crude - p_is) <= Z * se
+    assert weighted.method == "importance" and weighted.cov < crude.cov
+
+
+def test_importance_intervals_cover_a_small_failure_probability(mill):
+    """A yield near 1 − 1e-4: 40 short importance-sampling runs against one long one;
+    95 % intervals should cover about 38 times; at least 32 (P < 1e-4 for correct
+    intervals)."""
+    t = 0.5 * mill.initial_allocation
+    model = YieldModel(mill, points_per_axis=3)
+    truth = model.estimate(t, machines=30_000, rng=7, method="importance", target_cov=0.005)
+    assert 1e-6 < truth.failure_probability < 1e-3
+    covered = 0
+    for seed in range(40):
+        run = model.estimate(t, machines=1000, rng=100 + seed, method="importance",
+                             target_cov=1.0)
+        covered += run.lower <= truth.estimate <= run.upper
+    assert covered >= 32
+
+
+def test_auto_switches_to_importance_and_beats_crude(mill):
+    t = 0.5 * mill.initial_allocation
+    result = machine_yield(mill, t, points_per_axis=3, machines=4000, rng=8, target_cov=0.1)
+    assert result.method == "importance" and "< 50" in result.method_reason
+    assert result.cov <= 0.1
+    assert result.crude_equivalent > 20 * result.machines
+    assert "1 − " not in f"{result.estimate}"  # a number, not a rounded 1
+    assert result.estimate < 1.0
+    moderate = machine_yield(mill, mill.initial_allocation, points_per_axis=3, machines=4000,
+                             rng=8)
+    assert moderate.method == "crude"
+
+
+def test_first_order_bounds_bracket_the_yield_and_are_the_row_formulas(mill):
+    t = 0.7 * mill.initial_allocation
+    model = YieldModel(mill, profile="constant", distribution="normal", points_per_axis=3)
+    lower, upper = model.first_order_bounds(t)
+    prediction = fosm(mill, t, model.experiment.poses, distribution="normal")
+    failure = 2 * norm.sf(mill.limits / prediction.sigma)
+    assert lower == pytest.approx(1 - failure.sum(), rel=1e-12)
+    assert upper == pytest.approx(1 - failure.max(), rel=1e-12)
+    precise = model.estimate(t, machines=20_000, rng=9, method="importance",
+                             target_cov=0.01)
+    assert lower <= precise.lower and precise.upper <= upper
+
+
+def test_failure_shares_sum_to_one_and_name_readable_regions(mill):
+    result = machine_yield(mill, mill.initial_allocation, profile="constant",
+                           points_per_axis=3, machines=3000, rng=10, method="crude")
+    shares = result.failure_shares
+    assert shares["share"].sum() == pytest.approx(1.0)
+    assert shares["failures"].sum() == result.failures
+    assert (shares["lower"] <= shares["share"]).all() and (shares["share"] <= shares["upper"]).all()
+    assert set(shares["output"]) <= set(mill.outputs)
+    assert shares["region"].str.contains(r"(?:low|middle|high) \(.* mm\)|anywhere").all()
+    text = result.summary()
+    assert "profile constant" in text and "first-order bounds" in text
+    assert json.loads(json.dumps(result.to_dict()))["method"] == "crude"
+
+
+@pytest.mark.parametrize("kwargs, words", [
+    ({"machines": 0}, "machines"), ({"profile": "wavy"}, "unknown profile"),
+    ({"method": "fast"}, "method"), ({"distribution": "uniform"}, "distribution"),
+    ({"confidence": 1.5}, "confidence"), ({"target_cov": 0.0}, "target_cov"),
+    ({"points_per_axis": 1}, "points_per_axis")])
+def test_bad_inputs_are_refused_naming_the_argument(mill, kwargs, words):
+    with pytest.raises(InputError, match=words):
+        machine_yield(mill, mill.initial_allocation, **kwargs)
+
+
+def test_bad_tolerances_are_refused(mill):
+    bad = mill.initial_allocation.copy()
+    bad[3] = -1.0
+    with pytest.raises(InputError, match=mill.error_names[3]):
+        machine_yield(mill, bad)
+
+
+@pytest.mark.parametrize("argv, words", [(["--machines", "0"], "--machines"),
+                                         (["--profile", "wavy"], "--profile")])
+def test_command_line_refuses_bad_yield_options(tmp_path, capsys, argv, words):
+    csv = tmp_path / "a.csv"
+    assert cli.main(["allocate", str(MILL), "--out", str(csv), "--points", "3"]) == 0
+    capsys.readouterr()
+    code = cli.main(["verify", str(MILL), "--tolerances", str(csv), *argv])
+    err = capsys.readouterr().err
+    assert code == 2 and words in err and err.strip().splitlines()[-1].startswith("precrel")
+
+
+def test_summary_opens_with_the_yield_of_both_allocations(mill):
+    study = machine_study.run(mill, points=3, repeats=2, samples=200, seed=1, machines=400)
+    info = machine_study.summary(study)
+    assert list(info)[:4] == ["yield", "yield_interval", "yield_profile", "yield_machines"]
+    assert set(info["yield"]) == {"initial", "optimal"}
+    for name, check in (("initial", "initial"), ("optimal", "optimum")):
+        estimate = study.checks[check].machine_yield
+        assert info["yield"][name] == estimate.estimate
+        assert info["yield_interval"][name] == [estimate.lower, estimate.upper]
+    assert info["yield_profile"] == "constant" and info["yield_machines"] == 400
+    blocked = machine_study.run(mill, points=3, repeats=2, samples=200, seed=1,
+                                machines=200, bounds=(1.0, 1.0))
+    info = machine_study.summary(blocked)
+    assert not info["reachable"]
+    assert info["yield"]["optimal"] is None and info["yield_interval"]["optimal"] is None
+
+
+def test_yields_near_one_are_printed_with_their_failure_probability():
+    from reliability.machine_yield import yield_text
+    assert yield_text(0.835) == "0.8350"
+    assert yield_text(1 - 2.5e-7) == "0.99999975"
+    assert yield_text(1 - 1e-12) != "1" and yield_text(1.0) == "1"
