@@ -295,8 +295,12 @@ def allocate_for_yield(machine, yield_target: float, *, profile=None, distributi
     return result
 
 
-class YieldUnreachableError(ValueError):
+class YieldUnreachableError(InfeasibleAllocationError):
     """Even the most precise common per-pose target inside the box misses the yield."""
+
+    def __init__(self, message: str):
+        ValueError.__init__(self, message)
+        self.rows, self.loads = (), np.empty(0)
 
 
 def two_sided_target(z):
