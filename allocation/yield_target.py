@@ -209,7 +209,7 @@ class YieldAllocation:
 
 def allocate_for_yield(machine, yield_target: float, *, profile=None, distribution=None,
                        points: int = 5, bounds=None, machines: int = DEFAULT_MACHINES,
-                       seed: int = 0, rounds: int = 4, naive_steps: int = 8,
+                       seed: int = 0, rounds: int = 6, naive_steps: int = 8,
                        restore_steps: int = 4, gap_tol: float = 1e-6) -> YieldAllocation:
     """The cheapest allocation found whose machine yield reaches ``yield_target``.
 
@@ -420,10 +420,15 @@ class _Point:
     z: np.ndarray
     t: np.ndarray
     cost: float
-    passes: np.ndarray | None = None
+    verdicts: np.ndarray | None = None  # (machines, 6): output inside at every pose
+
+    @property
+    def passes(self) -> np.ndarray:
+        """Per machine: every output inside at every pose."""
+        return self.verdicts.all(axis=1)
 
     def meets(self, target) -> bool:
-        return self.passes is not None and self.passes.mean() >= target
+        return self.verdicts is not None and self.passes.mean() >= target
 
 
 class _Search:
@@ -481,16 +486,16 @@ class _Search:
         key = tuple(np.round(z, 12))
         if key not in self._cache:
             point = self.solve(z)
-            passes = None if not np.isfinite(point.cost) else _machine_yield(
+            verdicts = None if not np.isfinite(point.cost) else _machine_yield(
                 self.experiment, point.t, self.machines, self.design_seed)
             self.evaluations += 1
-            self._cache[key] = replace(point, passes=passes)
+            self._cache[key] = replace(point, verdicts=verdicts)
         return self._cache[key]
 
     def verification_sample(self):
         """Per-machine verdicts of an allocation on the fresh sample (same draws for all)."""
         return lambda t: _machine_yield(self.experiment, t, self.machines,
-                                        self.verification_seed)
+                                        self.verification_seed).all(axis=1)
 
     def naive(self, steps) -> _Point:
         """One common required index, bisected to the smallest meeting the design yield."""
@@ -530,20 +535,29 @@ class _Search:
         return current
 
     def _direction(self, current) -> np.ndarray:
-        """Per output: −1 (lower its target) … +1 (raise it), from the price of yield
-        ``cost saved / yield lost`` when its target is lowered by :data:`FD_STEP`."""
+        """Per output: −1 (lower its target) … +1 (raise it), from its price of yield.
+
+        The cost a target buys is measured by solving with it lowered by :data:`FD_STEP`
+        (no sampling). The yield it buys is what the machines failing through that output
+        alone would regain: raising ``z_o`` by ``dz`` shrinks the failures of output ``o``
+        by the factor ``1 − h(z_o) dz`` (``h = φ/Φ(−z)``, the normal tail's hazard), so the
+        yield gains ``U_o h(z_o) dz / N`` where ``U_o`` is the count of design machines
+        failing output ``o`` and no other (machines failing several outputs are not saved
+        by one). The price is cost over yield; half a machine stands in for ``U_o = 0``.
+        """
         saved = np.zeros(6)
-        lost = np.zeros(6)
         for o in np.flatnonzero((current.z > self.floor + 1e-9) & self._binds(current)):
             lowered = current.z.copy()
             lowered[o] -= FD_STEP
-            point = self.evaluate(lowered)
-            saved[o] = current.cost - point.cost
-            lost[o] = current.passes.mean() - point.passes.mean()
+            saved[o] = current.cost - self.solve(lowered).cost
         binding = saved > 1e-9 * current.cost
         if binding.sum() < 2:
             return np.zeros(6)
-        price = saved / np.maximum(lost, 0.5 / self.machines)
+        failing = ~current.verdicts
+        alone = (failing & (failing.sum(axis=1) == 1)[:, None]).sum(axis=0)
+        hazard = norm.pdf(current.z) / norm.sf(current.z)
+        gained = np.maximum(alone, 0.5) * hazard * FD_STEP / self.machines
+        price = saved / gained
         log_price = np.log(np.where(binding, price, 1.0))
         log_ratio = log_price - log_price[binding].mean()
         return np.where(binding, -np.clip(log_ratio / np.log(PRICE_SCALE), -1.0, 1.0), 0.0)
@@ -589,12 +603,13 @@ class _Search:
 
 
 def _machine_yield(experiment, tolerances, machines, seed) -> np.ndarray:
-    """Per-machine verdicts (every output inside at every grid pose) of ``machines`` built
-    machines with tolerances ``tolerances``; the same ``seed`` gives the same draws for
-    every allocation (common random numbers)."""
+    """Per-machine, per-output verdicts ``(machines, 6)``: the output inside its limit at
+    every grid pose, for ``machines`` built machines with tolerances ``tolerances`` (the
+    machine passes when all six are); the same ``seed`` gives the same draws for every
+    allocation (common random numbers)."""
     result = experiment.run(tolerances, repeats=machines, rng=seed, keep_values="none",
                             distribution=experiment.machine.distribution)
-    return result.all_inside
+    return result.inside == result.n_poses
 
 
 def _check_seed(seed) -> int:
