@@ -27,13 +27,14 @@ whose yield is at least Y and returns it inside a bracket:
 
 The search. On the design sample every candidate must reach the design yield
 ``Y_d = Y + DESIGN_Z · √(Y (1 − Y) / N)`` (N machines), the margin that lets a fresh
-sample of N machines confirm Y. From the naive point, each round lowers each binding
-output's target by a step and measures with common random numbers the cost saved and the
-yield lost; their ratio is that output's price of yield. At the cheapest allocation for
-the yield the prices are equal (its KKT condition), so the round moves the targets of the
-dear outputs down and of the cheap ones up, in proportion to the logarithm of the price
-ratio, then restores the design yield by a common shift of all six targets found by
-bisection; the move is kept when it is cheaper, otherwise the step is halved.
+sample of N machines confirm Y. At the cheapest allocation for a yield every output's
+target buys yield at the same price (the KKT condition in the six targets). Each round
+prices every binding output: the cost its target buys, by re-solving with the target
+lowered (no sampling), over the yield it buys, from the design machines that fail through
+that output alone (:meth:`_Search._direction`). The targets of dear outputs go down and of
+cheap ones up, in proportion to the logarithm of the price ratio, and a common shift of all
+six, found by bisection, restores the design yield; the move is kept when it is cheaper,
+otherwise the step is halved.
 
 All yields go through one function, :func:`_machine_yield` (the crude grid experiment of
 :class:`reliability.sampling.GridExperiment`), so a better estimator is swapped in at one
@@ -175,10 +176,6 @@ class YieldAllocation:
     def relative_gap(self) -> float:
         """:attr:`gap` over the feasible cost."""
         return self.gap / self.cost
-
-    @property
-    def method(self) -> str:
-        return "yield"
 
     def summary(self) -> str:
         """The bracket, the verified yield and the naive method beside it, in words."""
