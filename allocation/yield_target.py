@@ -317,18 +317,19 @@ def equal_yield_margin(result: YieldAllocation, *, level: float | None = None,
 
     Each method is a family of allocations along a common shift of its required indices
     (naive: the common target; the result: its six targets). On a fresh sample (common
-    random numbers for every allocation) each family is solved at shifts ``0, ±spacing,
-    ±2 spacing, …`` until its yields bracket Y with one shift to spare on each side, and
-    its cost at yield Y is interpolated linearly between the shifts whose yields bracket Y.
+    random numbers for every allocation) each family is moved from shift 0 outwards in
+    doubling steps of ``spacing`` until its yields bracket the level, the bracket is bisected
+    four times, one shift is added beyond each end, and its cost at the level is
+    interpolated linearly between the shifts whose yields bracket it.
     The error bar is the bootstrap standard error over the sample's machines (Poisson
     weights, the same resample for both families, so the difference is paired).
 
     Returns
     -------
     dict
-        ``level``: the yield compared at; ``naive`` and ``result``: cost there relative to the initial cost; ``margin``:
-        their difference (naive − result, relative to the initial cost); ``*_error``: the
-        bootstrap standard errors; ``saving``: the margin over the naive cost; ``machines``;
+        ``level``: the yield compared at; ``naive`` and ``result``: cost there relative
+        to the initial cost; ``margin``: their difference (naive − result, relative to
+        the initial cost); ``*_error``: the bootstrap standard errors; ``saving``: the margin over the naive cost; ``machines``;
         ``shifts``, ``yields`` and ``costs`` of each family; ``evaluations``.
     """
     spacing = checks.finite_float(spacing, "spacing", 0.0, low_open=True)

@@ -1,10 +1,10 @@
 """Allocation for a machine-yield target against the naive method (one common target).
 
 Run as ``python -m studies.benchmarks.yield_allocation [--yield 0.95] [--machines 2000]
-[--seed 2023] [--at-target]``. For the paper's machine (``reliability/machines/hobbing.toml``) and the
-5-axis trunnion mill of the tests (``tests/machines/trunnion5.toml``), under the
-``constant`` error profile and each file's reading of a tolerance, on the 5-point grid and
-the default box, it prints
+[--seed 2023] [--at-target]``. For the paper's machine
+(``reliability/machines/hobbing.toml``) and the 5-axis trunnion mill of the tests
+(``tests/machines/trunnion5.toml``), under the ``constant`` error profile and each file's
+reading of a tolerance, on the 5-point grid and the default box, it prints
 
 1. the cost bracket of :func:`allocation.allocate_for_yield`: the certified lower bound
    (every row at FOSM probability Y), the feasible cost and the gap, all relative to the
