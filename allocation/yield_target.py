@@ -329,8 +329,9 @@ def equal_yield_margin(result: YieldAllocation, *, level: float | None = None,
     dict
         ``level``: the yield compared at; ``naive`` and ``result``: cost there relative
         to the initial cost; ``margin``: their difference (naive − result, relative to
-        the initial cost); ``*_error``: the bootstrap standard errors; ``saving``: the margin over the naive cost; ``machines``;
-        ``shifts``, ``yields`` and ``costs`` of each family; ``evaluations``.
+        the initial cost); ``*_error``: the bootstrap standard errors; ``saving``: the
+        margin over the naive cost; ``machines``; ``shifts``, ``yields`` and ``costs`` of
+        each family; ``evaluations``.
     """
     spacing = checks.finite_float(spacing, "spacing", 0.0, low_open=True)
     machines = result.machines if machines is None else checks.positive_int(machines,
