@@ -21,11 +21,13 @@ from .refine import solve_over_workspace
 from .result_files import read_allocation_csv
 from .solve import AllocationResult, TargetUnreachableError, solve_exact, solve_gwo
 from .system import system_allocation
+from .yield_target import YieldAllocation, YieldUnreachableError, allocate_for_yield
 
 __all__ = ["AllocationProblem", "AllocationResult", "Catalogue", "CatalogueClass",
            "CatalogueInfeasibleError", "CatalogueResult", "Component", "ConvexSolution",
            "CostModel", "FcemResult", "GwoResult", "InfeasibleAllocationError",
-           "ScreenedRows", "TargetUnreachableError", "allocation_point",
+           "ScreenedRows", "TargetUnreachableError", "YieldAllocation", "YieldUnreachableError",
+           "allocate_for_yield", "allocation_point",
            "cost_reliability_front", "cost_weights", "fcem_coefficient", "grey_wolf",
            "grey_wolf_reference", "load_catalogue", "read_allocation_csv",
            "requirement_table", "screen_rows", "solve_catalogue", "solve_convex_allocation",

@@ -1,5 +1,6 @@
 """``precrel allocate MACHINE.toml --out CSV``: the cheapest allocation meeting the targets;
-with ``--catalogue CAT.toml`` the cheapest choice of catalogue classes."""
+with ``--catalogue CAT.toml`` the cheapest choice of catalogue classes; with ``--yield Y``
+the cheapest allocation found whose machine yield reaches Y, with its cost bracket."""
 
 from __future__ import annotations
 
@@ -8,11 +9,12 @@ import dataclasses
 import numpy as np
 import pandas as pd
 
-from allocation import AllocationProblem, load_catalogue, solve_catalogue
+from allocation import AllocationProblem, allocate_for_yield, load_catalogue, solve_catalogue
 from allocation.elasticity import requirement_table
 from allocation.result_files import (allocation_to_csv, cost_shares_text, cost_units_text, gap_text,
                                      nearly_free_text)
 from reliability.errors import InputError
+from reliability.machine import OUTPUTS
 from reliability.poses import workspace_grid
 from studies.report.writer import SIGNIFICANT
 
@@ -28,7 +30,11 @@ def add_parser(subparsers):
                     "elasticity of each requirement; writes CSV columns error, reference, "
                     "allocated. With --catalogue: the certified cheapest choice of one class "
                     "per component of a catalogue (docs/catalogue.md), written as CSV "
-                    "columns component, class, price.")
+                    "columns component, class, price. With --yield Y: the cheapest allocation "
+                    "found whose machine yield (share of built machines within every limit at "
+                    "every grid pose, under --profile) reaches Y, verified on fresh machines, "
+                    "between a certified lower bound on the cost and the naive method "
+                    "(docs/yield-allocation.md).")
     options.add_machine(parser)
     parser.add_argument("--out", required=True, metavar="CSV",
                         help="allocation file to write (columns error, reference, allocated);"
@@ -44,7 +50,14 @@ def add_parser(subparsers):
     parser.add_argument("--method", choices=("exact", "gwo"), default="exact",
                         help="certified convex optimum (default) or the paper's GWO")
     parser.add_argument("--seed", type=options.seed, default=0,
-                        help="random seed of GWO (default 0)")
+                        help="random seed of GWO, or of the built machines with --yield "
+                             "(default 0)")
+    parser.add_argument("--yield", dest="yield_target", type=options.probability,
+                        metavar="Y",
+                        help="allocate for a machine yield Y in (0, 1) instead of per-pose "
+                             "targets (with --profile, --machines; not with --target, "
+                             "--side one_sided, --lock, --method gwo or --catalogue)")
+    options.add_yield_model(parser)
     parser.add_argument("--catalogue", metavar="CAT.toml",
                         help="choose one class per component of this catalogue instead of "
                              "continuous tolerances (no --bounds, --lock or --method gwo)")
@@ -60,6 +73,10 @@ def add_parser(subparsers):
 
 
 def run(args) -> int:
+    if args.yield_target is not None:
+        return run_yield(args)
+    if args.profile is not None:
+        raise InputError("--profile is used with --yield only")
     if args.catalogue is not None:
         return run_catalogue(args)
     for option, value in (("--tolerances", args.tolerances),
@@ -117,6 +134,63 @@ def run_catalogue(args) -> int:
         allocation_to_csv(result, tolerances_out, args.overwrite)  # all digits
         print(f"tolerances written to {tolerances_out}")
     return 0
+
+
+def run_yield(args) -> int:
+    """``--yield Y``: everything checked first, then :func:`allocation.allocate_for_yield`."""
+    for option, given in (("--target", args.target is not None),
+                          ("--side one_sided", args.side != "two_sided"),
+                          ("--lock", bool(args.lock)), ("--method gwo", args.method != "exact"),
+                          ("--catalogue", args.catalogue is not None),
+                          ("--tolerances", args.tolerances is not None),
+                          ("--tolerances-out", args.tolerances_out is not None)):
+        if given:
+            raise InputError(f"{option} does not apply with --yield: the machine yield is "
+                             f"the share of built machines with every output inside its "
+                             f"limit (two-sided) at every pose, and the per-output targets "
+                             f"are chosen by the search")
+    bounds = options.check_bounds(args.bounds)
+    out = options.destination(args.out, args.overwrite)
+    machine = options.machine(args)
+    options.say(f"allocating for machine yield {args.yield_target:g} on the {args.points}-point"
+                f" grid, {options.box_words(machine, bounds)}, profile {machine.profile}, "
+                f"{args.machines:,} built machines per sample (design and verification)")
+    result = allocate_for_yield(machine, args.yield_target, points=args.points, bounds=bounds,
+                                machines=args.machines, seed=args.seed)
+    print(describe_yield(result))
+    allocation_to_csv(result, out, args.overwrite, significant=SIGNIFICANT)
+    print(f"\nallocation written to {out}")
+    return 0
+
+
+def describe_yield(result) -> str:
+    """The bracket relative to the initial cost, the verified yield with its machine count,
+    the model (profile, reading, box, grid) and the naive method beside it."""
+    initial = result.initial_cost
+    v, naive = result.verified_yield, result.naive
+    n = naive.verified_yield
+    verdict = "verified" if result.verified else \
+        "NOT verified: the interval reaches below the target"
+    lines = [
+        f"machine yield target {result.yield_target:g}: profile {result.profile}; "
+        f"{options.reading_text(result.problem.machine)}; workspace: the {result.points}-point "
+        f"grid ({len(result.problem.poses):,} poses); box {result.problem.box_text()}",
+        f"lower bound {result.lower_bound / initial:.4%} of the initial cost (every (output, "
+        f"pose) row at probability {result.yield_target:g}, FOSM two-sided, certified)",
+        f"cost {result.cost:.6g} = {result.cost / initial:.4%} of the initial allocation "
+        f"({initial:.6g})",
+        f"gap {result.gap / initial:.4%} of the initial cost ({result.relative_gap:.2%} of "
+        f"the cost)",
+        f"verified yield {v.estimate:.4f}, 95% Clopper-Pearson [{v.lower:.4f}, {v.upper:.4f}] "
+        f"from {v.n:,} fresh built machines: {verdict}",
+        "per-output per-pose targets: " + ", ".join(
+            f"{name} {target:.6g}" for name, target in zip(OUTPUTS, result.output_targets)),
+        f"naive method (one common per-pose target {naive.target:.6g}): cost "
+        f"{naive.cost / initial:.4%} of the initial allocation, verified yield "
+        f"{n.estimate:.4f} [{n.lower:.4f}, {n.upper:.4f}] from {n.n:,} machines",
+        f"search: {result.evaluations} candidates on {result.machines:,} design machines "
+        f"(aimed at yield {result.design_yield_target:.4f} there), seed {result.seed}"]
+    return "\n".join(lines)
 
 
 def solve(problem, method: str, seed: int = 0):

@@ -1,0 +1,626 @@
+"""Allocation for a machine-yield target: the cheapest allocation whose built machines pass.
+
+The machine yield of an allocation is the share of built machines that keep all six
+outputs within their limits at every pose of the workspace grid, under the study's error
+profile along travel (``constant``, ``independent`` or ``gp:<length>``) and reading of a
+tolerance. :func:`allocate_for_yield` looks for the cheapest allocation in the study's box
+whose yield is at least Y and returns it inside a bracket:
+
+* **lower bound (a relaxation).** A built machine passes only if every output is inside at
+  every pose, so its yield cannot exceed the probability of any one (output, pose) row.
+  Any allocation with yield ≥ Y therefore has every row's probability ≥ Y, and the
+  certified dual bound of the two-sided per-pose problem at target Y (every row at
+  probability Y, :class:`~allocation.front.CommonTargetSolver`) is a lower bound on its
+  cost. The row probability is the FOSM one (the linearised output read as normal with
+  σ of Eq. 20, the truncated σ under the truncated reading), so the bound holds for that
+  model of a row, on the same grid; the yield itself is sampled on the exact model.
+* **feasible side.** Every candidate is the certified optimum of the per-pose problem for
+  six per-output two-sided targets (one per output, stated as required indices
+  ``z_o = Φ⁻¹((1 + R_o)/2)``); its yield is estimated by simulating built machines with
+  common random numbers (the same draws for every candidate). The search starts from the
+  naive method and moves the six targets (below); the allocation chosen is then verified
+  on a fresh, independent sample of built machines, and counts as verified when the
+  Clopper–Pearson interval's lower end is at least Y.
+* **naive method.** One common two-sided per-pose target for all outputs, raised by
+  bisection until the estimated yield reaches the design yield (the pattern of
+  :func:`allocation.system.system_allocation`).
+
+The search. On the design sample every candidate must reach the design yield
+``Y_d = Y + DESIGN_Z · √(Y (1 − Y) / N)`` (N machines), the margin that lets a fresh
+sample of N machines confirm Y. At the cheapest allocation for a yield every output's
+target buys yield at the same price (the KKT condition in the six targets). Each round
+prices every binding output: the cost its target buys, by re-solving with the target
+lowered (no sampling), over the yield it buys, from the design machines that fail through
+that output alone (:meth:`_Search._direction`). The targets of dear outputs go down and of
+cheap ones up, in proportion to the logarithm of the price ratio, and a common shift of all
+six, found by bisection, restores the design yield; the move is kept when it is cheaper,
+otherwise the step is halved.
+
+All yields go through one function, :func:`_machine_yield` (the crude grid experiment of
+:class:`reliability.sampling.GridExperiment`), so a better estimator is swapped in at one
+place.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+from scipy.stats import norm
+
+from reliability import checks, streams
+from reliability.errors import InputError
+from reliability.fosm import required_index
+from reliability.machine import OUTPUTS
+from reliability.poses import workspace_grid
+from reliability.sampling import GridExperiment
+from reliability.statistics import machine_yield
+
+from .convex import InfeasibleAllocationError, solve_convex_allocation
+from .front import CommonTargetSolver
+from .problem import AllocationProblem
+
+#: Two-sided per-pose target the constraint rows are built and screened at: every target
+#: the search uses lies at or below it, so no screened-out row can bind.
+BUILD_TARGET = 1.0 - 1e-9
+#: Standard errors of a yield on N machines added to Y for the design sample, so that a
+#: fresh sample of N machines confirms Y (1.96 for the interval, about 2.3 for the
+#: difference of two independent samples at 95 %).
+DESIGN_Z = 4.0
+#: Required-index step of the finite differences and the first move of the search.
+FD_STEP = 0.15
+FIRST_STEP = 0.3
+#: A price ratio of this factor moves a target by one whole step.
+PRICE_SCALE = 4.0
+#: Machines simulated by default (design and verification samples each).
+DEFAULT_MACHINES = 2000
+
+
+@dataclass(frozen=True, eq=False)
+class NaiveAllocation:
+    """The naive method's allocation: one common per-pose target for all outputs.
+
+    Attributes
+    ----------
+    target : float
+        The common two-sided per-pose target R.
+    tolerances : ndarray (n_errors,)
+    cost : float
+    design_yield, verified_yield : ProportionEstimate
+        On the design sample and on the fresh verification sample.
+    """
+
+    target: float
+    tolerances: np.ndarray
+    cost: float
+    design_yield: object
+    verified_yield: object
+
+
+@dataclass(frozen=True, eq=False)
+class YieldAllocation:
+    """An allocation for a machine-yield target, with its cost bracket.
+
+    Attributes
+    ----------
+    problem : AllocationProblem
+        The per-pose problem (two-sided, every pose of the grid) whose rows every candidate
+        was solved with; its ``reference`` is the initial allocation.
+    yield_target : float
+        Y.
+    design_yield_target : float
+        ``Y_d``, the yield every candidate had to reach on the design sample.
+    tolerances : ndarray (n_errors,)
+        The allocation found.
+    cost : float
+        Its cost (Eq. 28).
+    output_targets : ndarray (6,)
+        Its per-output two-sided per-pose targets.
+    design_yield, verified_yield : ProportionEstimate
+        Its yield on the design sample and on the fresh verification sample.
+    lower_bound : float
+        Certified lower bound on the cost of any allocation with yield ≥ Y (the relaxation:
+        every row at FOSM probability Y).
+    lower_bound_tolerances : ndarray (n_errors,)
+        The relaxation's optimum (every row at probability ≥ Y).
+    naive : NaiveAllocation
+    profile, distribution : str
+        The error profile along travel and the reading of a tolerance.
+    points : int
+        Grid points per axis (the workspace of the yield and of the rows).
+    machines : int
+        Built machines in each sample (design and verification).
+    seed : int
+    evaluations : int
+        Candidates solved and simulated on the design sample.
+    seconds : dict
+        Wall time of the build, the search and the verification.
+    """
+
+    problem: object = field(repr=False)
+    yield_target: float
+    design_yield_target: float
+    tolerances: np.ndarray
+    cost: float
+    output_targets: np.ndarray
+    design_yield: object
+    verified_yield: object
+    lower_bound: float
+    lower_bound_tolerances: np.ndarray
+    naive: NaiveAllocation
+    profile: str
+    distribution: str
+    points: int
+    machines: int
+    seed: int
+    evaluations: int
+    seconds: dict
+
+    @property
+    def initial_cost(self) -> float:
+        """Cost of the initial (reference) allocation."""
+        return float(self.problem.cost.total(self.problem.reference))
+
+    @property
+    def verified(self) -> bool:
+        """The fresh sample's interval lies at or above Y."""
+        return bool(self.verified_yield.lower >= self.yield_target)
+
+    @property
+    def gap(self) -> float:
+        """Feasible cost minus the lower bound."""
+        return self.cost - self.lower_bound
+
+    @property
+    def relative_gap(self) -> float:
+        """:attr:`gap` over the feasible cost."""
+        return self.gap / self.cost
+
+    def summary(self) -> str:
+        """The bracket, the verified yield and the naive method beside it, in words."""
+        initial = self.initial_cost
+        v, n = self.verified_yield, self.naive.verified_yield
+        verdict = "verified" if self.verified else "NOT verified (interval reaches below Y)"
+        targets = ", ".join(f"{name} {target:.6g}" for name, target
+                            in zip(OUTPUTS, self.output_targets))
+        return "\n".join([
+            f"allocation for machine yield {self.yield_target:g} (profile {self.profile}, "
+            f"distribution {self.distribution}, {self.points}-point grid of "
+            f"{len(self.problem.poses):,} poses, {self.problem.box_text()})",
+            f"lower bound {self.lower_bound / initial:.4%} of the initial cost "
+            f"(every row at FOSM probability {self.yield_target:g}, certified)",
+            f"feasible cost {self.cost / initial:.4%} of the initial cost ({self.cost:.6g}); "
+            f"gap {self.gap / initial:.4%} of the initial cost "
+            f"({self.relative_gap:.2%} of the feasible cost)",
+            f"verified yield {v.estimate:.4f}, 95% Clopper–Pearson [{v.lower:.4f}, "
+            f"{v.upper:.4f}] from {v.n:,} fresh machines: {verdict}",
+            f"per-output per-pose targets: {targets}",
+            f"naive method (one common per-pose target {self.naive.target:.6g}): cost "
+            f"{self.naive.cost / initial:.4%} of the initial cost, verified yield "
+            f"{n.estimate:.4f} [{n.lower:.4f}, {n.upper:.4f}]"])
+
+    def __repr__(self) -> str:
+        return self.summary()
+
+
+def allocate_for_yield(machine, yield_target: float, *, profile=None, distribution=None,
+                       points: int = 5, bounds=None, machines: int = DEFAULT_MACHINES,
+                       seed: int = 0, rounds: int = 6, naive_steps: int = 8,
+                       restore_steps: int = 4, gap_tol: float = 1e-6) -> YieldAllocation:
+    """The cheapest allocation found whose machine yield reaches ``yield_target``.
+
+    Parameters
+    ----------
+    machine : Machine
+    yield_target : float
+        Y in (0, 1): the share of built machines that must hold every limit at every pose.
+    profile : str, optional
+        Error profile along travel of a built machine (``'constant'``, ``'independent'``,
+        ``'gp:<length mm>'``); default ``machine.profile``.
+    distribution : {'normal', 'truncated'}, optional
+        Reading of a tolerance; default ``machine.distribution``.
+    points : int
+        Grid points per axis: the poses of the rows and of the simulated machines.
+    bounds : (float, float), optional
+        Box as factors of the initial allocation (default as
+        :meth:`AllocationProblem.build`).
+    machines : int
+        Built machines in the design sample and, independently, in the verification sample.
+    seed : int
+        Seed of both samples (``streams.spawn(seed, 2)``).
+    rounds : int
+        Rounds of the search over the six per-output targets (0: the naive method only).
+    naive_steps, restore_steps : int
+        Bisection steps on the naive common target and on each round's common shift.
+    gap_tol : float
+        Relative duality gap accepted by the convex solves.
+
+    Returns
+    -------
+    YieldAllocation
+
+    Raises
+    ------
+    InputError
+        A bad argument (named), before any work.
+    TargetUnreachableError
+        (from the solver) or :class:`YieldUnreachableError` when even the most precise
+        common target the box allows misses the design yield.
+    """
+    started = time.perf_counter()
+    yield_target = _check_yield(yield_target)
+    machines = checks.positive_int(machines, "machines")
+    seed = _check_seed(seed)
+    for value, name in ((rounds, "rounds"), (naive_steps, "naive_steps"),
+                        (restore_steps, "restore_steps")):
+        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 0:
+            raise InputError(f"{name} must be an integer >= 0; got {value!r}")
+    chosen = {name: value for name, value in (("profile", profile),
+                                              ("distribution", distribution))
+              if value is not None}
+    machine = replace(machine, **chosen) if chosen else machine
+    design_target = min(yield_target + DESIGN_Z * np.sqrt(yield_target * (1 - yield_target)
+                                                           / machines),
+                        1.0 - 0.5 / machines)
+    search = _Search(machine, points, bounds, machines, seed, design_target, gap_tol)
+    built = time.perf_counter()
+    try:
+        lower = search.solver(yield_target)
+    except InfeasibleAllocationError:
+        raise YieldUnreachableError(
+            f"yield unreachable inside the box: not even every (output, pose) row can reach "
+            f"probability {yield_target:g}; widen the box (bounds)") from None
+    naive = search.naive(naive_steps)
+    best = search.improve(naive, rounds, restore_steps)
+    searched = time.perf_counter()
+    verify = search.verification_sample()
+    result = YieldAllocation(
+        problem=search.problem, yield_target=yield_target,
+        design_yield_target=float(design_target), tolerances=best.t, cost=best.cost,
+        output_targets=two_sided_target(best.z), design_yield=machine_yield(best.passes),
+        verified_yield=machine_yield(verify(best.t)), lower_bound=float(lower.dual_bound),
+        lower_bound_tolerances=np.asarray(lower.t),
+        naive=NaiveAllocation(target=float(two_sided_target(naive.z[0])),
+                              tolerances=naive.t, cost=naive.cost,
+                              design_yield=machine_yield(naive.passes),
+                              verified_yield=machine_yield(verify(naive.t))),
+        profile=machine.profile, distribution=machine.distribution, points=int(points),
+        machines=machines, seed=seed, evaluations=search.evaluations,
+        seconds={"build": built - started, "search": searched - built,
+                 "verify": time.perf_counter() - searched})
+    return result
+
+
+class YieldUnreachableError(InfeasibleAllocationError):
+    """Even the most precise common per-pose target inside the box misses the yield."""
+
+    def __init__(self, message: str):
+        ValueError.__init__(self, message)
+        self.rows, self.loads = (), np.empty(0)
+
+
+def two_sided_target(z):
+    """Two-sided per-pose target ``2Φ(z) − 1`` of a required index ``z``."""
+    return 2.0 * norm.cdf(z) - 1.0
+
+
+def equal_yield_margin(result: YieldAllocation, *, level: float | None = None,
+                       spacing: float = 0.04,
+                       machines: int | None = None, seed: int | None = None,
+                       resamples: int = 2000) -> dict:
+    """Cost of the naive method and of the result at one yield, and their difference with
+    its error bar, measured on one fresh sample shared by both (paired).
+
+    ``level`` is the yield compared at: by default the design yield ``Y_d`` both methods
+    were tuned to (their allocations' yields); ``yield_target`` gives the comparison at Y.
+
+    Each method is a family of allocations along a common shift of its required indices
+    (naive: the common target; the result: its six targets). On a fresh sample (common
+    random numbers for every allocation) each family is moved from shift 0 outwards in
+    doubling steps of ``spacing`` until its yields bracket the level, the bracket is bisected
+    four times, one shift is added beyond each end, and its cost at the level is
+    interpolated linearly between the shifts whose yields bracket it.
+    The error bar is the bootstrap standard error over the sample's machines (Poisson
+    weights, the same resample for both families, so the difference is paired).
+
+    Returns
+    -------
+    dict
+        ``level``: the yield compared at; ``naive`` and ``result``: cost there relative
+        to the initial cost; ``margin``: their difference (naive − result, relative to
+        the initial cost); ``*_error``: the bootstrap standard errors; ``saving``: the
+        margin over the naive cost; ``machines``; ``shifts``, ``yields`` and ``costs`` of
+        each family; ``evaluations``.
+    """
+    spacing = checks.finite_float(spacing, "spacing", 0.0, low_open=True)
+    machines = result.machines if machines is None else checks.positive_int(machines,
+                                                                            "machines")
+    seed = result.seed + 1 if seed is None else _check_seed(seed)
+    resamples = checks.positive_int(resamples, "resamples")
+    target = result.design_yield_target if level is None else _check_yield(level)
+    search = _Search(result.problem.machine, result.points, None, machines, seed, 0.0,
+                     problem=result.problem)
+    sample = search.verification_sample()
+    families = {"naive": np.full(6, required_index(result.naive.target, "two_sided")),
+                "result": required_index(result.output_targets, "two_sided")}
+    shifts, costs, passes = {}, {}, {}
+    for name, z in families.items():
+        shifts[name], costs[name], passes[name] = _family(search, sample, z, spacing,
+                                                          target)
+        costs[name] = costs[name] / result.initial_cost
+    weights = streams.spawn(seed, 3)[2].poisson(1.0, (resamples, machines))
+    at_y = {name: _cost_at_yield(costs[name], passes[name], target, weights)
+            for name in families}
+    point = {name: float(_cost_at_yield(costs[name], passes[name], target,
+                                        np.ones((1, machines)))[0]) for name in families}
+    margin = at_y["naive"] - at_y["result"]
+    return {"level": target, "naive": point["naive"], "result": point["result"],
+            "margin": point["naive"] - point["result"],
+            "naive_error": float(np.nanstd(at_y["naive"], ddof=1)),
+            "result_error": float(np.nanstd(at_y["result"], ddof=1)),
+            "margin_error": float(np.nanstd(margin, ddof=1)),
+            "saving": (point["naive"] - point["result"]) / point["naive"],
+            "machines": machines, "shifts": shifts, "costs": costs,
+            "yields": {name: passes[name].mean(axis=1) for name in families},
+            "evaluations": sum(len(s) for s in shifts.values())}
+
+
+def _family(search, sample, z, spacing, target, doublings: int = 10, steps: int = 4):
+    """Shifts of ``z``, costs and per-machine verdicts on ``sample`` around yield
+    ``target``: from shift 0 outwards in doubling steps until the yields bracket it, then
+    ``steps`` bisections of the bracket, and one shift beyond each end of it."""
+    found = {}
+
+    def meets(shift):
+        if shift not in found:
+            point = search.solve(z + shift)
+            found[shift] = (point.cost, sample(point.t))
+        return found[shift][1].mean() >= target
+
+    low = high = 0.0
+    outward = -1.0 if meets(0.0) else 1.0
+    for i in range(doublings):
+        shift = outward * spacing * 2 ** i
+        if meets(shift) != (outward < 0):
+            break
+    low, high = sorted((shift, shift / 2 if i else 0.0))
+    for _ in range(steps):
+        middle = 0.5 * (low + high)
+        low, high = (low, middle) if meets(middle) else (middle, high)
+    meets(low - spacing)
+    meets(high + spacing)
+    order = sorted(found)
+    return (np.array(order), np.array([found[s][0] for s in order]),
+            np.stack([found[s][1] for s in order]))
+
+
+def _cost_at_yield(costs, passes, target, weights) -> np.ndarray:
+    """Cost at yield ``target`` for each row of machine weights, linear in the yield
+    between the first offset reaching it and the one before (NaN when not bracketed)."""
+    yields = weights @ passes.T / weights.sum(axis=1, keepdims=True)  # (B, offsets)
+    yields = np.maximum.accumulate(yields, axis=1)  # a more precise family never loses
+    reach = yields >= target
+    first = np.argmax(reach, axis=1)
+    ok = reach.any(axis=1) & (first > 0)
+    k = np.where(ok, first, 1)
+    rows = np.arange(len(yields))
+    y0, y1 = yields[rows, k - 1], yields[rows, k]
+    share = np.where(y1 > y0, (target - y0) / np.where(y1 > y0, y1 - y0, 1.0), 1.0)
+    out = costs[k - 1] + share * (costs[k] - costs[k - 1])
+    return np.where(ok, out, np.nan)
+
+
+@dataclass(frozen=True, eq=False)
+class _Point:
+    """A candidate: required indices, its allocation, cost and the design sample's
+    per-machine verdicts."""
+
+    z: np.ndarray
+    t: np.ndarray
+    cost: float
+    verdicts: np.ndarray | None = None  # (machines, 6): output inside at every pose
+
+    @property
+    def passes(self) -> np.ndarray:
+        """Per machine: every output inside at every pose."""
+        return self.verdicts.all(axis=1)
+
+    def meets(self, target) -> bool:
+        return self.verdicts is not None and self.passes.mean() >= target
+
+
+class _Search:
+    """The per-output-target family of allocations, solved and simulated with CRN."""
+
+    def __init__(self, machine, points, bounds, machines, seed, design_target,
+                 gap_tol=1e-6, problem=None):
+        self.problem = problem if problem is not None else AllocationProblem.build(
+            machine, workspace_grid(machine, points), side="two_sided", workspace="worst",
+            bounds=bounds, targets=dict.fromkeys(OUTPUTS, BUILD_TARGET))
+        machine = self.problem.machine
+        self.solver = CommonTargetSolver(self.problem, gap_tol)
+        self.gap_tol = gap_tol
+        self.z_build = float(self.problem.required_index[0])
+        self.experiment = GridExperiment(machine, points, profile=machine.profile)
+        design, verification = streams.spawn(seed, 2)
+        self.design_seed = int(design.integers(2 ** 62))
+        self.verification_seed = int(verification.integers(2 ** 62))
+        self.machines = machines
+        self.design_target = design_target
+        self.floor = float(required_index(0.5, "two_sided"))
+        self.cap = self._caps()
+        self.evaluations = 0
+        self._start = None
+        self._cache = {}
+
+    def _caps(self) -> np.ndarray:
+        """Largest required index of each output the box can hold (all items at their
+        lower bounds), at most the build's."""
+        rows = self.problem.rows
+        load = rows.matrix @ np.square(self.problem.lower)
+        worst = np.zeros(len(OUTPUTS))
+        np.maximum.at(worst, rows.output, load)
+        with np.errstate(divide="ignore"):
+            return np.minimum(self.z_build, self.z_build / np.sqrt(worst))
+
+    def solve(self, z) -> _Point:
+        """The certified per-pose optimum at required indices ``z`` (no sampling)."""
+        z = np.clip(np.asarray(z, dtype=float), self.floor, self.cap)
+        scale = np.square(z / self.z_build)[self.problem.rows.output]
+        start = None if self._start is None else self._start[0] * scale / self._start[1]
+        try:
+            solution = solve_convex_allocation(
+                self.problem.cost.weights, self.problem.rows.matrix * scale[:, None],
+                np.square(self.problem.lower), np.square(self.problem.upper),
+                gap_tol=self.gap_tol, start=start)
+        except InfeasibleAllocationError:  # only by rounding at a cap
+            return _Point(z=z, t=np.asarray(self.problem.lower), cost=np.inf)
+        self._start = (np.array(solution.multipliers), scale)
+        return _Point(z=z, t=np.asarray(solution.t), cost=float(solution.fun))
+
+    def evaluate(self, z) -> _Point:
+        """:meth:`solve` and the design sample's verdicts (cached by ``z``)."""
+        z = np.clip(np.asarray(z, dtype=float), self.floor, self.cap)
+        key = tuple(np.round(z, 12))
+        if key not in self._cache:
+            point = self.solve(z)
+            verdicts = None if not np.isfinite(point.cost) else _machine_yield(
+                self.experiment, point.t, self.machines, self.design_seed)
+            self.evaluations += 1
+            self._cache[key] = replace(point, verdicts=verdicts)
+        return self._cache[key]
+
+    def verification_sample(self):
+        """Per-machine verdicts of an allocation on the fresh sample (same draws for all)."""
+        return lambda t: _machine_yield(self.experiment, t, self.machines,
+                                        self.verification_seed).all(axis=1)
+
+    def naive(self, steps) -> _Point:
+        """One common required index, bisected to the smallest meeting the design yield."""
+        high = self.evaluate(np.full(6, self.cap.min()))
+        if not high.meets(self.design_target):
+            raise YieldUnreachableError(
+                f"yield unreachable inside the box: even the common per-pose target "
+                f"{two_sided_target(self.cap.min()):.6g} (the most the box holds) gives a "
+                f"yield of {high.passes.mean():.4f} on {self.machines} machines, short of "
+                f"the {self.design_target:.4f} aimed at; widen the box (bounds)")
+        return self._smallest_shift(np.zeros(6), self.floor, self.cap.min(), high, steps)
+
+    def _smallest_shift(self, base, low, high, best, steps) -> _Point:
+        """Bisection on the shift ``s`` of ``base + s`` between a failing ``low`` and a
+        passing ``high`` (whose point is ``best``)."""
+        for _ in range(steps):
+            middle = 0.5 * (low + high)
+            point = self.evaluate(base + middle)
+            if point.meets(self.design_target):
+                high, best = middle, point
+            else:
+                low = middle
+        return best
+
+    def improve(self, start, rounds, restore_steps) -> _Point:
+        """Move the six targets towards equal prices of yield (module docstring)."""
+        current, step = start, FIRST_STEP
+        for _ in range(rounds):
+            direction = self._direction(current)
+            if not direction.any():
+                break
+            moved = self._restore(current.z + step * direction, step, restore_steps)
+            if moved is not None and moved.cost < current.cost:
+                current = moved
+            else:
+                step *= 0.5
+        return current
+
+    def _direction(self, current) -> np.ndarray:
+        """Per output: −1 (lower its target) … +1 (raise it), from its price of yield.
+
+        The cost a target buys is measured by solving with it lowered by :data:`FD_STEP`
+        (no sampling). The yield it buys is what the machines failing through that output
+        alone would regain: raising ``z_o`` by ``dz`` shrinks the failures of output ``o``
+        by the factor ``1 − h(z_o) dz`` (``h = φ/Φ(−z)``, the normal tail's hazard), so the
+        yield gains ``U_o h(z_o) dz / N`` where ``U_o`` is the count of design machines
+        failing output ``o`` and no other (machines failing several outputs are not saved
+        by one). The price is cost over yield; half a machine stands in for ``U_o = 0``.
+        """
+        saved = np.zeros(6)
+        for o in np.flatnonzero((current.z > self.floor + 1e-9) & self._binds(current)):
+            lowered = current.z.copy()
+            lowered[o] -= FD_STEP
+            saved[o] = current.cost - self.solve(lowered).cost
+        binding = saved > 1e-9 * current.cost
+        if binding.sum() < 2:
+            return np.zeros(6)
+        failing = ~current.verdicts
+        alone = (failing & (failing.sum(axis=1) == 1)[:, None]).sum(axis=0)
+        hazard = norm.pdf(current.z) / norm.sf(current.z)
+        gained = np.maximum(alone, 0.5) * hazard * FD_STEP / self.machines
+        price = saved / gained
+        log_price = np.log(np.where(binding, price, 1.0))
+        log_ratio = log_price - log_price[binding].mean()
+        return np.where(binding, -np.clip(log_ratio / np.log(PRICE_SCALE), -1.0, 1.0), 0.0)
+
+    def _binds(self, point) -> np.ndarray:
+        """Per output: some row of it is active at ``point`` (lowering its target can save)."""
+        rows = self.problem.rows
+        scale = np.square(point.z / self.z_build)[rows.output]
+        load = scale * (rows.matrix @ np.square(point.t))
+        worst = np.zeros(len(OUTPUTS))
+        np.maximum.at(worst, rows.output, load)
+        return worst >= 1.0 - 1e-6
+
+    def _restore(self, z, step, steps) -> _Point | None:
+        """The smallest common shift of ``z`` meeting the design yield (None when the box
+        cannot): bracketed in steps of ``step``, then bisected."""
+        point = self.evaluate(z)
+        low, high = 0.0, 0.0
+        if point.meets(self.design_target):
+            best = point
+            for _ in range(8):
+                low -= step
+                trial = self.evaluate(z + low)
+                if not trial.meets(self.design_target):
+                    break
+                high, best = low, trial
+            else:
+                return best
+        else:
+            best = None
+            for _ in range(8):
+                high += step
+                trial = self.evaluate(z + high)
+                if trial.meets(self.design_target):
+                    best = trial
+                    break
+                low = high
+                if np.all(z + high >= self.cap):
+                    return None
+            if best is None:
+                return None
+        return self._smallest_shift(z, low, high, best, steps)
+
+
+def _machine_yield(experiment, tolerances, machines, seed) -> np.ndarray:
+    """Per-machine, per-output verdicts ``(machines, 6)``: the output inside its limit at
+    every grid pose, for ``machines`` built machines with tolerances ``tolerances`` (the
+    machine passes when all six are); the same ``seed`` gives the same draws for every
+    allocation (common random numbers)."""
+    result = experiment.run(tolerances, repeats=machines, rng=seed, keep_values="none",
+                            distribution=experiment.machine.distribution)
+    return result.inside == result.n_poses
+
+
+def _check_seed(seed) -> int:
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise InputError(f"seed must be a non-negative integer; got {seed!r}")
+    return int(seed)
+
+
+def _check_yield(value) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.number)):
+        raise InputError(f"yield_target must be a number in (0, 1); got {value!r}")
+    value = float(value)
+    if not 0.0 < value < 1.0:
+        raise InputError(f"yield_target must lie in (0, 1); got {value!r}")
+    return value

@@ -1,0 +1,214 @@
+"""Allocation for a machine-yield target (allocation.yield_target, precrel allocate --yield)."""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+from scipy.stats import norm
+
+from allocation import YieldUnreachableError, allocate_for_yield, read_allocation_csv
+from allocation.yield_target import (_cost_at_yield, _machine_yield, equal_yield_margin,
+                                     two_sided_target)
+import reliability
+from reliability.errors import InputError
+from reliability.sampling import GridExperiment
+from studies import cli
+
+MACHINE_DIR = Path(__file__).parent / "machines"
+
+Y = 0.9
+MACHINES = 300
+Z = 4.0  # standard errors allowed between two independent yield estimates
+
+
+@pytest.fixture(scope="module")
+def result(trunnion5):
+    return allocate_for_yield(trunnion5, Y, profile="constant", points=3, machines=MACHINES,
+                              seed=7)
+
+
+def fosm_two_sided(machine, poses, t):
+    """Two-sided FOSM probability of every (pose, output), straight from the Jacobian:
+    σ_o = sqrt(Σ_i J_oi² (t_i/3)²), P = 2Φ(I/σ) − 1 (Eqs. 20–23)."""
+    sigma = np.sqrt(np.einsum("pon,n->po", np.square(machine.jacobian(poses)),
+                              np.square(t / 3.0)))
+    return 2.0 * norm.cdf(machine.limits / sigma) - 1.0
+
+
+def test_lower_bound_is_below_both_feasible_costs(result):
+    assert result.lower_bound <= result.cost
+    assert result.lower_bound <= result.naive.cost
+    assert result.gap == pytest.approx(result.cost - result.lower_bound)
+
+
+def test_relaxation_rows_sit_at_the_yield_target(result):
+    """The bound's allocation meets every row at probability Y and the active rows at
+    exactly Y (an independent FOSM computation on the same grid)."""
+    problem = result.problem
+    p = fosm_two_sided(problem.machine, problem.poses, result.lower_bound_tolerances)
+    assert p.min() >= Y - 1e-7
+    assert p.min() == pytest.approx(Y, abs=1e-6)
+    assert problem.cost.total(result.lower_bound_tolerances) >= result.lower_bound
+
+
+def test_lower_bound_holds_for_allocations_meeting_every_row(result):
+    """Weak duality: any allocation in the box with every row at probability >= Y costs at
+    least the bound (random allocations in the box, scaled down until they meet Y)."""
+    problem = result.problem
+    rng = np.random.default_rng(3)
+    low, high = problem.lower, problem.upper
+    tried = low + rng.random((40, len(low))) * (high - low)
+    met = 0
+    for t in tried:
+        while fosm_two_sided(problem.machine, problem.poses, t).min() < Y and \
+                np.any(t > low):
+            t = np.maximum(low, 0.9 * t)
+        if fosm_two_sided(problem.machine, problem.poses, t).min() >= Y:
+            met += 1
+            assert problem.cost.total(t) >= result.lower_bound
+    assert met > 0
+
+
+def test_machine_yield_stays_below_every_row(result):
+    """The relaxation's premise, measured: the machine yield's interval starts below the
+    smallest row probability of the allocation found."""
+    problem = result.problem
+    worst_row = fosm_two_sided(problem.machine, problem.poses, result.tolerances).min()
+    assert result.verified_yield.lower <= worst_row
+
+
+def test_found_allocation_is_verified_above_target(result):
+    assert result.verified
+    assert result.verified_yield.lower >= Y
+    assert result.verified_yield.n == MACHINES
+    assert result.design_yield.estimate >= result.design_yield_target
+    assert result.naive.design_yield.estimate >= result.design_yield_target
+
+
+def test_verified_yield_agrees_with_an_independent_simulation(result, trunnion5):
+    """A separate grid experiment with its own seed: the two yields differ by less than
+    Z = 4 standard errors of their difference."""
+    experiment = GridExperiment(result.problem.machine, 3, profile="constant")
+    other = experiment.run(result.tolerances, repeats=MACHINES, rng=12345,
+                           keep_values="none", distribution="normal").machine_yield()
+    a, b = result.verified_yield.estimate, other.estimate
+    pooled = 0.5 * (a + b)
+    error = np.sqrt(2 * pooled * (1 - pooled) / MACHINES)
+    assert abs(a - b) <= Z * max(error, 1.0 / MACHINES)
+
+
+def test_beats_or_equals_the_naive_method(result):
+    """Same design sample and target for both: the search never returns a dearer one; on
+    this machine it is strictly cheaper."""
+    assert result.cost < result.naive.cost
+    assert result.output_targets.min() >= 0.5
+
+
+def test_naive_target_is_one_common_target(result):
+    """rounds=0 is the naive method alone, and the same seed gives the same naive point."""
+    naive = allocate_for_yield(result.problem.machine, Y, points=3, machines=MACHINES,
+                               seed=7, rounds=0)
+    assert np.array_equal(naive.tolerances, result.naive.tolerances)
+    assert naive.cost == pytest.approx(result.naive.cost, rel=1e-9)
+    assert np.allclose(naive.output_targets, naive.naive.target)
+    assert naive.naive.target == pytest.approx(result.naive.target)
+
+
+def test_common_random_numbers(trunnion5):
+    """Same seed, same draws: a uniformly tighter allocation keeps every machine that passed
+    (the outputs are nearly linear in the errors) and the same allocation gives the same
+    verdicts."""
+    experiment = GridExperiment(trunnion5, 3, profile="constant")
+    t = trunnion5.initial_allocation * 1.5
+    loose = _machine_yield(experiment, t, 200, 5)
+    assert np.array_equal(loose, _machine_yield(experiment, t, 200, 5))
+    tight = _machine_yield(experiment, 0.7 * t, 200, 5)
+    assert np.all(tight[loose])
+    assert tight.sum() > loose.sum()
+
+
+def test_cost_at_yield_interpolates_linearly():
+    """Yields 0.8, 0.9, 1.0 at costs 1, 2, 3: yield 0.85 costs 1.5 and 0.95 costs 2.5."""
+    costs = np.array([1.0, 2.0, 3.0])
+    passes = np.zeros((3, 10), dtype=bool)
+    for row, count in enumerate((8, 9, 10)):
+        passes[row, :count] = True
+    weights = np.ones((1, 10))
+    assert _cost_at_yield(costs, passes, 0.85, weights)[0] == pytest.approx(1.5)
+    assert _cost_at_yield(costs, passes, 0.95, weights)[0] == pytest.approx(2.5)
+    assert np.isnan(_cost_at_yield(costs, passes, 0.75, weights)[0])
+
+
+def test_equal_yield_margin_is_paired_and_finite(result):
+    margin = equal_yield_margin(result, level=Y, resamples=300)
+    assert margin["level"] == Y
+    assert np.isfinite([margin["naive"], margin["result"], margin["margin"]]).all()
+    assert margin["margin_error"] > 0
+    assert margin["margin"] == pytest.approx(margin["naive"] - margin["result"])
+    for name in ("naive", "result"):
+        yields = margin["yields"][name]
+        assert yields.min() < Y <= yields.max()
+
+
+def test_two_sided_target_inverts_the_required_index():
+    assert two_sided_target(norm.ppf(0.995)) == pytest.approx(0.99)
+
+
+@pytest.mark.parametrize("kwargs, named", [
+    ({"yield_target": 0.0}, "yield_target"), ({"yield_target": 1.0}, "yield_target"),
+    ({"yield_target": 1.5}, "yield_target"), ({"yield_target": True}, "yield_target"),
+    ({"yield_target": 0.9, "machines": 0}, "machines"),
+    ({"yield_target": 0.9, "seed": -1}, "seed"),
+    ({"yield_target": 0.9, "rounds": -1}, "rounds"),
+    ({"yield_target": 0.9, "profile": "bogus"}, "profile"),
+])
+def test_bad_input_is_refused_by_name(mill3, kwargs, named):
+    with pytest.raises(InputError, match=named):
+        allocate_for_yield(mill3, points=3, **kwargs)
+
+
+def test_unreachable_yield_says_so(mill3):
+    with pytest.raises(YieldUnreachableError, match="unreachable"):
+        allocate_for_yield(mill3, 0.9, points=3, machines=50, bounds=(1.0, 1.5))
+
+
+def test_cli_allocates_for_yield(result, tmp_path, capsys):
+    out = tmp_path / "yield.csv"
+    machine = str(MACHINE_DIR / "trunnion5.toml")
+    code = cli.main(["allocate", machine, "--yield", str(Y), "--points", "3",
+                     "--machines", str(MACHINES), "--seed", "7", "--profile", "constant",
+                     "--out", str(out)])
+    assert code == 0
+    text = capsys.readouterr().out
+    for words in ("lower bound", "of the initial cost", "gap", "verified yield",
+                  f"from {MACHINES} fresh built machines", "naive method", "profile constant",
+                  "3-point grid", "box [0.5, 1.5]", "distribution 'normal'"):
+        assert words in text
+    written = read_allocation_csv(out, reliability.load_machine(machine))
+    problem = result.problem
+    share = problem.cost.total(written) / problem.cost.total(problem.reference)
+    printed = re.search(r"cost \S+ = ([0-9.]+)% of the initial allocation", text)
+    assert float(printed.group(1)) == pytest.approx(100 * share, rel=1e-5)  # CSV = printed
+
+
+@pytest.mark.parametrize("extra, words", [
+    (["--yield", "0"], "--yield"), (["--yield", "1"], "--yield"),
+    (["--yield", "abc"], "--yield"),
+    (["--yield", "0.9", "--profile", "gp:-3"], "--profile"),
+    (["--yield", "0.9", "--target", "0.99"], "--target does not apply with --yield"),
+    (["--yield", "0.9", "--method", "gwo"], "--method gwo does not apply with --yield"),
+    (["--yield", "0.9", "--side", "one_sided"], "--side one_sided"),
+    (["--yield", "0.9", "--catalogue", "x.toml"], "--catalogue does not apply"),
+    (["--profile", "constant"], "--profile is used with --yield only"),
+])
+def test_cli_bad_yield_input_is_one_line_exit_2(tmp_path, capsys, extra, words):
+    code = cli.main(["allocate", str(MACHINE_DIR / "mill3.toml"), "--points", "3",
+                     "--out", str(tmp_path / "a.csv"), *extra])
+    assert code == 2
+    err = capsys.readouterr().err.strip()
+    assert words in err
+    assert len(err.splitlines()) == 1
+    assert not (tmp_path / "a.csv").exists()
