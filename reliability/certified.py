@@ -60,8 +60,9 @@ BOX_MEMORY = 8 * 2 ** 20
 #: reported pose recomputed from the chain (equal to the expansion's to about 1e-15) still
 #: meets ``rtol``.
 CLOSING_MARGIN = 1e-9
-#: Points per axis of the grid that gives the first candidate.
-START_POINTS = 5
+#: Points per axis of the grid that gives the first candidate (σ reading; the stack's
+#: vertex candidates need less, and its grid costs a whole Jacobian row per point).
+START_POINTS = {"sigma": 5, "stack": 3}
 #: Local searches (σ reading) from the best points of that grid.
 START_SEARCHES = 3
 
@@ -211,6 +212,10 @@ def branch_and_bound(model, low, high, rtol, max_calls, memory=None):
     if len(box_low):  # stopped by max_calls: the open boxes still count
         closed_bound = max(closed_bound, _evaluate(model, box_low, box_high, memory)[0].max())
         calls += len(box_low)
+    polished = model.polish(tied[:1], low, high)  # the last digits of the best candidate
+    top = float(model.values(polished).max()) if len(polished) else -np.inf
+    if top > best * (1 + TIE_RTOL):
+        tied, best = polished, top
     return tied, max(closed_bound, best), calls
 
 
@@ -255,19 +260,27 @@ class _Model:
 
     def start(self, low, high):
         """The best points of the :data:`START_POINTS` grid and their value."""
-        grid = _grid(low, high)
-        values = self.values(grid)
+        grid = _grid(low, high, START_POINTS[self.reading])
+        values = self.grid_values(grid)
         return grid[values >= values.max() * (1 - TIE_RTOL)], float(values.max())
 
+    def grid_values(self, points):
+        """:meth:`values` at many points, in chunks within :data:`BOX_MEMORY`."""
+        per_point = 8 * 2 * self.expansion.coefficients.size
+        return np.concatenate([self.values(points[part])
+                               for part in chunks(len(points), per_point, BOX_MEMORY)])
 
-def _grid(low, high) -> np.ndarray:
-    """The :data:`START_POINTS`-point grid of a box, ``(points, n_axes)``."""
-    axes = [np.linspace(lo, hi, START_POINTS) for lo, hi in zip(low, high)]
+
+def _grid(low, high, points) -> np.ndarray:
+    """The ``points``-point grid of a box, ``(points^n_axes, n_axes)``."""
+    axes = [np.linspace(lo, hi, points) for lo, hi in zip(low, high)]
     return np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, len(low))
 
 
 class _SigmaModel(_Model):
     """σ² of one output: second-order Taylor bound on boxes (module docstring)."""
+
+    reading = "sigma"
 
     def values(self, x):
         return self.expansion.values(x) if len(x) else np.empty(0)
@@ -280,22 +293,30 @@ class _SigmaModel(_Model):
 
     def start(self, low, high):
         """The grid's best points improved by L-BFGS-B on σ² from the best few."""
-        grid = _grid(low, high)
-        values = self.values(grid)
-        starts = grid[np.argsort(-values, kind="stable")[:START_SEARCHES]]
+        grid = _grid(low, high, START_POINTS[self.reading])
+        values = self.grid_values(grid)
+        found = self.polish(grid[np.argsort(-values, kind="stable")[:START_SEARCHES]],
+                            low, high)
+        candidates = np.vstack([grid, found])
+        values = np.concatenate([values, self.values(found)])
+        best = float(values.max())
+        return candidates[values >= best * (1 - TIE_RTOL)], best
+
+    def polish(self, starts, low, high):
+        """Local maxima of σ² from a few starting points (bounded L-BFGS-B with the
+        expansion's gradient, σ² scaled to about 1 so that the search's absolute
+        tolerances mean the same for every machine and unit)."""
+        scale = float(np.abs(self.values(starts)).max()) if len(starts) else 1.0
+        scale = scale if scale > 0 else 1.0
 
         def negative(x):
             tree = point_tree(self.expansion, x[None, :], 1)
             gradient = np.array([tree[(a,)][0] for a in range(len(x))])
-            return -tree[()][0], -gradient
+            return -tree[()][0] / scale, -gradient / scale
 
-        found = np.array([np.clip(minimize(negative, x, jac=True, method="L-BFGS-B",
-                                           bounds=list(zip(low, high))).x, low, high)
-                          for x in starts])
-        candidates = np.vstack([grid, found])
-        values = self.values(candidates)
-        best = float(values.max())
-        return candidates[values >= best * (1 - TIE_RTOL)], best
+        return np.array([np.clip(minimize(negative, x, jac=True, method="L-BFGS-B",
+                                          bounds=list(zip(low, high))).x, low, high)
+                         for x in starts])
 
     def boxes(self, low, high):
         """Bound, contributions, candidate points and their values for boxes."""
@@ -327,6 +348,8 @@ class _StackModel(_Model):
     bounded by the vertices of its linear model plus the second-order remainder (module
     docstring)."""
 
+    reading = "stack"
+
     def __init__(self, expansion):
         super().__init__(expansion)
         n = expansion.n_axes
@@ -340,6 +363,10 @@ class _StackModel(_Model):
 
     def values(self, x):
         return np.abs(self.expansion.values(x)).sum(axis=-1) if len(x) else np.empty(0)
+
+    def polish(self, starts, low, high):
+        """No local search: the stack is not smooth, its boxes' vertex candidates serve."""
+        return starts[:0]
 
     def spread(self, value):
         return float(value)
