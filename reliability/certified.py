@@ -9,7 +9,7 @@ over pose boxes. Two readings of the spread:
   expansion (:func:`reliability.pose_expansion.variance_expansion`); on a box of centre c
   and half-widths h, Taylor's theorem with the Lagrange remainder gives
 
-      σ²(c + d) ≤ σ²(c) + Σ_a h_a |g_a(c)| + ½ Σ_a h_a² max(H_aa, 0) + Σ_{a≠b} ½ h_a h_b |H_ab|
+      σ²(c + d) ≤ σ²(c) + Σ_a h_a |g_a(c)| + ½ Σ_a h_a² max(H_aa, 0) + Σ_{a<b} h_a h_b |H_ab|
 
   with the gradient g exact at the centre and the Hessian H enclosed over the box from
   the expansion's coefficients (each basis function's range on an interval is exact);
@@ -17,7 +17,8 @@ over pose boxes. Two readings of the spread:
   classical reading of :mod:`allocation.problem`'s ``side='stack'``). Each weighted entry
   ``w_i = J_oi t_i`` is an exact per-axis expansion
   (:func:`reliability.pose_expansion.jacobian_expansion`); on a box
-  ``w_i(c + d) = w_i(c) + ∇w_i(c)·d + r_i`` with ``|r_i| ≤ ½ Σ_ab h_a h_b |∂_ab w_i|``, so
+  ``w_i(c + d) = w_i(c) + ∇w_i(c)·d + r_i`` with ``|r_i| ≤ ½ Σ_ab h_a h_b K_i,ab`` and
+  ``K_i,ab`` a bound of ``|∂_ab w_i|`` over the strokes (:func:`curvature_bound`), so
   ``s(c + d) ≤ max over the box's vertices of Σ_i |w_i(c) + ∇w_i(c)·d| + Σ_i max|r_i|``
   (a sum of absolute values of affine functions is convex, so its maximum over a box is
   at a vertex).
@@ -25,10 +26,11 @@ over pose boxes. Two readings of the spread:
 **Branch and bound.** Every step evaluates all open boxes at once (in chunks): the bound,
 and two candidates, the centre and the vertex that maximises the box's linear model (so
 that a maximum on the stroke's boundary is approached to second order). Boxes whose bound
-is at most ``(1 + rtol)`` times the best candidate are closed; the others are halved
-along the axis contributing most to their bound. An axis the spread does not depend on
-contributes exactly nothing and is never split. The first candidate is the best of the
-5-point grid improved by a bounded local search on the expansion (L-BFGS-B, σ reading).
+is at most ``(1 + rtol)`` times the best candidate (on σ, so ``(1 + rtol)²`` on σ²) are
+closed; the others are halved along the axis contributing most to their bound. An axis the
+spread does not depend on contributes exactly nothing and is never split. The first
+candidate is the best point of a coarse grid (:data:`START_POINTS`), improved for σ by a
+bounded local search on the expansion (L-BFGS-B), which also polishes the final candidate.
 """
 
 from __future__ import annotations
