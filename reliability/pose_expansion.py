@@ -44,6 +44,9 @@ DROP_RTOL = 1e-12
 #: rounding of the node values, of the per-axis solves and of the evaluations (all of order
 #: 1e-15; the margin is far above them).
 ROUNDING_RTOL = 1e-11
+#: Widening of every basis function's range on an interval (relative to 1 + its size):
+#: above the rounding of cos and sin at angles of a few turns (a few 1e-15).
+RANGE_WIDENING = 1e-14
 
 
 def basis_size(kind: str, degree: int) -> int:
@@ -82,7 +85,7 @@ def basis_ranges(kind: str, degree: int, low, high, derivative: int = 0):
     """Midpoint and radius of every basis function's ``derivative`` over ``[low, high]``.
 
     The ranges are exact (extrema of ``u^k`` and of ``cos``/``sin`` located in closed
-    form), widened by a few units in the last place.
+    form), widened by :data:`RANGE_WIDENING` for rounding.
 
     Returns
     -------
@@ -102,7 +105,8 @@ def basis_ranges(kind: str, degree: int, low, high, derivative: int = 0):
         one = np.full(low.shape + (1,), 1.0 if derivative == 0 else 0.0)
         lo = np.concatenate([one, scale * c_lo, scale * s_lo], axis=-1)[..., _rotary_order(degree)]
         hi = np.concatenate([one, scale * c_hi, scale * s_hi], axis=-1)[..., _rotary_order(degree)]
-    widen = 4 * np.finfo(float).eps * np.maximum(np.abs(lo), np.abs(hi))
+    # covers the rounding of the end values and of their arguments (angles of a few turns)
+    widen = RANGE_WIDENING * (1 + np.maximum(np.abs(lo), np.abs(hi)))
     return (lo + hi) / 2, (hi - lo) / 2 + widen
 
 

@@ -115,8 +115,9 @@ def main(argv=None) -> None:
             frame = compare(machine, t, args.rtol, args.reading)
             grid_seconds = frame.attrs["grid_seconds"]
             total = frame["seconds"].sum()
-            print(f"\n{machine.name}: {label} allocation, {args.reading} reading "
-                  f"({machine.distribution} errors, k = 3), rtol {args.rtol:g}")
+            reading = (f"sigma reading ({machine.distribution} errors, k = 3)"
+                       if args.reading == "sigma" else "worst-case stack reading (Σ|J| t)")
+            print(f"\n{machine.name}: {label} allocation, {reading}, rtol {args.rtol:g}")
             print(frame.to_string(float_format="{:.6g}".format))
             sizes = {p: np.prod([len(a) for a in grid_axis_points(machine, p)]) for p in GRIDS}
             print("grid times: " + ", ".join(f"{p} points ({sizes[p]:,} poses) {s:.2f} s"
