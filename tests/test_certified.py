@@ -286,6 +286,10 @@ def test_bad_inputs(mill3):
         certified_worst(mill3, t, reading="worst")
     with pytest.raises(InputError, match="max_calls"):
         certified_worst(mill3, t, max_calls=0)
+    with pytest.raises(InputError, match="distribution"):
+        certified_worst(mill3, t, reading="stack", distribution="uniform")
+    with pytest.raises(InputError, match="^k must"):
+        certified_worst(mill3, t, k=-1.0)
     with pytest.raises(InputError, match="tolerances"):
         certified_worst(mill3, np.stack([t, t]))
     with pytest.raises(InputError, match="correlated"):
