@@ -354,10 +354,37 @@ class YieldModel:
         """For each draw: whether the machine fails (``|y| ≥ I`` at some pose and output,
         the complement of Eq. 19 everywhere) and its worst row ``pose · 6 + output``
         (largest ``|y|/I``)."""
-        values = self.experiment.evaluate(*self.errors(u, tolerances))
-        ratio = (np.abs(values) / self.machine.limits).reshape(len(u), -1)
-        worst = np.argmax(ratio, axis=1)
-        return ratio[np.arange(len(u)), worst] >= 1.0, worst
+        ratio, worst = self.worst_ratios(u, tolerances)
+        return ratio >= 1.0, worst
+
+    def worst_ratios(self, u, tolerances):
+        """For each draw ``u (R, dimension)``: the largest ``|y|/I`` over every pose and
+        output of the exact chain (the machine passes when it is below 1) and its row
+        ``pose · 6 + output``; the draws are evaluated in batches of :attr:`batch`."""
+        ratio, worst = np.empty(len(u)), np.empty(len(u), dtype=int)
+        for start in range(0, len(u), self.batch):
+            part = slice(start, start + self.batch)
+            values = self.experiment.evaluate(*self.errors(u[part], tolerances))
+            rows = (np.abs(values) / self.machine.limits).reshape(len(values), -1)
+            worst[part] = np.argmax(rows, axis=1)
+            ratio[part] = rows[np.arange(len(values)), worst[part]]
+        return ratio, worst
+
+    def row_contributions(self, u, tolerances, rows) -> np.ndarray:
+        """``(R, n_errors)``: each error's term ``J_ri x_i`` of the linearised output of
+        row ``rows[m]`` (``pose · 6 + output``) of draw ``u[m]``, with ``x_i`` the error's
+        value at that pose's grid points (Eq. 18 to first order; the terms sum to the
+        linearised output)."""
+        motion, assembly = self.errors(u, tolerances)
+        pose, output = np.divmod(np.asarray(rows), len(OUTPUTS))
+        n = len(self.machine.axis_specs)
+        index = self._grid_index[pose]  # (R, n)
+        at_pose = motion[np.arange(len(u))[:, None], np.arange(n), index]  # (R, n, 6)
+        x = np.concatenate([at_pose.reshape(len(u), -1), assembly.reshape(len(u), -1)],
+                           axis=1)
+        distinct, where = np.unique(pose, return_inverse=True)
+        jacobian = self.machine.jacobian(self.experiment.poses[distinct])[where.ravel()]
+        return jacobian[np.arange(len(u)), output] * x
 
     # ----- the linearised model -----------------------------------------------------
     def row_sigma(self, tolerances) -> np.ndarray:
