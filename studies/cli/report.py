@@ -18,7 +18,8 @@ from . import options
 def add_parser(subparsers):
     parser = subparsers.add_parser(
         "report", help="full study of a machine into a folder (tables, figures, report)",
-        description="FOSM of the initial allocation, the certified optimum, Monte-Carlo "
+        description="FOSM of the initial allocation, the certified optimum (over the "
+                    "continuous workspace by default, --workspace), Monte-Carlo "
                     "verification, CSV tables, figures, report.md, a self-contained "
                     "report.html, summary.json and allocation.csv in DIR.")
     options.add_machine(parser)
@@ -28,6 +29,7 @@ def add_parser(subparsers):
     options.add_study_model(parser)
     options.add_side(parser)
     options.add_bounds(parser)
+    options.add_workspace(parser)
     parser.add_argument("--skip", nargs="+", default=(), choices=EXTRAS, metavar="SECTION",
                         help="leave out optional sections: " + ", ".join(EXTRAS)
                              + " (default: include all)")
@@ -50,7 +52,8 @@ def run(args) -> int:
     catalogue = None if args.catalogue is None else load_catalogue(args.catalogue, machine)
     study = machine_study.run(machine, points=args.points, side=args.side, bounds=bounds,
                               seed=args.seed, repeats=args.repeats, samples=args.samples,
-                              progress=options.say, bar=options.progress_bar)
+                              progress=options.say, bar=options.progress_bar,
+                              workspace=options.workspace(args), rtol=args.rtol)
     included = [name for name in EXTRAS if name not in args.skip]
     options.say("optional sections: " + (", ".join(included) or "none"))
     extra = builders(included)
