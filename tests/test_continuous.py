@@ -5,6 +5,7 @@ refusals and its plain "not certified", the command line and the study's summary
 from __future__ import annotations
 
 import dataclasses
+import inspect
 import json
 from pathlib import Path
 
@@ -21,6 +22,7 @@ from reliability.fosm import error_sigma
 from reliability.kinematics import output_variance
 from reliability.worst_case import certified_worst
 from studies import cli
+from studies.report.extras import EXTRAS
 from studies.workflows.sweep import SweepSpec
 
 MILL = str(Path(__file__).parent / "machines" / "mill3.toml")
@@ -153,7 +155,7 @@ def test_trunnion_continuous_optimum(trunnion5, trunnion_continuous):
     table = result.certificate
     assert np.all(table["sigma_bound"] <= table["allowed"] * (1 + 5e-2))
     assert np.all(dense_sigma_ratio(problem, result.tolerances) <= 1 + 5e-2)
-    assert np.all(dense_sigma_ratio(problem, result.grid.tolerances).max() > 1 + 5e-2)
+    assert dense_sigma_ratio(problem, result.grid.tolerances).max() > 1 + 5e-2
     assert result.grid.cost <= result.cost * (1 + 1e-9) and len(result.added) > 0
 
 
@@ -200,7 +202,7 @@ def test_stack_reading_with_a_stack_certificate(mill3, monkeypatch):
     assert result.grid.cost < result.cost and result.searches == 0
 
 
-@pytest.mark.skipif("reading" in __import__("inspect").signature(certified_worst).parameters,
+@pytest.mark.skipif("reading" in inspect.signature(certified_worst).parameters,
                     reason="the certificate has the stack reading")
 def test_stack_refused_without_a_stack_certificate(mill3):
     with pytest.raises(InputError, match="--workspace grid"):
@@ -244,9 +246,9 @@ def test_allocate_names_the_workspace(tmp_path, capsys):
 def test_report_summary_names_the_workspace(tmp_path, capsys):
     continuous, grid = tmp_path / "c", tmp_path / "g"
     assert cli.main(["report", MILL, "--out", str(continuous), *QUICK,
-                     "--skip", *cli_extras()]) == 0
+                     "--skip", *EXTRAS]) == 0
     assert cli.main(["report", MILL, "--out", str(grid), *QUICK, "--workspace", "grid",
-                     "--skip", *cli_extras()]) == 0
+                     "--skip", *EXTRAS]) == 0
     printed = capsys.readouterr().out
     assert "certified over the continuous workspace to 0.001" in printed
     first = json.loads((continuous / "summary.json").read_text())
@@ -255,11 +257,6 @@ def test_report_summary_names_the_workspace(tmp_path, capsys):
     assert second["workspace"] == "grid" and "workspace_certified" not in second
     assert (continuous / "workspace_certificate.csv").exists()
     assert "Continuous workspace" in (continuous / "report.md").read_text()
-
-
-def cli_extras():
-    from studies.report.extras import EXTRAS
-    return list(EXTRAS)
 
 
 def test_verify_certify_samples_the_certified_worst_poses(tmp_path, capsys):
