@@ -9,6 +9,7 @@ certified cheapest choice of catalogue components (:mod:`allocation.discrete`).
 """
 
 from .catalogue import Catalogue, CatalogueClass, Component, load_catalogue
+from .continuous import ContinuousAllocation, solve_continuous
 from .convex import ConvexSolution, InfeasibleAllocationError, solve_convex_allocation
 from .cost import CostModel, cost_weights
 from .discrete import CatalogueInfeasibleError, CatalogueResult, solve_catalogue
@@ -24,11 +25,12 @@ from .system import system_allocation
 from .yield_target import YieldAllocation, YieldUnreachableError, allocate_for_yield
 
 __all__ = ["AllocationProblem", "AllocationResult", "Catalogue", "CatalogueClass",
-           "CatalogueInfeasibleError", "CatalogueResult", "Component", "ConvexSolution",
-           "CostModel", "FcemResult", "GwoResult", "InfeasibleAllocationError",
-           "ScreenedRows", "TargetUnreachableError", "YieldAllocation", "YieldUnreachableError",
-           "allocate_for_yield", "allocation_point",
-           "cost_reliability_front", "cost_weights", "fcem_coefficient", "grey_wolf",
-           "grey_wolf_reference", "load_catalogue", "read_allocation_csv",
-           "requirement_table", "screen_rows", "solve_catalogue", "solve_convex_allocation",
-           "solve_exact", "solve_gwo", "solve_over_workspace", "system_allocation"]
+           "CatalogueInfeasibleError", "CatalogueResult", "Component",
+           "ContinuousAllocation", "ConvexSolution", "CostModel", "FcemResult",
+           "GwoResult", "InfeasibleAllocationError", "ScreenedRows",
+           "TargetUnreachableError", "YieldAllocation", "YieldUnreachableError",
+           "allocate_for_yield", "allocation_point", "cost_reliability_front",
+           "cost_weights", "fcem_coefficient", "grey_wolf", "grey_wolf_reference",
+           "load_catalogue", "read_allocation_csv", "requirement_table", "screen_rows",
+           "solve_catalogue", "solve_continuous", "solve_convex_allocation", "solve_exact",
+           "solve_gwo", "solve_over_workspace", "system_allocation"]

@@ -10,6 +10,7 @@ import numpy as np
 import pandas as pd
 
 from allocation import AllocationProblem, allocate_for_yield, load_catalogue, solve_catalogue
+from allocation.continuous import check_continuous, solve_continuous
 from allocation.elasticity import requirement_table
 from allocation.result_files import (allocation_to_csv, cost_shares_text, cost_units_text, gap_text,
                                      nearly_free_text)
@@ -24,8 +25,12 @@ from . import options
 def add_parser(subparsers):
     parser = subparsers.add_parser(
         "allocate", help="cheapest allocation meeting the targets (Eq. 34)",
-        description="Solve the allocation problem of Eq. (34) at every pose of the grid: "
-                    "the certified optimum (exact) or the Grey Wolf Optimiser (gwo). Prints "
+        description="Solve the allocation problem of Eq. (34) over the continuous "
+                    "workspace (default: the grid's optimum with the certificate's worst "
+                    "poses added until every output is certified, docs/continuous-"
+                    "allocation.md) or at every pose of the grid (--workspace grid): "
+                    "the certified optimum (exact) or, on the grid, the Grey Wolf Optimiser "
+                    "(gwo). Prints "
                     "the cost relative to the initial allocation, what binds and the "
                     "elasticity of each requirement; writes CSV columns error, reference, "
                     "allocated. With --catalogue: the certified cheapest choice of one class "
@@ -45,6 +50,7 @@ def add_parser(subparsers):
     options.add_points(parser)
     options.add_study_model(parser)
     options.add_bounds(parser)
+    options.add_workspace(parser)
     parser.add_argument("--lock", nargs="+", default=(), metavar="NAME",
                         help="errors held at their initial tolerance (e.g. X.dx)")
     parser.add_argument("--method", choices=("exact", "gwo"), default="exact",
@@ -60,7 +66,8 @@ def add_parser(subparsers):
     options.add_yield_model(parser)
     parser.add_argument("--catalogue", metavar="CAT.toml",
                         help="choose one class per component of this catalogue instead of "
-                             "continuous tolerances (no --bounds, --lock or --method gwo)")
+                             "continuous tolerances, on the grid poses (no --bounds, --lock, "
+                             "--method gwo or --workspace continuous)")
     parser.add_argument("--tolerances", metavar="CSV",
                         help="with --catalogue: tolerances of the items in no component "
                              "(default the initial allocation)")
@@ -92,12 +99,27 @@ def run(args) -> int:
                              f"named like {machine.error_names[0]!r}")
     if args.target is not None:
         machine = dataclasses.replace(machine, targets=np.full(6, args.target))
+    workspace = options.workspace(args)
+    if workspace == "continuous":
+        if args.method != "exact":
+            raise InputError("--method gwo searches the grid problem only; use --workspace "
+                             "grid with it (the continuous workspace needs the certified "
+                             "optimum, --method exact)")
+        check_continuous(machine, args.side)
     options.say(f"building the problem on the {args.points}-point grid, "
                 f"{options.box_words(machine, bounds)}")
     problem = AllocationProblem.build(machine, workspace_grid(machine, args.points),
                                       side=args.side, bounds=bounds, locked=tuple(args.lock))
-    result = solve(problem, args.method, args.seed)
-    print(describe(result))
+    if workspace == "continuous":
+        options.say(f"certifying over the continuous workspace (rtol {args.rtol:g})")
+        continuous = solve_continuous(problem, rtol=args.rtol, progress=options.say)
+        result = continuous.result
+        print(describe(result, continuous.summary()))
+    else:
+        result = solve(problem, args.method, args.seed)
+        print(describe(result, f"workspace: grid — the targets hold at the "
+                               f"{len(problem.poses)} poses of the {args.points}-point grid "
+                               f"(not certified between them)"))
     allocation_to_csv(result, out, args.overwrite, significant=SIGNIFICANT)
     print(f"\nallocation written to {out}")
     return 0
@@ -106,11 +128,12 @@ def run(args) -> int:
 def run_catalogue(args) -> int:
     """``--catalogue``: everything checked first, then the certified cheapest choice."""
     for option, given in (("--bounds", args.bounds is not None), ("--lock", bool(args.lock)),
-                          ("--method gwo", args.method != "exact")):
+                          ("--method gwo", args.method != "exact"),
+                          ("--workspace continuous", args.workspace == "continuous")):
         if given:
             raise InputError(f"{option} does not apply with --catalogue: classes are used "
-                             f"as given and items in no component keep their starting "
-                             f"tolerances")
+                             f"as given, items in no component keep their starting "
+                             f"tolerances and the choice holds on the grid poses")
     out = options.destination(args.out, args.overwrite)
     tolerances_out = None if args.tolerances_out is None else \
         options.destination(args.tolerances_out, args.overwrite, "--tolerances-out")
@@ -128,6 +151,8 @@ def run_catalogue(args) -> int:
     options.say(f"choosing among {catalogue.n_choices:,} combinations of classes (HiGHS)")
     result = solve_catalogue(problem, catalogue)
     print(result.summary())
+    print(f"workspace: grid — the choice meets the targets at the {len(problem.poses)} poses "
+          f"of the {args.points}-point grid (a catalogue choice is made on the grid only)")
     result.to_csv(out, args.overwrite, significant=SIGNIFICANT)
     print(f"\nchoice written to {out}")
     if tolerances_out is not None:
@@ -149,6 +174,10 @@ def run_yield(args) -> int:
                              f"the share of built machines with every output inside its "
                              f"limit (two-sided) at every pose, and the per-output targets "
                              f"are chosen by the search")
+    if args.workspace == "continuous":
+        raise InputError("--workspace continuous does not apply with --yield: the machine "
+                         "yield is simulated on the --points grid (--workspace grid, the "
+                         "default with --yield)")
     bounds = options.check_bounds(args.bounds)
     out = options.destination(args.out, args.overwrite)
     machine = options.machine(args)
@@ -204,13 +233,14 @@ def solve(problem, method: str, seed: int = 0):
                                  progress=lambda *_: bar.update())
 
 
-def describe(result) -> str:
-    """Cost relative to the initial allocation, feasibility, what binds, elasticities."""
+def describe(result, workspace: str) -> str:
+    """Cost relative to the initial allocation, feasibility, what binds, elasticities;
+    ``workspace`` is the text that says where the targets hold."""
     problem = result.problem
     initial = problem.cost.total(problem.reference)
     lines = [f"method: {result.method}; cost {result.cost:.6g} = "
              f"{result.cost / initial:.4%} of the initial allocation ({initial:.6g}); "
-             f"{options.reading_text(problem.machine)}"]
+             f"{options.reading_text(problem.machine)}", workspace]
     if result.method == "exact":
         certificate = result.certificate
         lines.append(f"certified optimum: {'yes' if certificate['certified'] else 'NO'} "

@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
+from allocation.continuous import DEFAULT_RTOL, WORKSPACE_CHOICES
 from allocation.problem import DEFAULT_FACTORS, bounds_source
 from allocation.result_files import read_allocation_csv
 from reliability import display
@@ -133,6 +134,24 @@ def add_certify(parser, what: str) -> None:
     parser.add_argument("--rtol", type=probability, default=1e-3, metavar="R",
                         help="relative gap between the certified bound of sigma and sigma "
                              "at which --certify stops (default 0.001)")
+
+
+def add_workspace(parser) -> None:
+    """``--workspace`` (where the allocation's targets hold) and its ``--rtol``."""
+    parser.add_argument("--workspace", choices=WORKSPACE_CHOICES, default=None,
+                        help="where the targets hold: continuous = over the whole strokes, "
+                             "certified to --rtol in sigma by adding the certificate's worst "
+                             "poses to the grid (default; not for --frame workpiece or "
+                             "correlated errors); grid = at the --points grid poses only "
+                             "(docs/continuous-allocation.md)")
+    parser.add_argument("--rtol", type=probability, default=DEFAULT_RTOL, metavar="R",
+                        help=f"relative tolerance in sigma of --workspace continuous "
+                             f"(default {DEFAULT_RTOL:g})")
+
+
+def workspace(args) -> str:
+    """``--workspace``, ``'continuous'`` when not given."""
+    return "continuous" if args.workspace is None else args.workspace
 
 
 def add_points(parser, default: int = 5) -> None:

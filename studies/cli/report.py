@@ -19,9 +19,10 @@ def add_parser(subparsers):
     parser = subparsers.add_parser(
         "report", help="full study of a machine into a folder (tables, figures, report)",
         description="The machine yield of the initial allocation and of the certified "
-                    "optimum (under --profile), FOSM, Monte-Carlo verification, CSV "
-                    "tables, figures, report.md, a self-contained report.html, "
-                    "summary.json and allocation.csv in DIR.")
+                    "optimum (under --profile; the optimum over the continuous workspace by "
+                    "default, --workspace), FOSM, Monte-Carlo verification, CSV tables, "
+                    "figures, report.md, a self-contained report.html, summary.json and "
+                    "allocation.csv in DIR.")
     options.add_machine(parser)
     parser.add_argument("--out", required=True, metavar="DIR", help="output folder")
     options.add_monte_carlo(parser)
@@ -30,6 +31,7 @@ def add_parser(subparsers):
     options.add_yield_model(parser)
     options.add_side(parser)
     options.add_bounds(parser)
+    options.add_workspace(parser)
     parser.add_argument("--skip", nargs="+", default=(), choices=EXTRAS, metavar="SECTION",
                         help="leave out optional sections: " + ", ".join(EXTRAS)
                              + " (default: include all)")
@@ -53,7 +55,8 @@ def run(args) -> int:
     study = machine_study.run(machine, points=args.points, side=args.side, bounds=bounds,
                               seed=args.seed, repeats=args.repeats, samples=args.samples,
                               progress=options.say, bar=options.progress_bar,
-                              machines=args.machines)
+                              machines=args.machines, workspace=options.workspace(args),
+                              rtol=args.rtol)
     included = [name for name in EXTRAS if name not in args.skip]
     options.say("optional sections: " + (", ".join(included) or "none"))
     extra = builders(included)

@@ -48,8 +48,8 @@ def answers(study: MachineStudy) -> str:
                f"tolerance t read as {_reading(machine.distribution)} by FOSM and the "
                f"allocation (distribution '{machine.distribution}') and drawn as "
                f"{_reading(next(iter(study.checks.values())).distribution)} by the "
-               f"Monte-Carlo; {reading}; workspace: the "
-               f"{study.points}-point grid; {box_text(study)}; cost Eq. 28, "
+               f"Monte-Carlo; {reading}; workspace: the optimum's targets hold "
+               f"{study.workspace_text()}; {box_text(study)}; cost Eq. 28, "
                f"{cost_units_text(study.problem.cost)}.\n")
     if not study.reachable:
         return "\n".join([choices, yield_sentence(study),
@@ -80,13 +80,20 @@ def answers(study: MachineStudy) -> str:
         f"initial allocation ({certified}, relative duality gap "
         f"{gap_text(study.optimum.certificate['relative_gap'])}).",
         f"- Monte-Carlo of that allocation ({info['samples']} samples at each output's "
-        f"worst pose, Wilson 95 %): {verdict}; "
+        f"{_sampled_pose(study)}, Wilson 95 %): {verdict}; "
         + ", ".join(f"{row.output} {PERCENT(row.mc_estimate)}" for row in mc.itertuples())
         + ".",
         *([free_note] if free_note else []),
         f"- Tighten: {tighten or 'none'}.",
         f"- May be relaxed: {relax or 'none'}.",
     ])
+
+
+def _sampled_pose(study: MachineStudy) -> str:
+    """Which worst pose the optimum's Monte-Carlo samples."""
+    if study.continuous is not None and study.continuous.certificate is not None:
+        return "certified worst pose over the continuous workspace"
+    return f"worst pose of the {study.points}-point grid"
 
 
 def box_text(study: MachineStudy) -> str:
@@ -137,9 +144,50 @@ def sections(study: MachineStudy, extra=()) -> list[Section]:
         cost–reliability front or rare-event estimates).
     """
     allocation = allocation_section(study) if study.reachable else unreachable_section(study)
+    workspace = [workspace_section(study)] if study.continuous is not None else []
     return [Section("Answers", answers(study), summary=summary(study)),
             yield_section(study), machine_section(study), fosm_section(study), allocation,
+            *workspace,
             verification_section(study), *(make(study) for make in extra)]
+
+
+def workspace_section(study: MachineStudy) -> Section:
+    """How the optimum was certified over the continuous workspace: the statement, the
+    poses added to the grid, the certificate per output (docs/continuous-allocation.md)."""
+    continuous = study.continuous
+    machine = study.machine
+    text = (f"{continuous.statement[0].upper()}{continuous.statement[1:]}. Starting from "
+            f"the {study.points}-point grid, the worst pose of every output short of its "
+            f"target (found by a local search, then by the certificate's branch and bound "
+            f"over the whole stroke box) was added as a constraint and the problem solved "
+            f"again: {continuous.solves} convex solve(s), {len(continuous.added)} pose(s) "
+            f"added, {continuous.certificate_calls} certificate call(s). The optimum costs "
+            f"{continuous.cost_ratio:.6f} × the grid optimum's.")
+    tables = {}
+    if len(continuous.added):
+        tables["workspace_added_poses.csv"] = continuous.added
+        text += ("\n\nPoses added (mm, rotary axes in degrees; `ratio` is σ there over "
+                 "the σ the target allows, at the solve before it was added):\n\n"
+                 + markdown_table(continuous.added, index=False))
+    if continuous.certificate is not None:
+        table = continuous.certificate.reset_index()
+        poses = pose_frame(table[list(machine.axes)].to_numpy(dtype=float), machine.axes,
+                           axis_units(machine), style="csv")
+        value, bound = ("stack", "stack_bound") if study.side == "stack" else \
+            ("sigma", "sigma_bound")
+        shown = pd.concat([table[["output"]], poses,
+                           table[[value, bound, "allowed", "excess", "gap", "certified",
+                                  "calls"]]], axis=1)
+        shown.insert(1, "unit", list(OUTPUT_UNITS))
+        tables["workspace_certificate.csv"] = shown
+        text += ("\n\nThe certificate at the optimum (`allowed`: the σ the target allows; "
+                 "`excess`: bound / allowed − 1; `gap`: the certificate's own bound / σ − 1):"
+                 "\n\n" + markdown_table(shown, index=False))
+    entries = {"workspace_certified": continuous.certified, "workspace_rtol": continuous.rtol,
+               "workspace_solves": continuous.solves,
+               "workspace_certificate_calls": continuous.certificate_calls,
+               "workspace_cost_ratio": continuous.cost_ratio}
+    return Section("Continuous workspace", text, tables=tables, summary=entries)
 
 
 def machine_section(study: MachineStudy) -> Section:

@@ -1,12 +1,15 @@
 """A machine's study: the same steps for any machine, as results (no text).
 
 machine → FOSM of the initial allocation (Eqs. 19–23) → the certified cheapest allocation
-meeting the targets at every grid pose (Eq. 34) → Monte-Carlo verification of both
+meeting the targets over the continuous workspace (Eq. 34 with the poses the certificate
+adds, :mod:`allocation.continuous`; or at every grid pose, ``workspace="grid"``) →
+Monte-Carlo verification of both
 allocations (Sec. 5.3, :func:`reliability.verification.verify`). The report's sections are
 made from the result by :mod:`studies.report.machine_sections`.
 
 Defaults are the report's contract: the exact two-sided probability, the worst case over
-the 5-point grid, the machine file's ``[bounds]`` box (else [0.5, 1.5] × the initial
+the continuous workspace certified to 1e-3 in σ (starting from the 5-point grid), the
+machine file's ``[bounds]`` box (else [0.5, 1.5] × the initial
 allocation), limits and targets from the
 machine file.
 """
@@ -18,7 +21,10 @@ from dataclasses import dataclass
 import pandas as pd
 
 from allocation import AllocationProblem, TargetUnreachableError
+from allocation.continuous import DEFAULT_RTOL, WORKSPACE_CHOICES, check_continuous, \
+    solve_continuous
 from allocation.result_files import gap_bound
+from reliability import checks as input_checks
 from reliability.fosm import fosm
 from reliability.machine_yield import DEFAULT_MACHINES
 from reliability.poses import workspace_grid
@@ -45,6 +51,8 @@ class MachineStudy:
     checks: dict  # allocation name -> reliability.verification.Verification
     unreachable: object = None  # the TargetUnreachableError when out of reach
     machines: int = DEFAULT_MACHINES  # built machines per allocation's machine yield
+    workspace: str = "grid"  # 'continuous' or 'grid'
+    continuous: object = None  # the ContinuousAllocation under workspace 'continuous'
 
     @property
     def reachable(self) -> bool:
@@ -61,8 +69,8 @@ class MachineStudy:
         """The study's choices and its headline numbers, one line each."""
         info = summary(self)
         return "\n".join([
-            f"study of {self.machine.name}: {self.side.replace('_', '-')} targets at every "
-            f"pose of the {self.points}-point grid, box {self.problem.box_text()} "
+            f"study of {self.machine.name}: {self.side.replace('_', '-')} targets "
+            f"{self.workspace_text()}, box {self.problem.box_text()} "
             f"({self.problem.bounds_source}), seed {self.seed}",
             *(f"{name}: {check.machine_yield.summary().splitlines()[0]}"
               for name, check in self.checks.items()),
@@ -73,13 +81,23 @@ class MachineStudy:
             f"targets out of reach in the box: {self.unreachable}",
             *(f"{name}: {check.summary()}" for name, check in self.checks.items())])
 
+    def workspace_text(self) -> str:
+        """Where the optimum's targets hold, in words (names the workspace)."""
+        if self.workspace == "grid":
+            return f"at every pose of the {self.points}-point grid (workspace 'grid')"
+        if self.continuous is None:
+            return "over the continuous workspace (workspace 'continuous')"
+        return (f"over the continuous workspace (workspace 'continuous': "
+                f"{self.continuous.statement})")
+
     def __repr__(self) -> str:
         return self.summary()
 
 
 def run(machine, *, points: int = 5, side: str = "two_sided", bounds=None,
         seed: int = 0, repeats: int = 20, samples: int = 20_000, progress=None,
-        bar=None, machines: int = DEFAULT_MACHINES) -> MachineStudy:
+        bar=None, machines: int = DEFAULT_MACHINES, workspace: str = "continuous",
+        rtol: float = DEFAULT_RTOL) -> MachineStudy:
     """Run the study of ``machine``.
 
     Parameters
@@ -96,7 +114,9 @@ def run(machine, *, points: int = 5, side: str = "two_sided", bounds=None,
         (:func:`reliability.streams.verification_streams`), as ``precrel verify --seed``.
         The optimum is verified (and its FOSM computed) exactly as written to
         ``allocation.csv`` (:func:`reliability.files.as_written`), so ``precrel verify
-        --tolerances allocation.csv --seed S`` prints the report's Monte-Carlo numbers.
+        --tolerances allocation.csv --seed S`` prints the report's Monte-Carlo numbers
+        (with ``--certify`` under workspace 'continuous', where the optimum is sampled at
+        its certified worst poses).
     repeats, samples : int
         Grid experiments, and random-pose / worst-pose samples, per allocation.
     progress : callable, optional
@@ -106,22 +126,38 @@ def run(machine, *, points: int = 5, side: str = "two_sided", bounds=None,
     machines : int
         Built machines simulated for each allocation's machine yield, under
         ``machine.profile`` (:func:`reliability.machine_yield.machine_yield`).
+    workspace : {'continuous', 'grid'}
+        Where the optimum's targets hold: over the continuous strokes, certified to
+        ``rtol`` in σ by cutting planes from the ``points``-point grid
+        (:func:`allocation.continuous.solve_continuous`), or at the grid poses only. The
+        continuous workspace is refused (InputError) for outputs in the workpiece frame
+        and for correlated errors; nothing switches to the grid silently.
+    rtol : float
+        Relative tolerance in σ of the continuous workspace's certificate.
 
     When no allocation inside the bounds meets the targets the study still runs for the
     initial allocation: ``optimum`` and ``optimal_fosm`` are None and ``unreachable``
     holds the :class:`allocation.TargetUnreachableError` (what blocks, where).
     """
+    input_checks.choice(workspace, "workspace", WORKSPACE_CHOICES)
+    if workspace == "continuous":
+        check_continuous(machine, side)
     progress = progress or (lambda text: None)
     progress(f"FOSM of the initial allocation on the {points}-point grid")
     problem = AllocationProblem.build(machine, workspace_grid(machine, points), side=side,
                                       bounds=bounds)
     initial = fosm(machine, problem.reference, problem.poses, jacobian=problem.jacobian,
                    distribution=machine.distribution)
-    progress("certified cheapest allocation (convex solver)")
+    progress(f"certified cheapest allocation (convex solver, workspace '{workspace}')")
     verified = [("initial", problem.reference, initial)]
-    optimum = optimal = unreachable = None
+    optimum = optimal = unreachable = continuous = None
     try:
-        optimum = problem.solve_exact()
+        if workspace == "continuous":
+            continuous = solve_continuous(problem, rtol=rtol,
+                                          progress=lambda text: progress(f"  {text}"))
+            optimum = continuous.result
+        else:
+            optimum = problem.solve_exact()
     except TargetUnreachableError as exc:
         unreachable = exc
         progress(f"targets out of reach in the box: {exc}")
@@ -131,16 +167,19 @@ def run(machine, *, points: int = 5, side: str = "two_sided", bounds=None,
                        distribution=machine.distribution)
         verified.append(("optimum", written, optimal))
     checks = {}
+    certified_poses = None if continuous is None or continuous.certificate is None else \
+        continuous.certificate[list(machine.axes)].to_numpy(dtype=float)
     for name, t, prediction in verified:
         progress(f"Monte-Carlo verification of the {name} allocation")
         checks[name] = verify(machine, t, points=points, repeats=repeats, samples=samples,
                               rng=seed, progress=lambda text: progress(f"  {text}"), bar=bar,
-                              prediction=prediction, machines=machines)
+                              prediction=prediction, machines=machines,
+                              worst_poses=certified_poses if name == "optimum" else None)
     return MachineStudy(machine=machine, points=points, side=side,
                         bounds=None if bounds is None else tuple(bounds),
                         seed=seed, problem=problem, initial_fosm=initial, optimum=optimum,
                         optimal_fosm=optimal, checks=checks, unreachable=unreachable,
-                        machines=machines)
+                        machines=machines, workspace=workspace, continuous=continuous)
 
 
 def summary(study: MachineStudy) -> dict:
@@ -162,7 +201,7 @@ def summary(study: MachineStudy) -> dict:
         "side": study.side,
         "frame": study.machine.frame,
         "distribution": study.machine.distribution,
-        "workspace": "grid",
+        "workspace": study.workspace,
         "bounds": None if study.bounds is None else list(study.bounds),
         "bounds_source": _bounds_source(study.problem),
         "reachable": study.reachable,

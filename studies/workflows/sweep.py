@@ -4,7 +4,9 @@ A sweep is the table of every combination of machine × reading (side) × target
 profile × seed × repeats. Each task
 
 1. builds the worst-case allocation problem on the machine's workspace grid, with every
-   output's target replaced by the task's target, and solves it exactly (certified) — or,
+   output's target replaced by the task's target, and solves it exactly (certified) on the
+   grid, or over the continuous workspace when the spec says ``workspace = "continuous"``
+   (:func:`allocation.continuous.solve_continuous`) — or,
    when the spec names a ``catalogue``, chooses the certified cheapest catalogue classes
    (:func:`allocation.solve_catalogue`);
 2. verifies the allocation by the grid experiment of Sec. 5.3 (``repeats`` experiments),
@@ -37,6 +39,7 @@ import pandas as pd
 from threadpoolctl import threadpool_limits
 
 from allocation.catalogue import load_catalogue
+from allocation.continuous import WORKSPACE_CHOICES, check_continuous, solve_continuous
 from allocation.discrete import CatalogueInfeasibleError, solve_catalogue
 from allocation.problem import AllocationProblem
 from allocation.solve import TargetUnreachableError
@@ -53,7 +56,7 @@ PAPER_MACHINE = "hobbing"
 INDEPENDENT = "independent"
 SIDES = ("one_sided", "two_sided")
 SPEC_KEYS = {"machines", "sides", "targets", "profiles", "seeds", "repeats",
-             "points_per_axis", "bounds", "catalogue", "distribution"}
+             "points_per_axis", "bounds", "catalogue", "distribution", "workspace"}
 DISTRIBUTIONS = ("normal", "truncated")
 RESULTS_FILE = "results.csv"
 TASKS_FOLDER = "tasks"
@@ -86,6 +89,8 @@ class SweepTask:
     distribution : {'normal', 'truncated'} or None
         The reading of a tolerance for the allocation and the verification; None: the
         machine file's (``[requirements] distribution``).
+    workspace : {'continuous', 'grid'} or None
+        Where the allocation's targets hold; None: the grid, as before the key existed.
     """
 
     machine: str
@@ -98,16 +103,19 @@ class SweepTask:
     bounds: tuple[float, float] | None = None
     catalogue: str | None = None
     distribution: str | None = None
+    workspace: str | None = None
 
     def parameters(self, machine=None) -> dict:
         """The task's parameters as stored and hashed: the machine and the catalogue by
-        their content (a task without a catalogue or a ``distribution`` of its own hashes
-        as before those keys existed)."""
+        their content (a task without a catalogue, a ``distribution`` of its own or a
+        workspace other than the grid hashes as before those keys existed)."""
         machine = _load_machine(self.machine) if machine is None else machine
         parameters = dict(asdict(self), machine_fingerprint=machine_fingerprint(machine))
         del parameters["catalogue"]
         if self.distribution is None:
             del parameters["distribution"]
+        if self.workspace in (None, "grid"):
+            del parameters["workspace"]
         if self.catalogue is not None:
             parameters.update(catalogue=self.catalogue,
                               catalogue_fingerprint=catalogue_fingerprint(self.catalogue))
@@ -122,7 +130,8 @@ class SweepSpec:
     one box ``[LO, HI]`` (factors of the initial allocation) for every task; without it
     each machine's own ``[bounds]`` table, else [0.5, 1.5]. ``distribution``
     (``"normal"`` or ``"truncated"``) is one reading of a tolerance for every task, by
-    default each machine file's own.
+    default each machine file's own. ``workspace`` (``"continuous"`` or ``"grid"``) says
+    where every task's allocation holds; the grid by default (as before the key existed).
     """
 
     machines: tuple[str, ...]
@@ -135,6 +144,7 @@ class SweepSpec:
     bounds: tuple[float, float] | None = None
     catalogue: str | None = None
     distribution: str | None = None
+    workspace: str | None = None
 
     def __post_init__(self):
         for name in ("machines", "sides", "targets", "profiles", "seeds", "repeats"):
@@ -149,7 +159,18 @@ class SweepSpec:
         if self.distribution is not None and self.distribution not in DISTRIBUTIONS:
             raise InputError(f"sweep spec: distribution {self.distribution!r} must be "
                              f"'normal' or 'truncated'")
+        if self.workspace is not None and self.workspace not in WORKSPACE_CHOICES:
+            raise InputError(f"sweep spec: workspace {self.workspace!r} must be "
+                             f"'continuous' or 'grid'")
+        if self.workspace == "continuous" and self.catalogue is not None:
+            raise InputError("sweep spec: workspace 'continuous' does not apply with a "
+                             "catalogue (a choice of classes holds on the grid poses); use "
+                             "workspace 'grid'")
         _check_spec(self)
+        if self.workspace == "continuous":
+            for machine in self.machines:
+                for side in self.sides:
+                    check_continuous(_load_machine(machine), side)
 
     @classmethod
     def from_dict(cls, data, base: Path | None = None) -> "SweepSpec":
@@ -187,7 +208,7 @@ class SweepSpec:
         """Every combination, machines slowest and repeats fastest."""
         return [SweepTask(machine, side, float(target), profile, int(seed), int(repeats),
                           int(self.points_per_axis), self.bounds, self.catalogue,
-                          self.distribution)
+                          self.distribution, self.workspace)
                 for machine, side, target, profile, seed, repeats in itertools.product(
                     self.machines, self.sides, self.targets, self.profiles, self.seeds,
                     self.repeats)]
@@ -344,6 +365,7 @@ def results_frame(tasks, results) -> pd.DataFrame:
         row["bounds_low"], row["bounds_high"] = row.pop("bounds") or (None, None)
         row["bounds_source"] = result.get("bounds_source", "")
         row["distribution"] = result.get("distribution", task.distribution)
+        row["workspace"] = task.workspace or "grid"
         row["status"] = result["status"]
         row["reason"] = result.get("reason", "")
         row["relative_cost"] = result["relative_cost"]
@@ -472,7 +494,7 @@ def _allocation_key(task: SweepTask, fingerprint: str) -> tuple:
     """What a task's allocation depends on (tasks differing only in profile, seed or
     repeats share it)."""
     key = (task.machine, fingerprint, task.side, task.target, task.points_per_axis,
-           task.bounds, task.distribution)
+           task.bounds, task.distribution, task.workspace)
     if task.catalogue is None:
         return key
     return key + (task.catalogue, catalogue_fingerprint(task.catalogue))
@@ -481,7 +503,8 @@ def _allocation_key(task: SweepTask, fingerprint: str) -> tuple:
 @functools.lru_cache(maxsize=64)
 def solve_allocation(name: str, fingerprint: str, side: str, target: float,
                      points: int, bounds: tuple[float, float] | None = None,
-                     distribution: str | None = None, catalogue: str | None = None,
+                     distribution: str | None = None, workspace: str | None = None,
+                     catalogue: str | None = None,
                      catalogue_content: str | None = None) -> dict:
     """Certified optimum of one machine (file ``name`` with content ``fingerprint``) and
     reading in the box ``bounds`` (None: the machine file's, else the default factors):
@@ -489,6 +512,8 @@ def solve_allocation(name: str, fingerprint: str, side: str, target: float,
     ``tolerances``, ``relative_cost`` and ``certified``; with a ``catalogue`` (file, with
     content ``catalogue_content``) the certified cheapest choice of classes, with its
     ``price`` and ``choice`` (``bounds_source`` is then ``"catalogue classes"``).
+    Under ``workspace='continuous'`` the optimum is certified over the continuous strokes
+    (``certified`` then also requires the workspace certificate).
     Deterministic, so solving it anywhere, once or many times, gives the same numbers."""
     with threadpool_limits(limits=1):
         machine = _task_machine((name, fingerprint), target, distribution)
@@ -498,14 +523,18 @@ def solve_allocation(name: str, fingerprint: str, side: str, target: float,
             if catalogue is not None:
                 return dict(_choose(problem, _catalogue(catalogue, catalogue_content)),
                             bounds_source="catalogue classes")
-            best = problem.solve_exact()
+            if workspace == "continuous":
+                continuous = solve_continuous(problem)
+                best, covered = continuous.result, continuous.certified
+            else:
+                best, covered = problem.solve_exact(), True
         except (TargetUnreachableError, CatalogueInfeasibleError) as exc:
             return {"status": "unreachable", "reason": str(exc),
                     "bounds_source": problem.bounds_source}
     return {"status": "ok", "tolerances": best.tolerances,
             "bounds_source": problem.bounds_source,
             "relative_cost": float(best.cost / problem.cost.total(problem.reference)),
-            "certified": bool(best.certificate["certified"])}
+            "certified": bool(best.certificate["certified"]) and covered}
 
 
 def _choose(problem, catalogue) -> dict:

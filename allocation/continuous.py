@@ -1,0 +1,412 @@
+"""Allocations certified over the continuous workspace: cutting planes on poses
+(docs/continuous-allocation.md).
+
+Eq. (35) asks the targets over the whole stroke of every axis; the grid problem
+(:class:`~allocation.problem.AllocationProblem`) holds them at the poses of a grid only. A
+finite pose set is a relaxation of the continuous problem, so its optimum costs at most the
+continuous optimum. :func:`solve_continuous` closes the gap by an exchange (cutting-plane)
+method:
+
+1. solve the problem on the current pose set (certified convex optimum,
+   :mod:`allocation.convex`);
+2. find the worst pose of each output at that optimum: first by a local search from the
+   worst poses of the set (:func:`local_worst`, cheap, for the σ readings), and, when the
+   search finds no output short by more than a quarter of ``rtol``, by the certificate (:func:`reliability.worst_case.certified_worst`), a rigorous
+   upper bound of the output's σ (or worst-case stack) over the whole stroke box;
+3. add the poses of every output short of its requirement (all at once) and solve again;
+4. stop when the certified bound of every output is within ``rtol`` of what its target allows:
+   σ ≤ ``I/z`` (two- or one-sided reading; under ``distribution="truncated"`` σ is the
+   truncated one) or the stack ≤ ``I`` (stack reading).
+
+At the stop the allocation ``t`` meets every target over the continuous workspace with the
+allowed σ (or limit) widened by the factor ``1 + rtol``, and it is the optimum of a
+relaxation of the continuous problem, so
+
+    F*(limits × (1 + rtol)) ≤ F(t) ≤ F*(limits)
+
+where ``F*(·)`` is the continuous optimum: the cost is the continuous optimum to ``rtol``
+in σ. The certificate is asked for half of ``rtol`` so that the loop can close the other
+half with finitely many cuts. When the certificate does not reach its gap within its box
+evaluations, or the loop reaches its cap on solves, the result says so and is not
+certified.
+"""
+
+from __future__ import annotations
+
+import inspect
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+import pandas as pd
+from scipy.optimize import minimize
+
+from reliability import checks
+from reliability.certified import MAX_BOX_CALLS
+from reliability.display import OUTPUT_UNITS, axis_units, pose_frame, pose_text
+from reliability.errors import InputError
+from reliability.fosm import error_sigma
+from reliability.kinematics import jacobian_and_derivative
+from reliability.machine import OUTPUTS
+from reliability.worst_case import certified_worst
+
+from .result_files import gap_text
+
+#: The pose sets an allocation can be certified over: the continuous strokes or the grid.
+WORKSPACE_CHOICES = ("continuous", "grid")
+#: Relative tolerance in σ (or the stack) of the continuous certificate by default.
+DEFAULT_RTOL = 1e-3
+#: Solves of the convex problem (the grid's included) before the loop stops uncertified.
+MAX_SOLVES = 30
+#: Share of ``rtol`` the certificate's own gap may take; the loop's cuts close the rest.
+CERTIFICATE_SHARE = 0.5
+#: Share of ``rtol`` by which an output found short by the local search is cut at once,
+#: without a certificate (``SEARCH_SHARE + CERTIFICATE_SHARE < 1`` leaves room to stop).
+SEARCH_SHARE = 0.25
+#: Local searches per output, from the poses of the set where it is largest.
+SEARCH_STARTS = 3
+
+
+@dataclass(frozen=True, eq=False)
+class ContinuousAllocation:
+    """An allocation whose targets are certified over the continuous workspace (or not).
+
+    Attributes
+    ----------
+    result : AllocationResult
+        The certified convex optimum on the grid plus the added poses (its ``problem``
+        holds them all); the allocation itself.
+    grid : AllocationResult
+        The optimum on the grid alone (the first solve), for comparison.
+    certified : bool
+        Every output's certified bound is within ``rtol`` of what its target allows at
+        ``result.tolerances``.
+    rtol : float
+        Relative tolerance in σ (stack reading: in the stack).
+    certificate : DataFrame or None
+        The last certificate (:func:`reliability.worst_case.certified_worst`) with, per
+        output, ``allowed`` (σ the target allows, or the limit for the stack), ``excess``
+        (bound / allowed − 1) and ``meets`` (excess ≤ rtol); None when no certificate was
+        computed (the loop stopped before). ``attrs['current']`` says whether it was
+        computed at ``result.tolerances``.
+    added : DataFrame
+        The poses added, in order: ``solve`` (the solve they follow), ``source``
+        (``'search'`` or ``'certificate'``), ``output``, the pose (``<axis>_mm`` /
+        ``<axis>_deg``) and ``ratio`` (σ or stack there over what the target allows).
+    solves, certificate_calls, searches : int
+        Convex solves (1: the grid optimum already holds), certificate calls and local
+        searches.
+    seconds : float
+    reason : str
+        Why the loop stopped without a certificate ('' when certified).
+    workspace : str
+        ``'continuous'``.
+    """
+
+    result: object = field(repr=False)
+    grid: object = field(repr=False)
+    certified: bool
+    rtol: float
+    certificate: pd.DataFrame | None
+    added: pd.DataFrame
+    solves: int
+    certificate_calls: int
+    searches: int
+    seconds: float
+    reason: str = ""
+    workspace: str = "continuous"
+
+    @property
+    def tolerances(self) -> np.ndarray:
+        return self.result.tolerances
+
+    @property
+    def cost(self) -> float:
+        return self.result.cost
+
+    @property
+    def cost_ratio(self) -> float:
+        """Cost of this allocation over the grid optimum's (≥ 1 up to the solver's gap)."""
+        return self.result.cost / self.grid.cost
+
+    @property
+    def quantity(self) -> str:
+        """What the tolerance is relative to: ``'σ'`` or ``'the worst-case stack'``."""
+        return "the worst-case stack" if self.result.problem.side == "stack" else "σ"
+
+    @property
+    def statement(self) -> str:
+        """One line naming the workspace and whether it is certified."""
+        if self.certified:
+            return (f"certified over the continuous workspace to {self.rtol:g} in "
+                    f"{self.quantity}")
+        return (f"NOT certified over the continuous workspace ({self.reason}); the targets "
+                f"hold at the {len(self.result.problem.poses)} grid and added poses only")
+
+    def summary(self) -> str:
+        """The statement, the work done, the cost against the grid optimum, and the
+        certificate per output."""
+        lines = [f"workspace: continuous — {self.statement}",
+                 f"{self.solves} convex solve(s), {len(self.added)} pose(s) added, "
+                 f"{self.searches} local search(es), {self.certificate_calls} certificate "
+                 f"call(s), {self.seconds:.1f} s; cost {self.cost_ratio:.6f} × the "
+                 f"{len(self.grid.problem.poses)}-pose grid optimum's"]
+        if self.certificate is not None:
+            lines += ["", "certified worst pose of each output"
+                      + ("" if self.certificate.attrs.get("current", True) else
+                         " (at an earlier solve)") + ":",
+                      certificate_text(self.result.problem, self.certificate)]
+        return "\n".join(lines)
+
+    def __repr__(self) -> str:
+        return self.summary()
+
+
+def check_continuous(machine, side: str = "two_sided") -> None:
+    """Refuse, before any work, a study the continuous certificate cannot cover.
+
+    Parameters
+    ----------
+    machine : Machine
+        In the frame and with the error model of the study.
+    side : {'two_sided', 'one_sided', 'stack'}
+
+    Raises
+    ------
+    InputError
+        Naming the workspace and suggesting the grid: outputs in the workpiece frame,
+        correlated errors, or the stack reading while the certificate has no stack reading.
+    """
+    why = None
+    if machine.frame != "tool":
+        why = (f"the certificate encloses the tool-frame chain (Eq. 18) and this study reads "
+               f"its outputs in the {machine.frame!r} frame")
+    elif getattr(machine, "correlation", None) is not None:
+        why = "the certificate bounds σ of independent errors and this machine's are correlated"
+    elif side == "stack" and not _stack_certificate_available():
+        why = "this version's certificate bounds σ only, not the worst-case stack"
+    if why is not None:
+        raise InputError(f"workspace 'continuous' is not available: {why}; use workspace "
+                         f"'grid' (--workspace grid) for the allocation on the grid poses")
+
+
+def solve_continuous(problem, *, rtol: float = DEFAULT_RTOL, max_solves: int = MAX_SOLVES,
+                     max_calls: int = MAX_BOX_CALLS, search: bool = True,
+                     progress=None) -> ContinuousAllocation:
+    """The cheapest allocation meeting the targets over the continuous workspace, to ``rtol``.
+
+    Parameters
+    ----------
+    problem : AllocationProblem
+        A worst-case problem on a grid (or any pose set); its reading (two-sided,
+        one-sided or stack), distribution, bounds and costs are kept.
+    rtol : float
+        Relative tolerance in σ (or the stack) of the certificate, in (0, 1).
+    max_solves : int
+        Convex solves at most (the grid's included).
+    max_calls : int
+        Box evaluations per output and certificate call
+        (:func:`reliability.worst_case.certified_worst`).
+    search : bool
+        Cut the poses a local search finds short before asking the certificate (σ
+        readings only; fewer certificate calls).
+    progress : callable, optional
+        ``progress(text)`` after each step.
+
+    Returns
+    -------
+    ContinuousAllocation
+    """
+    rtol = checks.finite_float(rtol, "rtol", 0.0, 1.0, low_open=True, high_open=True)
+    max_solves = checks.positive_int(max_solves, "max_solves")
+    max_calls = checks.positive_int(max_calls, "max_calls")
+    progress = progress or (lambda text: None)
+    checks.callback(progress, "progress")
+    if problem.workspace != "worst":
+        raise InputError("workspace 'continuous' needs the worst-case reading (the "
+                         "workspace-mean reading averages over the grid poses); use the "
+                         "grid")
+    check_continuous(problem.machine, problem.side)
+    started = time.perf_counter()
+    current, result = problem, problem.solve_exact()
+    grid, solves, calls, searches = result, 1, 0, 0
+    added, table, reason = [], None, ""
+    search = search and problem.side != "stack"
+    while True:
+        cut = None
+        if search:
+            searches += 1
+            cut = _searched_cuts(current, result.tolerances, SEARCH_SHARE * rtol)
+            progress(f"solve {solves}: cost {result.cost:.6g}; local search finds "
+                     f"{len(cut)} output(s) short by more than {SEARCH_SHARE * rtol:g}")
+        if cut is None or not len(cut):
+            calls += 1
+            table = certify(current, result.tolerances, rtol, max_calls)
+            cut = _certified_cuts(current, table, rtol)
+            progress(f"solve {solves}: cost {result.cost:.6g}; certificate: largest excess "
+                     f"{table['excess'].max():+.3g} over what the targets allow; "
+                     f"{len(cut)} output(s) to cut")
+            if not len(cut):
+                break
+        if solves >= max_solves:
+            reason = (f"stopped after {max_solves} solves with output(s) "
+                      f"{', '.join(cut['output'])} still short")
+            break
+        added.append(cut.assign(solve=solves))
+        current = current.with_poses(cut[list(problem.machine.axes)].to_numpy(dtype=float))
+        result = current.solve_exact()
+        solves += 1
+    if table is not None:
+        table.attrs["current"] = not reason
+    certified = not reason and bool(table["meets"].all())
+    if not certified and not reason:
+        reason = _uncertified_reason(table, rtol)
+    return ContinuousAllocation(
+        result=result, grid=grid, certified=certified, rtol=rtol, certificate=table,
+        added=_added_frame(problem.machine, added), solves=solves, certificate_calls=calls,
+        searches=searches, seconds=time.perf_counter() - started, reason=reason)
+
+
+def certify(problem, tolerances, rtol: float = DEFAULT_RTOL,
+            max_calls: int = MAX_BOX_CALLS) -> pd.DataFrame:
+    """The certificate of ``tolerances`` under the problem's reading, asked for
+    ``CERTIFICATE_SHARE × rtol``, with what each output's target allows (``allowed``: σ
+    ``I/z``, or the limit ``I`` for the stack), ``excess`` = bound / allowed − 1 and
+    ``meets`` (``excess ≤ rtol``)."""
+    machine = problem.machine
+    if problem.side == "stack":
+        table = certified_worst(machine, tolerances, rtol=CERTIFICATE_SHARE * rtol,
+                                k=problem.k, reading="stack", max_calls=max_calls,
+                                memory=problem.memory)
+        allowed = machine.limits
+    else:
+        table = certified_worst(machine, tolerances, rtol=CERTIFICATE_SHARE * rtol,
+                                k=problem.k, distribution=problem.distribution,
+                                max_calls=max_calls, memory=problem.memory)
+        allowed = problem.allowed_sigma
+    bound = _columns(problem)[1]
+    table = table.copy()
+    table["allowed"] = allowed
+    table["excess"] = table[bound] / allowed - 1.0
+    table["meets"] = table["excess"] <= rtol
+    return table
+
+
+def certificate_text(problem, table) -> str:
+    """The certificate as a table for people: worst pose (mm, deg), value, bound, allowed,
+    excess, per output."""
+    machine = problem.machine
+    value, bound = _columns(problem)
+    name = "stack" if problem.side == "stack" else "sigma"
+    shown = pd.DataFrame({
+        "certified worst pose": [pose_text(row, machine.axes, axis_units(machine), digits=6)
+                                 for row in table[list(machine.axes)].to_numpy(dtype=float)],
+        "unit": list(OUTPUT_UNITS),
+        name: [f"{v:.6g}" for v in table[value]],
+        f"{name} bound": [f"{v:.6g}" for v in table[bound]],
+        "allowed": [f"{v:.6g}" for v in table["allowed"]],
+        "bound/allowed - 1": [f"{v:+.2e}" for v in table["excess"]],
+        "certificate gap": [gap_text(v) for v in table["gap"]],
+    }, index=table.index)
+    return shown.to_string()
+
+
+def _columns(problem) -> tuple[str, str]:
+    """The certificate's value and bound columns under the problem's reading."""
+    return ("stack", "stack_bound") if problem.side == "stack" else ("sigma", "sigma_bound")
+
+
+def _certified_cuts(problem, table, rtol) -> pd.DataFrame:
+    """Outputs whose bound exceeds what the target allows by more than ``rtol`` and whose
+    certified worst pose is itself short (so its row cuts off the current optimum)."""
+    value, _ = _columns(problem)
+    ratio = table[value].to_numpy() / table["allowed"].to_numpy()
+    short = (table["excess"].to_numpy() > rtol) & (ratio > 1.0)
+    frame = table.loc[short, list(problem.machine.axes)].reset_index()
+    frame["ratio"] = ratio[short]
+    frame["source"] = "certificate"
+    return frame
+
+
+def _searched_cuts(problem, tolerances, threshold) -> pd.DataFrame:
+    """Outputs that a local search finds short by more than ``threshold`` (σ over the
+    allowed σ minus 1), with the poses found (:func:`local_worst`)."""
+    poses, ratio = local_worst(problem, tolerances)
+    short = ratio > 1.0 + threshold
+    frame = pd.DataFrame(poses[short], columns=list(problem.machine.axes))
+    frame.insert(0, "output", np.array(OUTPUTS)[short])
+    frame["ratio"] = ratio[short]
+    frame["source"] = "search"
+    return frame
+
+
+def local_worst(problem, tolerances, starts: int = SEARCH_STARTS):
+    """The worst pose of each output found by a bounded local search, and σ there over the
+    σ its target allows.
+
+    L-BFGS-B maximises ``σ_o(q) / (I_o/z_o)`` (Eq. 20, the problem's reading of a
+    tolerance) with its analytic gradient
+    (:func:`reliability.kinematics.jacobian_and_derivative`) over the strokes scaled to
+    [0, 1], so that lengths in mm and angles in rad move alike and the objective is O(1),
+    from the ``starts`` poses of the problem's set where the output is largest. Local: it
+    proves nothing, it only spares certificate calls.
+
+    Returns
+    -------
+    poses : ndarray (6, n_axes)
+    ratio : ndarray (6,)
+    """
+    machine = problem.machine
+    low = np.array([axis.stroke[0] for axis in machine.axis_specs], dtype=float)
+    span = np.array([axis.stroke[1] for axis in machine.axis_specs], dtype=float) - low
+    variance = np.square(error_sigma(tolerances, problem.k, problem.distribution))
+    allowed = problem.allowed_sigma
+    at_poses = problem.sigma(tolerances) / allowed  # (n_poses, 6)
+    poses = np.empty((len(OUTPUTS), len(low)))
+    ratio = np.empty(len(OUTPUTS))
+    for output in range(len(OUTPUTS)):
+        def negative(s, output=output):
+            jac, derivative = jacobian_and_derivative(machine, low + s * span)
+            row = jac[output]
+            value = np.sqrt(np.square(row) @ variance)  # Eq. (20)
+            gradient = derivative[:, output, :] @ (row * variance) / max(value, 1e-300)
+            return -value / allowed[output], -gradient * span / allowed[output]
+
+        first = np.argsort(-at_poses[:, output], kind="stable")[:starts]
+        found = [minimize(negative, (problem.poses[i] - low) / np.where(span > 0, span, 1.0),
+                          jac=True, method="L-BFGS-B", bounds=[(0.0, 1.0)] * len(low)).x
+                 for i in first]
+        values = [-negative(s)[0] for s in found]
+        best = int(np.argmax(values))
+        poses[output] = np.clip(low + found[best] * span, low, low + span)
+        ratio[output] = values[best]
+    return poses, ratio
+
+
+def _uncertified_reason(table, rtol) -> str:
+    """Why a certificate with no pose to cut does not certify: an output's bound is above
+    what the target allows while its certificate's gap is too wide to find a short pose."""
+    worst = table["excess"].idxmax()
+    row = table.loc[worst]
+    return (f"the bound on {worst} exceeds what its target allows by {row['excess']:.3g} "
+            f"> {rtol:g} and its certificate stopped at gap {row['gap']:.3g} after "
+            f"{int(row['calls'])} box evaluations")
+
+
+def _added_frame(machine, parts) -> pd.DataFrame:
+    """The added poses for people: solve, source, output, pose in mm / deg, ratio."""
+    columns = ["solve", "source", "output"]
+    if not parts:
+        empty = pose_frame(np.zeros((0, len(machine.axes))), machine.axes,
+                           axis_units(machine), style="csv")
+        return pd.concat([pd.DataFrame(columns=columns), empty, pd.DataFrame(columns=["ratio"])],
+                         axis=1)
+    joined = pd.concat(parts, ignore_index=True)
+    poses = pose_frame(joined[list(machine.axes)].to_numpy(dtype=float), machine.axes,
+                       axis_units(machine), style="csv")
+    return pd.concat([joined[columns], poses, joined[["ratio"]]], axis=1)
+
+
+def _stack_certificate_available() -> bool:
+    """Whether :func:`certified_worst` has the worst-case stack reading (``reading=``)."""
+    return "reading" in inspect.signature(certified_worst).parameters
