@@ -33,7 +33,6 @@ certified.
 
 from __future__ import annotations
 
-import inspect
 import time
 from dataclasses import dataclass, field
 
@@ -175,7 +174,7 @@ def check_continuous(machine, side: str = "two_sided") -> None:
     ------
     InputError
         Naming the workspace and suggesting the grid: outputs in the workpiece frame,
-        correlated errors, or the stack reading while the certificate has no stack reading.
+        correlated errors.
     """
     why = None
     if machine.frame != "tool":
@@ -183,8 +182,6 @@ def check_continuous(machine, side: str = "two_sided") -> None:
                f"its outputs in the {machine.frame!r} frame")
     elif getattr(machine, "correlation", None) is not None:
         why = "the certificate bounds σ of independent errors and this machine's are correlated"
-    elif side == "stack" and not _stack_certificate_available():
-        why = "this version's certificate bounds σ only, not the worst-case stack"
     if why is not None:
         raise InputError(f"workspace 'continuous' is not available: {why}; use workspace "
                          f"'grid' (--workspace grid) for the allocation on the grid poses")
@@ -407,6 +404,3 @@ def _added_frame(machine, parts) -> pd.DataFrame:
     return pd.concat([joined[columns], poses, joined[["ratio"]]], axis=1)
 
 
-def _stack_certificate_available() -> bool:
-    """Whether :func:`certified_worst` has the worst-case stack reading (``reading=``)."""
-    return "reading" in inspect.signature(certified_worst).parameters

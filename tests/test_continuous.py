@@ -5,22 +5,18 @@ refusals and its plain "not certified", the command line and the study's summary
 from __future__ import annotations
 
 import dataclasses
-import inspect
 import json
 from pathlib import Path
 
 import numpy as np
-import pandas as pd
 import pytest
 
-import allocation.continuous as continuous_module
 from allocation import AllocationProblem
 from allocation.continuous import certify, check_continuous, solve_continuous
 from reliability import OUTPUTS, workspace_grid
 from reliability.errors import InputError
 from reliability.fosm import error_sigma
 from reliability.kinematics import output_variance
-from reliability.worst_case import certified_worst
 from studies import cli
 from studies.report.extras import EXTRAS
 from studies.workflows.sweep import SweepSpec
@@ -170,28 +166,10 @@ def test_uncertified_certificate_says_so(trunnion5):
 
 
 # ----- the stack reading ----------------------------------------------------------------
-def corner_stack_certificate(machine, tolerances, *, rtol=1e-3, k=3.0, distribution=None,
-                             reading="sigma", max_calls=1, memory=None):
-    """A stand-in for ``certified_worst(reading="stack")`` on an all-linear machine: every
-    |J_oi| is convex in the positions there, so the worst-case stack Σ|J|t is largest at a
-    corner of the stroke box and the largest corner value is an exact bound."""
-    assert reading == "stack"
-    corners = vertices(machine)
-    stack = np.einsum("pon,n->po", np.abs(machine.jacobian(corners)), tolerances)
-    worst = stack.argmax(axis=0)
-    frame = pd.DataFrame(corners[worst], columns=list(machine.axes),
-                         index=pd.Index(OUTPUTS, name="output"))
-    frame["stack"] = stack[worst, np.arange(len(OUTPUTS))]
-    frame["stack_bound"] = frame["stack"]
-    frame["gap"], frame["certified"], frame["calls"], frame["seconds"] = 0.0, True, 1, 0.0
-    frame.attrs.update(rtol=rtol, reading="stack")
-    return frame
-
-
-def test_stack_reading_with_a_stack_certificate(mill3, monkeypatch):
-    """The loop under the stack reading, with the stand-in certificate (the real one takes
-    ``reading='stack'`` once it has that reading): the optimum is the corner optimum."""
-    monkeypatch.setattr(continuous_module, "certified_worst", corner_stack_certificate)
+def test_stack_reading_reaches_the_corner_optimum(mill3):
+    """The loop under the stack reading: on an all-linear machine every |J_oi| is convex in
+    the positions, so the worst-case stack is largest at a corner of the strokes and the
+    optimum over the corners (computed independently) is the continuous optimum."""
     problem = AllocationProblem.build(mill3, interior_poses(mill3), side="stack", bounds=BOX)
     result = solve_continuous(problem, rtol=1e-3)
     assert result.certified and result.quantity == "the worst-case stack"
@@ -200,13 +178,6 @@ def test_stack_reading_with_a_stack_certificate(mill3, monkeypatch):
                                       bounds=BOX).solve_exact()
     np.testing.assert_allclose(result.cost, corners.cost, rtol=1e-6)
     assert result.grid.cost < result.cost and result.searches == 0
-
-
-@pytest.mark.skipif("reading" in inspect.signature(certified_worst).parameters,
-                    reason="the certificate has the stack reading")
-def test_stack_refused_without_a_stack_certificate(mill3):
-    with pytest.raises(InputError, match="--workspace grid"):
-        check_continuous(mill3, "stack")
 
 
 # ----- refusals ---------------------------------------------------------------------------
