@@ -36,7 +36,14 @@ cheap ones up, in proportion to the logarithm of the price ratio, and a common s
 six, found by bisection, restores the design yield; the move is kept when it is cheaper,
 otherwise the step is halved.
 
-All yields go through one function, :func:`_machine_yield` (the crude grid experiment of
+Then the error shape (:mod:`allocation.yield_shape`): starting from the per-output search's
+allocation, every tolerance moves towards equal shares of the cost and of the failures at the
+yield's margin, rescaled on the exact chain so that the design yield holds on a design sample
+of its own; the cheaper of the two stages is the result (:attr:`YieldAllocation.method`).
+The per-output stage cannot trade one error against another inside an output; on the paper's
+machine, whose failing machines fail several outputs at once, that is where the saving is.
+
+All per-output yields go through one function, :func:`_machine_yield` (the crude grid experiment of
 :class:`reliability.sampling.GridExperiment`), so a better estimator is swapped in at one
 place.
 """
@@ -52,6 +59,7 @@ from scipy.stats import norm
 from reliability import checks, streams
 from reliability.errors import InputError
 from reliability.fosm import required_index
+from reliability.machine_yield import YieldModel
 from reliability.machine import OUTPUTS
 from reliability.poses import workspace_grid
 from reliability.sampling import GridExperiment
@@ -60,6 +68,7 @@ from reliability.statistics import machine_yield
 from .convex import InfeasibleAllocationError, solve_convex_allocation
 from .front import CommonTargetSolver
 from .problem import AllocationProblem
+from .yield_shape import shape_search
 
 #: Two-sided per-pose target the constraint rows are built and screened at: every target
 #: the search uses lies at or below it, so no screened-out row can bind.
@@ -116,7 +125,11 @@ class YieldAllocation:
     cost : float
         Its cost (Eq. 28).
     output_targets : ndarray (6,)
-        Its per-output two-sided per-pose targets.
+        The per-output two-sided per-pose targets the per-output search ended at.
+    method : str
+        Which stage gave the allocation: ``'per-output targets'`` (the certified per-pose
+        optimum of :attr:`output_targets`) or ``'error shape'`` (the shape search over
+        every tolerance, which started there and found a cheaper allocation).
     design_yield, verified_yield : ProportionEstimate
         Its yield on the design sample and on the fresh verification sample.
     lower_bound : float
@@ -144,6 +157,7 @@ class YieldAllocation:
     tolerances: np.ndarray
     cost: float
     output_targets: np.ndarray
+    method: str
     design_yield: object
     verified_yield: object
     lower_bound: float
@@ -195,7 +209,8 @@ class YieldAllocation:
             f"({self.relative_gap:.2%} of the feasible cost)",
             f"verified yield {v.estimate:.4f}, 95% Clopper–Pearson [{v.lower:.4f}, "
             f"{v.upper:.4f}] from {v.n:,} fresh machines: {verdict}",
-            f"per-output per-pose targets: {targets}",
+            f"found by the {self.method} stage; per-output per-pose targets of the first "
+            f"stage: {targets}",
             f"naive method (one common per-pose target {self.naive.target:.6g}): cost "
             f"{self.naive.cost / initial:.4%} of the initial cost, verified yield "
             f"{n.estimate:.4f} [{n.lower:.4f}, {n.upper:.4f}]"])
@@ -207,7 +222,8 @@ class YieldAllocation:
 def allocate_for_yield(machine, yield_target: float, *, profile=None, distribution=None,
                        points: int = 5, bounds=None, machines: int = DEFAULT_MACHINES,
                        seed: int = 0, rounds: int = 6, naive_steps: int = 8,
-                       restore_steps: int = 4, gap_tol: float = 1e-6) -> YieldAllocation:
+                       restore_steps: int = 4, shape_steps: int = 20,
+                       gap_tol: float = 1e-6) -> YieldAllocation:
     """The cheapest allocation found whose machine yield reaches ``yield_target``.
 
     Parameters
@@ -233,6 +249,9 @@ def allocate_for_yield(machine, yield_target: float, *, profile=None, distributi
         Rounds of the search over the six per-output targets (0: the naive method only).
     naive_steps, restore_steps : int
         Bisection steps on the naive common target and on each round's common shift.
+    shape_steps : int
+        Candidates of the shape search over every tolerance that follows the per-output
+        search (:func:`allocation.yield_shape.shape_search`; 0: none).
     gap_tol : float
         Relative duality gap accepted by the convex solves.
 
@@ -253,7 +272,7 @@ def allocate_for_yield(machine, yield_target: float, *, profile=None, distributi
     machines = checks.positive_int(machines, "machines")
     seed = _check_seed(seed)
     for value, name in ((rounds, "rounds"), (naive_steps, "naive_steps"),
-                        (restore_steps, "restore_steps")):
+                        (restore_steps, "restore_steps"), (shape_steps, "shape_steps")):
         if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 0:
             raise InputError(f"{name} must be an integer >= 0; got {value!r}")
     chosen = {name: value for name, value in (("profile", profile),
@@ -273,13 +292,18 @@ def allocate_for_yield(machine, yield_target: float, *, profile=None, distributi
             f"probability {yield_target:g}; widen the box (bounds)") from None
     naive = search.naive(naive_steps)
     best = search.improve(naive, rounds, restore_steps)
+    targets_found = time.perf_counter()
+    shaped = search.shape(best, shape_steps)
+    chosen = best if shaped is None or shaped.cost >= best.cost else shaped
     searched = time.perf_counter()
     verify = search.verification_sample()
     result = YieldAllocation(
         problem=search.problem, yield_target=yield_target,
-        design_yield_target=float(design_target), tolerances=best.t, cost=best.cost,
-        output_targets=two_sided_target(best.z), design_yield=machine_yield(best.passes),
-        verified_yield=machine_yield(verify(best.t)), lower_bound=float(lower.dual_bound),
+        design_yield_target=float(design_target), tolerances=chosen.t, cost=chosen.cost,
+        output_targets=two_sided_target(best.z),
+        method="per-output targets" if chosen is best else "error shape",
+        design_yield=machine_yield(chosen.passes),
+        verified_yield=machine_yield(verify(chosen.t)), lower_bound=float(lower.dual_bound),
         lower_bound_tolerances=np.asarray(lower.t),
         naive=NaiveAllocation(target=float(two_sided_target(naive.z[0])),
                               tolerances=naive.t, cost=naive.cost,
@@ -287,8 +311,8 @@ def allocate_for_yield(machine, yield_target: float, *, profile=None, distributi
                               verified_yield=machine_yield(verify(naive.t))),
         profile=machine.profile, distribution=machine.distribution, points=int(points),
         machines=machines, seed=seed, evaluations=search.evaluations,
-        seconds={"build": built - started, "search": searched - built,
-                 "verify": time.perf_counter() - searched})
+        seconds={"build": built - started, "targets": targets_found - built,
+                 "shape": searched - targets_found, "verify": time.perf_counter() - searched})
     return result
 
 
@@ -316,7 +340,9 @@ def equal_yield_margin(result: YieldAllocation, *, level: float | None = None,
     were tuned to (their allocations' yields); ``yield_target`` gives the comparison at Y.
 
     Each method is a family of allocations along a common shift of its required indices
-    (naive: the common target; the result: its six targets). On a fresh sample (common
+    (naive: the common target; the result: its six targets, or, when the error-shape stage
+    gave it, its tolerances scaled by ``z/(z + shift)`` inside the box with ``z`` the naive
+    required index). On a fresh sample (common
     random numbers for every allocation) each family is moved from shift 0 outwards in
     doubling steps of ``spacing`` until its yields bracket the level, the bracket is bisected
     four times, one shift is added beyond each end, and its cost at the level is
@@ -342,12 +368,12 @@ def equal_yield_margin(result: YieldAllocation, *, level: float | None = None,
     search = _Search(result.problem.machine, result.points, None, machines, seed, 0.0,
                      problem=result.problem)
     sample = search.verification_sample()
-    families = {"naive": np.full(6, required_index(result.naive.target, "two_sided")),
-                "result": required_index(result.output_targets, "two_sided")}
+    z_naive = np.full(6, required_index(result.naive.target, "two_sided"))
+    families = {"naive": lambda shift: search.solve(z_naive + shift),
+                "result": _result_family(result, search, float(z_naive[0]))}
     shifts, costs, passes = {}, {}, {}
-    for name, z in families.items():
-        shifts[name], costs[name], passes[name] = _family(search, sample, z, spacing,
-                                                          target)
+    for name, allocate in families.items():
+        shifts[name], costs[name], passes[name] = _family(allocate, sample, spacing, target)
         costs[name] = costs[name] / result.initial_cost
     weights = streams.spawn(seed, 3)[2].poisson(1.0, (resamples, machines))
     at_y = {name: _cost_at_yield(costs[name], passes[name], target, weights)
@@ -366,15 +392,30 @@ def equal_yield_margin(result: YieldAllocation, *, level: float | None = None,
             "evaluations": sum(len(s) for s in shifts.values())}
 
 
-def _family(search, sample, z, spacing, target, doublings: int = 10, steps: int = 4):
-    """Shifts of ``z``, costs and per-machine verdicts on ``sample`` around yield
-    ``target``: from shift 0 outwards in doubling steps until the yields bracket it, then
-    ``steps`` bisections of the bracket, and one shift beyond each end of it."""
+def _result_family(result, search, z):
+    """The result's allocation at a shift: its six targets shifted (the per-output stage)
+    or its tolerances scaled by ``z/(z + shift)`` inside the box (the error-shape stage)."""
+    if result.method == "per-output targets":
+        z_result = required_index(result.output_targets, "two_sided")
+        return lambda shift: search.solve(z_result + shift)
+    problem = result.problem
+
+    def scaled(shift):
+        t = np.clip(result.tolerances * z / (z + shift), problem.lower, problem.upper)
+        return _Point(z=np.full(6, z + shift), t=t, cost=float(problem.cost.total(t)))
+    return scaled
+
+
+def _family(allocate, sample, spacing, target, doublings: int = 10, steps: int = 4):
+    """Shifts, costs and per-machine verdicts on ``sample`` around yield ``target`` of the
+    allocations ``allocate(shift)``: from shift 0 outwards in doubling steps until the
+    yields bracket it, then ``steps`` bisections of the bracket, and one shift beyond each
+    end of it."""
     found = {}
 
     def meets(shift):
         if shift not in found:
-            point = search.solve(z + shift)
+            point = allocate(shift)
             found[shift] = (point.cost, sample(point.t))
         return found[shift][1].mean() >= target
 
@@ -443,8 +484,10 @@ class _Search:
         self.gap_tol = gap_tol
         self.z_build = float(self.problem.required_index[0])
         self.experiment = GridExperiment(machine, points, profile=machine.profile)
-        design, verification = streams.spawn(seed, 2)
+        design, verification, shape = streams.spawn(seed, 3)
         self.design_seed = int(design.integers(2 ** 62))
+        self.shape_seed = int(shape.integers(2 ** 62))
+        self.points = points
         self.verification_seed = int(verification.integers(2 ** 62))
         self.machines = machines
         self.design_target = design_target
@@ -532,6 +575,26 @@ class _Search:
             else:
                 step *= 0.5
         return current
+
+    def shape(self, start, steps) -> _Point | None:
+        """The shape search over every tolerance from ``start``
+        (:func:`allocation.yield_shape.shape_search`) on a design sample of its own of the
+        same size (its verdicts are that sample's); None when ``steps`` is 0 or the box
+        cannot hold it."""
+        if steps == 0:
+            return None
+        model = YieldModel(self.problem.machine, points_per_axis=self.points)
+        u = np.random.default_rng(self.shape_seed).standard_normal(
+            (self.machines, model.dimension))
+        found = shape_search(model, self.problem.cost, np.asarray(self.problem.lower),
+                             np.asarray(self.problem.upper), start.t,
+                             self.design_target, u, iterations=steps)
+        if found is None:
+            return None
+        self.evaluations += found.evaluations
+        passes = model.worst_ratios(u, found.tolerances)[0] < 1.0
+        return _Point(z=start.z, t=found.tolerances, cost=found.cost,
+                      verdicts=passes[:, None])
 
     def _direction(self, current) -> np.ndarray:
         """Per output: −1 (lower its target) … +1 (raise it), from its price of yield.

@@ -107,10 +107,23 @@ def test_beats_or_equals_the_naive_method(result):
     assert result.output_targets.min() >= 0.5
 
 
+def test_shape_stage_meets_the_design_yield_on_its_sample(result):
+    """Whichever stage gave the result, its design yield reaches the design target, and the
+    shape stage (when it won) is cheaper than the per-output stage alone."""
+    assert result.design_yield.estimate >= result.design_yield_target
+    targets_only = allocate_for_yield(result.problem.machine, Y, points=3,
+                                      machines=MACHINES, seed=7, shape_steps=0)
+    assert result.cost <= targets_only.cost
+    if result.method == "error shape":
+        assert result.cost < targets_only.cost
+
+
 def test_naive_target_is_one_common_target(result):
-    """rounds=0 is the naive method alone, and the same seed gives the same naive point."""
+    """rounds=0 without the shape stage is the naive method alone, and the same seed gives
+    the same naive point."""
     naive = allocate_for_yield(result.problem.machine, Y, points=3, machines=MACHINES,
-                               seed=7, rounds=0)
+                               seed=7, rounds=0, shape_steps=0)
+    assert naive.method == "per-output targets"
     assert np.array_equal(naive.tolerances, result.naive.tolerances)
     assert naive.cost == pytest.approx(result.naive.cost, rel=1e-9)
     assert np.allclose(naive.output_targets, naive.naive.target)

@@ -212,7 +212,8 @@ def describe_yield(result) -> str:
         f"the cost)",
         f"verified yield {v.estimate:.4f}, 95% Clopper-Pearson [{v.lower:.4f}, {v.upper:.4f}] "
         f"from {v.n:,} fresh built machines: {verdict}",
-        "per-output per-pose targets: " + ", ".join(
+        f"found by the {result.method} stage; per-output per-pose targets of the first "
+        "stage: " + ", ".join(
             f"{name} {target:.6g}" for name, target in zip(OUTPUTS, result.output_targets)),
         f"naive method (one common per-pose target {naive.target:.6g}): cost "
         f"{naive.cost / initial:.4%} of the initial allocation, verified yield "
