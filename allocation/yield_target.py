@@ -268,7 +268,7 @@ def allocate_for_yield(machine, yield_target: float, *, profile=None, distributi
         common target the box allows misses the design yield.
     """
     started = time.perf_counter()
-    yield_target = _check_yield(yield_target)
+    yield_target = checks.probability(yield_target, "yield_target")
     machines = checks.positive_int(machines, "machines")
     seed = _check_seed(seed)
     for value, name in ((rounds, "rounds"), (naive_steps, "naive_steps"),
@@ -364,7 +364,7 @@ def equal_yield_margin(result: YieldAllocation, *, level: float | None = None,
                                                                             "machines")
     seed = result.seed + 1 if seed is None else _check_seed(seed)
     resamples = checks.positive_int(resamples, "resamples")
-    target = result.design_yield_target if level is None else _check_yield(level)
+    target = result.design_yield_target if level is None else checks.probability(level, "level")
     search = _Search(result.problem.machine, result.points, None, machines, seed, 0.0,
                      problem=result.problem)
     sample = search.verification_sample()
@@ -678,12 +678,3 @@ def _check_seed(seed) -> int:
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
         raise InputError(f"seed must be a non-negative integer; got {seed!r}")
     return int(seed)
-
-
-def _check_yield(value) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.number)):
-        raise InputError(f"yield_target must be a number in (0, 1); got {value!r}")
-    value = float(value)
-    if not 0.0 < value < 1.0:
-        raise InputError(f"yield_target must lie in (0, 1); got {value!r}")
-    return value

@@ -72,6 +72,15 @@ def probability(value, name: str) -> float:
     return finite_float(value, name, 0.0, 1.0, low_open=True, high_open=True)
 
 
+def one_allocation(machine, tolerances) -> np.ndarray:
+    """``tolerances`` checked by the machine as one allocation of shape ``(n_errors,)``."""
+    t = machine.check_tolerances(tolerances)
+    if t.ndim != 1:
+        raise InputError(f"tolerances must be one allocation of shape ({machine.n_errors},); "
+                         f"got {t.shape}")
+    return t
+
+
 def choice(value, name: str, allowed) -> str:
     """One of ``allowed`` (compared exactly)."""
     if not isinstance(value, str) or value not in allowed:

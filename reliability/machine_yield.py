@@ -99,7 +99,6 @@ from scipy.stats import norm
 from . import checks, streams
 from .chunks import chunk_size, chunks, jacobian_bytes
 from .correlation import grid_factors, normal_to_marginal
-from .errors import InputError
 from .fosm import error_sigma, pose_sigma, two_sided_failure
 from .machine import OUTPUTS
 from .profiles import axis_profiles, travel_factors
@@ -448,7 +447,7 @@ class YieldModel:
     def first_order_bounds(self, tolerances) -> tuple[float, float]:
         """Bounds on the yield of the linearised model: ``1 − Σ_rows p_r`` (floored at 0)
         and ``min_rows (1 − p_r)``, ``p_r = 2Φ(−I/σ_r)``."""
-        t = _one_allocation(self.machine, tolerances)
+        t = checks.one_allocation(self.machine, tolerances)
         failure = two_sided_failure(self.machine.limits, self.row_sigma(t))
         return _bounds_from_rows(failure)
 
@@ -457,7 +456,7 @@ class YieldModel:
         the chain by ALOE (``P_S · mean 1/N_S`` over :data:`LINEAR_SAMPLES` draws of the
         pure mixture) plus the ``p_r`` of the rows left out of ``S`` (an upper estimate
         for them)."""
-        t = _one_allocation(self.machine, tolerances)
+        t = checks.one_allocation(self.machine, tolerances)
         events = RowEvents.dominant(self, t)
         return min(1.0, events.linear_failure(streams.generator(rng)) + events.left_out)
 
@@ -466,7 +465,7 @@ class YieldModel:
                  method: str = "auto", confidence: float = 0.95,
                  target_cov: float = 0.1) -> YieldEstimate:
         """The machine yield of ``tolerances`` (see :func:`machine_yield`)."""
-        t = _one_allocation(self.machine, tolerances)
+        t = checks.one_allocation(self.machine, tolerances)
         machines = checks.positive_int(machines, "machines")
         checks.choice(method, "method", METHODS)
         confidence = checks.finite_float(confidence, "confidence", 0.0, 1.0, low_open=True,
@@ -762,14 +761,6 @@ def _bounds_from_rows(failure) -> tuple[float, float]:
     """Union bound and best single row from row failure probabilities."""
     failure = np.asarray(failure, dtype=float).ravel()
     return max(0.0, 1.0 - float(failure.sum())), 1.0 - float(failure.max())
-
-
-def _one_allocation(machine, tolerances) -> np.ndarray:
-    t = machine.check_tolerances(tolerances)
-    if t.ndim != 1:
-        raise InputError(f"tolerances must be one allocation of shape ({machine.n_errors},); "
-                         f"got {t.shape}")
-    return t
 
 
 def yield_text(value: float) -> str:

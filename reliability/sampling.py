@@ -291,7 +291,7 @@ class GridExperiment:
         -------
         GridExperimentResult
         """
-        t = _one_allocation(self.machine, tolerances)
+        t = checks.one_allocation(self.machine, tolerances)
         repeats, batch = _check_run_options(repeats, keep_values, batch, distribution, k)
         checks.callback(progress, "progress")
         rng = streams.generator(rng)
@@ -375,14 +375,6 @@ def _check_run_options(repeats, keep_values, batch, distribution, k,
     return counts
 
 
-def _one_allocation(machine, tolerances) -> np.ndarray:
-    t = machine.check_tolerances(tolerances)
-    if t.ndim != 1:
-        raise InputError(f"tolerances must be one allocation of shape ({machine.n_errors},); "
-                         f"got {t.shape}")
-    return t
-
-
 def sample_random_poses(machine, tolerances, n_samples: int, *, rng=None, k: float = 3.0,
                         distribution: str = "truncated", chunk: int = 50_000,
                         progress=None, budget: int | None = None) -> RandomPoseResult:
@@ -414,7 +406,7 @@ def sample_random_poses(machine, tolerances, n_samples: int, *, rng=None, k: flo
     -------
     RandomPoseResult
     """
-    t = _one_allocation(machine, tolerances)
+    t = checks.one_allocation(machine, tolerances)
     n_samples, chunk = _check_run_options(n_samples, "none", chunk, distribution, k,
                                           ("n_samples", "chunk"))
     checks.callback(progress, "progress")

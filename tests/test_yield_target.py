@@ -13,7 +13,7 @@ from allocation import YieldUnreachableError, allocate_for_yield, read_allocatio
 from allocation.yield_target import (_cost_at_yield, _machine_yield, equal_yield_margin,
                                      two_sided_target)
 import reliability
-from reliability.errors import InputError
+from reliability.errors import InputError, InputTypeError
 from reliability.sampling import GridExperiment
 from studies import cli
 
@@ -179,7 +179,8 @@ def test_two_sided_target_inverts_the_required_index():
     ({"yield_target": 0.9, "profile": "bogus"}, "profile"),
 ])
 def test_bad_input_is_refused_by_name(mill3, kwargs, named):
-    with pytest.raises(InputError, match=named):
+    """A bad value is an InputError, a wrong type (a bool) an InputTypeError; both name it."""
+    with pytest.raises((InputError, InputTypeError), match=named):
         allocate_for_yield(mill3, points=3, **kwargs)
 
 

@@ -59,8 +59,9 @@ def show(label, path, yield_target, machines, seed, at_target):
     print(f"verified yield {v.estimate:.4f} [{v.lower:.4f}, {v.upper:.4f}] from {v.n:,} fresh "
           f"machines: {'verified' if result.verified else 'NOT verified'} "
           f"(design yield aimed at {result.design_yield_target:.4f})")
-    print("per-output per-pose targets: " + ", ".join(
-        f"{name} {r:.5f}" for name, r in zip(OUTPUTS, result.output_targets)))
+    print(f"found by the {result.method} stage; per-output per-pose targets of the first "
+          f"stage: " + ", ".join(f"{name} {r:.5f}"
+                                 for name, r in zip(OUTPUTS, result.output_targets)))
     print(f"naive method: common target {result.naive.target:.5f}, cost "
           f"{result.naive.cost / initial:.4%}, verified yield {n.estimate:.4f} "
           f"[{n.lower:.4f}, {n.upper:.4f}]; cost ratio found/naive "
@@ -73,8 +74,9 @@ def show(label, path, yield_target, machines, seed, at_target):
               f"{margin['margin']:.4%} ± {margin['margin_error']:.4%} of the initial cost "
           f"({margin['saving']:.2%} of the naive cost; paired bootstrap s.e.)")
     print(f"times: allocate_for_yield {elapsed:.1f} s ({result.evaluations} candidates on "
-          f"the design sample; build {result.seconds['build']:.1f} s, search "
-          f"{result.seconds['search']:.1f} s, verification {result.seconds['verify']:.1f} s)"
+          f"the design sample; build {result.seconds['build']:.1f} s, per-output targets "
+          f"{result.seconds['targets']:.1f} s, error shape {result.seconds['shape']:.1f} s, "
+          f"verification {result.seconds['verify']:.1f} s)"
           f"; {one_solve_and_yield(result)}")
 
 
