@@ -47,6 +47,7 @@ SLACK = 1e-3
 #: ... within this many rescalings.
 RESCALES = 6
 
+
 @dataclass(frozen=True)
 class ShapeResult:
     """The cheapest allocation the shape search found.
@@ -139,14 +140,14 @@ def _scaled(model, cost, lower, upper, shape, u, level, band) -> dict | None:
     Machines below the quantile pass (their ratio is below 1), so ``q < 1`` means the
     design yield is met on the design sample."""
     t = np.clip(shape, lower, upper)
-    for _ in range(RESCALES):
+    for attempt in range(RESCALES):
         ratio, worst = model.worst_ratios(u, t)
         order = np.argsort(ratio)
         quantile = ratio[order[level]]
         if 1.0 - SLACK <= quantile < 1.0:
             break
         scaled = np.clip(t * (1.0 - 0.5 * SLACK) / quantile, lower, upper)
-        if np.array_equal(scaled, t):
+        if np.array_equal(scaled, t) or attempt == RESCALES - 1:
             break
         t = scaled
     if quantile >= 1.0:
