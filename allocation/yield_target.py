@@ -57,7 +57,6 @@ import numpy as np
 from scipy.stats import norm
 
 from reliability import checks, streams
-from reliability.errors import InputError
 from reliability.fosm import required_index
 from reliability.machine_yield import YieldModel
 from reliability.machine import OUTPUTS
@@ -270,11 +269,10 @@ def allocate_for_yield(machine, yield_target: float, *, profile=None, distributi
     started = time.perf_counter()
     yield_target = checks.probability(yield_target, "yield_target")
     machines = checks.positive_int(machines, "machines")
-    seed = _check_seed(seed)
+    seed = checks.positive_int(seed, "seed", minimum=0)
     for value, name in ((rounds, "rounds"), (naive_steps, "naive_steps"),
                         (restore_steps, "restore_steps"), (shape_steps, "shape_steps")):
-        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 0:
-            raise InputError(f"{name} must be an integer >= 0; got {value!r}")
+        checks.positive_int(value, name, minimum=0)
     chosen = {name: value for name, value in (("profile", profile),
                                               ("distribution", distribution))
               if value is not None}
@@ -362,7 +360,7 @@ def equal_yield_margin(result: YieldAllocation, *, level: float | None = None,
     spacing = checks.finite_float(spacing, "spacing", 0.0, low_open=True)
     machines = result.machines if machines is None else checks.positive_int(machines,
                                                                             "machines")
-    seed = result.seed + 1 if seed is None else _check_seed(seed)
+    seed = result.seed + 1 if seed is None else checks.positive_int(seed, "seed", minimum=0)
     resamples = checks.positive_int(resamples, "resamples")
     target = result.design_yield_target if level is None else checks.probability(level, "level")
     search = _Search(result.problem.machine, result.points, None, machines, seed, 0.0,
@@ -672,9 +670,3 @@ def _machine_yield(experiment, tolerances, machines, seed) -> np.ndarray:
     result = experiment.run(tolerances, repeats=machines, rng=seed, keep_values="none",
                             distribution=experiment.machine.distribution)
     return result.inside == result.n_poses
-
-
-def _check_seed(seed) -> int:
-    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
-        raise InputError(f"seed must be a non-negative integer; got {seed!r}")
-    return int(seed)
