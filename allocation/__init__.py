@@ -14,14 +14,14 @@ from .convex import ConvexSolution, InfeasibleAllocationError, solve_convex_allo
 from .cost import CostModel, cost_weights
 from .discrete import CatalogueInfeasibleError, CatalogueResult, solve_catalogue
 from .elasticity import requirement_table
-from .fcem import FcemResult, fcem_coefficient
+from .fuzzy_evaluation import FcemResult, fcem_coefficient
 from .front import allocation_point, cost_reliability_front
 from .gwo import GwoResult, grey_wolf, grey_wolf_reference
 from .problem import AllocationProblem, ScreenedRows, screen_rows
 from .refine import solve_over_workspace
 from .result_files import read_allocation_csv
 from .solve import AllocationResult, TargetUnreachableError, solve_exact, solve_gwo
-from .system import system_allocation
+from .system_target import system_allocation
 from .yield_target import YieldAllocation, YieldUnreachableError, allocate_for_yield
 
 __all__ = ["AllocationProblem", "AllocationResult", "Catalogue", "CatalogueClass",

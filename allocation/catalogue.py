@@ -32,8 +32,8 @@ from types import MappingProxyType
 
 import numpy as np
 
-from reliability.errors import InputError, InputTypeError
-from reliability.files import check_path
+from reliability.basics.errors import InputError, InputTypeError
+from reliability.basics.files import check_path
 
 CATALOGUE_KEYS = ("currency", "components")
 COMPONENT_KEYS = ("name", "items", "classes", "source")

@@ -10,9 +10,10 @@ method:
 1. solve the problem on the current pose set (certified convex optimum,
    :mod:`allocation.convex`);
 2. find the worst pose of each output at that optimum: first by a local search from the
-   worst poses of the set (:func:`local_worst`, cheap, for the σ readings), and, when the
-   search finds no output short by more than a quarter of ``rtol``, by the certificate (:func:`reliability.worst_case.certified_worst`), a rigorous
-   upper bound of the output's σ (or worst-case stack) over the whole stroke box;
+   worst poses of the set (:func:`local_worst`, cheap, for the σ readings), and, when the search
+   finds no output short by more than a quarter of ``rtol``, by the certificate
+   (:func:`reliability.first_order.workspace_search.certified_worst`), a rigorous upper bound of
+   the output's σ (or worst-case stack) over the whole stroke box;
 3. add the poses of every output short of its requirement (all at once) and solve again;
 4. stop when the certified bound of every output is within ``rtol`` of what its target allows:
    σ ≤ ``I/z`` (two- or one-sided reading; under ``distribution="truncated"`` σ is the
@@ -40,14 +41,14 @@ import numpy as np
 import pandas as pd
 from scipy.optimize import minimize
 
-from reliability import checks
-from reliability.certified import MAX_BOX_CALLS
-from reliability.display import OUTPUT_UNITS, axis_units, pose_frame, pose_text
-from reliability.errors import InputError
-from reliability.fosm import error_sigma
-from reliability.kinematics import jacobian_and_derivative
-from reliability.machine import OUTPUTS
-from reliability.worst_case import certified_worst
+from reliability.basics import checks
+from reliability.first_order.certificate import MAX_BOX_CALLS
+from reliability.basics.display import OUTPUT_UNITS, axis_units, pose_frame, pose_text
+from reliability.basics.errors import InputError
+from reliability.first_order.fosm import error_sigma
+from reliability.model.kinematics import jacobian_and_derivative
+from reliability.model.machine import OUTPUTS
+from reliability.first_order.workspace_search import certified_worst
 
 from .result_files import gap_text
 
@@ -83,11 +84,11 @@ class ContinuousAllocation:
     rtol : float
         Relative tolerance in σ (stack reading: in the stack).
     certificate : DataFrame or None
-        The last certificate (:func:`reliability.worst_case.certified_worst`) with, per
-        output, ``allowed`` (σ the target allows, or the limit for the stack), ``excess``
-        (bound / allowed − 1) and ``meets`` (excess ≤ rtol); None when no certificate was
-        computed (the loop stopped before). ``attrs['current']`` says whether it was
-        computed at ``result.tolerances``.
+        The last certificate (:func:`reliability.first_order.workspace_search.certified_worst`)
+        with, per output, ``allowed`` (σ the target allows, or the limit for the stack), ``excess``
+        (bound / allowed − 1) and ``meets`` (excess ≤ rtol); None when no certificate was computed
+        (the loop stopped before). ``attrs['current']`` says whether it was computed at
+        ``result.tolerances``.
     added : DataFrame
         The poses added, in order: ``solve`` (the solve they follow), ``source``
         (``'search'`` or ``'certificate'``), ``output``, the pose (``<axis>_mm`` /
@@ -203,7 +204,7 @@ def solve_continuous(problem, *, rtol: float = DEFAULT_RTOL, max_solves: int = M
         Convex solves at most (the grid's included).
     max_calls : int
         Box evaluations per output and certificate call
-        (:func:`reliability.worst_case.certified_worst`).
+        (:func:`reliability.first_order.workspace_search.certified_worst`).
     search : bool
         Cut the poses a local search finds short before asking the certificate (σ
         readings only; fewer certificate calls).
@@ -343,7 +344,7 @@ def local_worst(problem, tolerances, starts: int = SEARCH_STARTS):
 
     L-BFGS-B maximises ``σ_o(q) / (I_o/z_o)`` (Eq. 20, the problem's reading of a
     tolerance) with its analytic gradient
-    (:func:`reliability.kinematics.jacobian_and_derivative`) over the strokes scaled to
+    (:func:`reliability.model.kinematics.jacobian_and_derivative`) over the strokes scaled to
     [0, 1], so that lengths in mm and angles in rad move alike and the objective is O(1),
     from the ``starts`` poses of the problem's set where the output is largest. Local: it
     proves nothing, it only spares certificate calls.

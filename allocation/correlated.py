@@ -1,6 +1,6 @@
 """Certified optimal allocation when the geometric errors are correlated.
 
-With a correlation matrix ``R = L Lᵀ`` between the errors (:mod:`reliability.correlation`)
+With a correlation matrix ``R = L Lᵀ`` between the errors (:mod:`reliability.model.correlation`)
 an output's σ at a pose is ``σ = ‖Lᵀ D(t) j‖ / k`` with ``D(t) = diag(t)``: a norm of a
 linear function of ``t``, hence convex in ``t``. The FOSM requirement ``σ ≤ I/z`` of every
 (output, pose) is therefore a convex set, and the worst-case problem of Eq. (34)
@@ -48,10 +48,10 @@ from scipy import sparse
 from scipy.optimize import minimize, nnls
 from threadpoolctl import threadpool_limits
 
-from reliability.correlation import check_correlation_matrix
-from reliability.errors import InputError
-from reliability.iso import iso_names
-from reliability.machine import OUTPUTS
+from reliability.model.correlation import check_correlation_matrix
+from reliability.basics.errors import InputError
+from reliability.model.iso_names import iso_names
+from reliability.model.machine import OUTPUTS
 
 from .convex import ROW_ADD_TOLERANCE, ROWS_PER_ROUND, largest_fraction
 from .problem import AllocationProblem

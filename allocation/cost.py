@@ -41,8 +41,8 @@ from math import isfinite
 import numpy as np
 import pandas as pd
 
-from reliability import checks
-from reliability.errors import InputError, MachineDescriptionError
+from reliability.basics import checks
+from reliability.basics.errors import InputError, MachineDescriptionError
 
 __all__ = ["COMPONENTS", "GROUPS", "CostModel", "cost_weights"]
 

@@ -44,10 +44,10 @@ import numpy as np
 import pandas as pd
 from scipy.optimize import Bounds, LinearConstraint, milp
 
-from reliability.errors import InputError, InputTypeError
-from reliability.files import write_csv
-from reliability.machine import OUTPUTS
-from reliability.saved import check_count
+from reliability.basics.errors import InputError, InputTypeError
+from reliability.basics.files import write_csv
+from reliability.model.machine import OUTPUTS
+from reliability.basics.saved_results import check_count
 
 from .catalogue import Catalogue
 from .convex import InfeasibleAllocationError

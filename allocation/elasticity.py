@@ -15,7 +15,7 @@ import numpy as np
 import pandas as pd
 from scipy.stats import norm
 
-from reliability.fosm import required_index
+from reliability.first_order.fosm import required_index
 
 
 def requirement_table(result) -> pd.DataFrame:

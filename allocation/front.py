@@ -23,9 +23,9 @@ from dataclasses import replace
 import numpy as np
 import pandas as pd
 
-from reliability.errors import InputError
-from reliability.fosm import required_index
-from reliability.machine import OUTPUTS
+from reliability.basics.errors import InputError
+from reliability.first_order.fosm import required_index
+from reliability.model.machine import OUTPUTS
 
 from .convex import InfeasibleAllocationError, solve_convex_allocation
 from .problem import AllocationProblem, ScreenedRows

@@ -45,8 +45,8 @@ from typing import NamedTuple
 import numpy as np
 import pandas as pd
 
-from reliability import streams
-from reliability.errors import InputError
+from reliability.basics import streams
+from reliability.basics.errors import InputError
 
 __all__ = ["GwoResult", "grey_wolf", "grey_wolf_reference"]
 
@@ -126,7 +126,7 @@ def grey_wolf(
     n_iterations : int, optional
         Number of moves of the pack, at least 1 (default 500, as in the paper).
     rng : None, int or numpy.random.Generator, optional
-        Passed to :func:`reliability.streams.generator`.
+        Passed to :func:`reliability.basics.streams.generator`.
     initial : array_like, shape (m, d) or (d,), optional
         Starting positions inside the box, placed as the first ``m <= n_wolves`` wolves;
         the others start uniformly at random.

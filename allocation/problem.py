@@ -34,13 +34,13 @@ from dataclasses import dataclass, replace
 import numpy as np
 import pandas as pd
 
-from reliability import checks
-from reliability.chunks import MEMORY_BUDGET, chunks, jacobian_bytes
-from reliability.errors import InputError, InputTypeError
-from reliability.fosm import error_sigma, fosm, probability, required_index
-from reliability.kinematics import check_frame
-from reliability.machine import OUTPUTS
-from reliability.poses import workspace_grid
+from reliability.basics import checks
+from reliability.basics.chunks import MEMORY_BUDGET, chunks, jacobian_bytes
+from reliability.basics.errors import InputError, InputTypeError
+from reliability.first_order.fosm import error_sigma, fosm, probability, required_index
+from reliability.model.kinematics import check_frame
+from reliability.model.machine import OUTPUTS
+from reliability.model.poses import workspace_grid
 
 from . import solve
 from .cost import CostModel
@@ -158,9 +158,9 @@ class AllocationProblem:
             Accept poses outside an axis' stroke (extrapolation); refused by default.
         budget : int, optional
             Bytes the grid and the screened rows may take (default
-            :data:`reliability.checks.DEFAULT_BUDGET`), checked before any work.
+            :data:`reliability.basics.checks.DEFAULT_BUDGET`), checked before any work.
         memory : int, optional
-            Bytes of temporary arrays (default :data:`reliability.chunks.MEMORY_BUDGET`):
+            Bytes of temporary arrays (default :data:`reliability.basics.chunks.MEMORY_BUDGET`):
             poses are screened in chunks, and the Jacobian of all poses is kept only when it
             fits (always for the mean reading, which needs it whole).
         frame : {'tool', 'workpiece'}, optional
@@ -168,9 +168,10 @@ class AllocationProblem:
             ``[requirements] frame``, else ``"tool"``, Eq. 18). The problem's ``machine``
             carries it.
         distribution : {'normal', 'truncated'}, optional
-            How a tolerance is read (default ``machine.distribution``): under 'truncated'
-            every σ constraint uses the truncated normal's standard deviation
-            (:func:`reliability.fosm.error_sigma`). The problem's ``machine`` carries it.
+            How a tolerance is read (default ``machine.distribution``): under 'truncated' every σ
+            constraint uses the truncated normal's standard deviation
+            (:func:`reliability.first_order.fosm.error_sigma`). The problem's ``machine`` carries
+            it.
         """
         _check_choice(side, SIDES, "side")
         if distribution is not None:

@@ -1,19 +1,19 @@
 """Allocations whose target holds between grid points too (pose cutting planes).
 
-The allocation problem holds the target at the poses of a grid (docs/model.md), but Eq. (35)
-asks for the whole stroke of every axis, and an optimum certified on the grid can fall
-slightly short between its points (:mod:`reliability.worst_case`). Here the grid optimum is
-checked by a continuous search; every pose where an output falls short is added to the pose
-set and the problem is solved again, until no such pose is found.
+The allocation problem holds the target at the poses of a grid (docs/model.md), but Eq. (35) asks
+for the whole stroke of every axis, and an optimum certified on the grid can fall slightly short
+between its points (:mod:`reliability.first_order.workspace_search`). Here the grid optimum is
+checked by a continuous search; every pose where an output falls short is added to the pose set and
+the problem is solved again, until no such pose is found.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from reliability import checks
-from reliability.errors import InputError
-from reliability.worst_case import continuous_worst
+from reliability.basics import checks
+from reliability.basics.errors import InputError
+from reliability.first_order.workspace_search import continuous_worst
 
 
 def solve_over_workspace(problem, *, max_rounds: int = 20, tolerance: float = 1e-6,

@@ -19,11 +19,11 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from reliability.display import axis_units, pose_columns
-from reliability.errors import InputError, InputTypeError
-from reliability.files import write_csv
-from reliability.machine import OUTPUTS
-from reliability.saved import check_count, encode_frame, load_payload, save_payload
+from reliability.basics.display import axis_units, pose_columns
+from reliability.basics.errors import InputError, InputTypeError
+from reliability.basics.files import write_csv
+from reliability.model.machine import OUTPUTS
+from reliability.basics.saved_results import check_count, encode_frame, load_payload, save_payload
 
 from .cost import GROUPS, CostModel
 
@@ -302,7 +302,7 @@ def _known(machine, name: str) -> bool:
 
 
 def save_allocation(result, path, overwrite: bool = False):
-    """Write ``result`` as JSON (see :mod:`reliability.saved`)."""
+    """Write ``result`` as JSON (see :mod:`reliability.basics.saved_results`)."""
     context = _context(result.problem)
     payload = {
         "machine": context.machine_name, "axes": context.axes, "units": context.units,

@@ -20,12 +20,12 @@ import numpy as np
 import pandas as pd
 from scipy.stats import norm
 
-from reliability import checks, streams
-from reliability.display import OUTPUT_UNITS, axis_units, pose_text
-from reliability.errors import InputError
-from reliability.fosm import probability
-from reliability.machine import OUTPUTS
-from reliability.ties import worst_rows
+from reliability.basics import checks, streams
+from reliability.basics.display import OUTPUT_UNITS, axis_units, pose_text
+from reliability.basics.errors import InputError
+from reliability.first_order.fosm import probability
+from reliability.model.machine import OUTPUTS
+from reliability.basics.ties import worst_rows
 
 from .convex import InfeasibleAllocationError, largest_fraction, solve_convex_allocation
 from .gwo import grey_wolf
@@ -192,7 +192,8 @@ class AllocationResult:
         return allocation_to_csv(self, path, overwrite, significant=significant)
 
     def save(self, path, overwrite: bool = False):
-        """Save as JSON with its metadata (:mod:`reliability.saved`); returns the path."""
+        """Save as JSON with its metadata (:mod:`reliability.basics.saved_results`); returns
+        the path."""
         return save_allocation(self, path, overwrite)
 
     @classmethod

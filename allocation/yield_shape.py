@@ -24,7 +24,7 @@ error whose cost share is larger is loosened, one whose failure share is larger 
 tightened. The search takes steps along ``κ − s̄`` in ``log t``, rescales by the quantile,
 keeps the tolerances inside the box (those held at a bound do not scale, so the scale is
 found by a few fixed-point steps), and halves the step when the cost does not fall. Every
-candidate is evaluated on the exact chain (:meth:`reliability.machine_yield.YieldModel.
+candidate is evaluated on the exact chain (:meth:`reliability.sampling.machine_yield.YieldModel.
 worst_ratios`) with common random numbers at its final scale, so it meets the design yield
 on the design sample exactly, not only to first order.
 """
@@ -77,7 +77,7 @@ def shape_search(model, cost, lower, upper, start, design_target, u, *,
 
     Parameters
     ----------
-    model : reliability.machine_yield.YieldModel
+    model : reliability.sampling.machine_yield.YieldModel
         The machine, its grid, profile and reading.
     cost : allocation.cost.CostModel
     lower, upper : ndarray (n_errors,)

@@ -23,7 +23,7 @@ whose yield is at least Y and returns it inside a bracket:
   Clopper–Pearson interval's lower end is at least Y.
 * **naive method.** One common two-sided per-pose target for all outputs, raised by
   bisection until the estimated yield reaches the design yield (the pattern of
-  :func:`allocation.system.system_allocation`).
+  :func:`allocation.system_target.system_allocation`).
 
 The search. On the design sample every candidate must reach the design yield
 ``Y_d = Y + DESIGN_Z · √(Y (1 − Y) / N)`` (N machines), the margin that lets a fresh
@@ -44,8 +44,8 @@ The per-output stage cannot trade one error against another inside an output; on
 machine, whose failing machines fail several outputs at once, that is where the saving is.
 
 All per-output yields go through one function, :func:`_machine_yield` (the crude grid experiment of
-:class:`reliability.sampling.GridExperiment`), so a better estimator is swapped in at one
-place.
+:class:`reliability.sampling.grid_experiment.GridExperiment`), so a better estimator is swapped in
+at one place.
 """
 
 from __future__ import annotations
@@ -56,13 +56,13 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from scipy.stats import norm
 
-from reliability import checks, streams
-from reliability.fosm import required_index
-from reliability.machine_yield import YieldModel
-from reliability.machine import OUTPUTS
-from reliability.poses import workspace_grid
-from reliability.sampling import GridExperiment
-from reliability.statistics import machine_yield
+from reliability.basics import checks, streams
+from reliability.first_order.fosm import required_index
+from reliability.sampling.machine_yield import YieldModel
+from reliability.model.machine import OUTPUTS
+from reliability.model.poses import workspace_grid
+from reliability.sampling.grid_experiment import GridExperiment
+from reliability.basics.statistics import machine_yield
 
 from .convex import InfeasibleAllocationError, solve_convex_allocation
 from .front import CommonTargetSolver

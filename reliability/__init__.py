@@ -1,23 +1,32 @@
 """Precision reliability of multi-axis machine tools (Hu, Wang & Ma 2023, made exact).
 
-The machine model (:mod:`reliability.machine`, :mod:`reliability.kinematics`), FOSM
-reliability (:mod:`reliability.fosm`), pose sets (:mod:`reliability.poses`), the
-Monte-Carlo sampling engine (:mod:`reliability.sampling`) with its results and
-statistics, the continuous worst-pose search (:mod:`reliability.worst_case`), Monte-Carlo
-at given poses (:mod:`reliability.pose_sampling`) and rare-event estimates
-(:mod:`reliability.rare`).
+The package lives in rooms by idea, each importing only the rooms below it:
+
+- :mod:`reliability.basics`: exceptions, input checks, random streams, statistics, display,
+  ties, memory chunks and result files;
+- :mod:`reliability.model`: the machine description, kinematics, poses, ISO names, error
+  profiles, correlation and error draws;
+- :mod:`reliability.first_order`: FOSM (Eqs. 19–23), the exact linear probability, system
+  reliability and the worst pose over the workspace (search and certificate);
+- :mod:`reliability.sampling`: the grid experiment (Sec. 5.3), Monte-Carlo at poses, rare
+  events, the machine yield and the verification of an allocation;
+- :mod:`reliability.acceptance`: ISO 230 acceptance tests on the model.
+
+The names most users need are exported here.
 """
 
-from .errors import MachineDescriptionError
-from .fosm import FosmResult, fosm
-from .machine import (COMPONENTS, OUTPUTS, Axis, CostCoefficients, Machine, hobbing_machine,
-                      load_machine, machine_from_dict)
-from . import rare
-from .pose_sampling import PoseSamplingResult, sample_at_poses
-from .poses import random_poses, workspace_grid
-from .results import GridExperimentResult, RandomPoseResult
-from .sampling import GridExperiment, sample_random_poses
-from .system import SystemReliability, system_reliability, worst_system_reliability
+from .basics.errors import MachineDescriptionError
+from .first_order.fosm import FosmResult, fosm
+from .model.machine import (COMPONENTS, OUTPUTS, Axis, CostCoefficients, Machine, hobbing_machine,
+                            load_machine, machine_from_dict)
+from .sampling import rare_events as rare
+from .sampling.pose_sampling import PoseSamplingResult, sample_at_poses
+from .model.poses import random_poses, workspace_grid
+from .sampling.experiment_results import GridExperimentResult, RandomPoseResult
+from .sampling.grid_experiment import GridExperiment
+from .sampling.pose_sampling import sample_random_poses
+from .first_order.system_reliability import (SystemReliability, system_reliability,
+                                             worst_system_reliability)
 
 __all__ = ["COMPONENTS", "OUTPUTS", "Axis", "CostCoefficients", "FosmResult",
            "GridExperiment", "GridExperimentResult", "Machine", "MachineDescriptionError",

@@ -1,5 +1,6 @@
-"""Acceptance tests at design time (reliability.acceptance, reliability.acceptance_files,
-precrel acceptance): closed forms, an independent simulation, bad test files, the CSV.
+"""Acceptance tests at design time (reliability.acceptance.prediction,
+reliability.acceptance.definitions, precrel acceptance): closed forms, an independent simulation,
+bad test files, the CSV.
 
 Statistical checks use z = 4 on the estimator's standard error, with fixed seeds."""
 
@@ -16,12 +17,13 @@ import pytest
 from scipy.stats import norm
 
 from reliability import machine_from_dict
-from reliability.acceptance import (CircularTest, PositioningTest, RotaryTest, acceptance,
-                                    build_path, circular_deviation, default_targets,
-                                    deviation_weights, ideal_chain, positioning_statistics)
-from reliability.acceptance_files import read_tests, parse_tests
-from reliability.errors import InputError, MachineDescriptionError
-from reliability.measured import SystematicErrors, measured_profile
+from reliability.acceptance.prediction import (CircularTest, PositioningTest, RotaryTest,
+                                               acceptance, build_path, circular_deviation,
+                                               default_targets, deviation_weights, ideal_chain,
+                                               positioning_statistics)
+from reliability.acceptance.definitions import read_tests, parse_tests
+from reliability.basics.errors import InputError, MachineDescriptionError
+from reliability.model.measured_profiles import SystematicErrors, measured_profile
 from studies import cli
 
 MACHINES = Path(__file__).parent / "machines"
@@ -74,7 +76,7 @@ def test_least_squares_centre_is_found_for_an_offset_circle_with_a_lobe():
 
 
 def test_fast_circle_fit_agrees_with_the_least_squares_circle(mill3):
-    from reliability import acceptance as module
+    from reliability.acceptance import prediction as module
     path = build_path(mill3, CircularTest("c", "xy", CENTRE, 80.0, 1.0))
     rng = np.random.default_rng(12)
     theta = np.linspace(0, 2 * np.pi, 360, endpoint=False)
@@ -290,7 +292,7 @@ def test_chunks_and_the_two_products_give_the_same_numbers(hobbing):
     # the same draws whatever the chunks; the matrix products may round differently
     assert np.allclose(whole.values, chunked.values, rtol=1e-12, atol=1e-15)
     # the normal errors as one matrix product against the general path (any marginal)
-    from reliability import acceptance as module
+    from reliability.acceptance import prediction as module
     plan = module._plan(hobbing, tests, module.profile_model("gp:300"),
                         hobbing.initial_allocation / 3, None)
     draws = module._draw(hobbing, plan, 30, 9)
@@ -412,7 +414,7 @@ def test_machine_file_positioning_keys_are_checked():
     machine = _mill(repeatability=0.0004, reversal=0.001)
     again = machine_from_dict(tomllib.loads(machine.to_toml()))
     assert again == machine and again.axis_specs[1].reversal == 0.001
-    from reliability.machine_checks import describe
+    from reliability.model.machine_checks import describe
     assert "reversal [mm]" in describe(machine) and "reversal" not in describe(_mill())
 
 

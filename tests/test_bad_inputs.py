@@ -30,14 +30,14 @@ from allocation import AllocationProblem, grey_wolf, solve_gwo, solve_over_works
 from reliability import (GridExperiment, GridExperimentResult, MachineDescriptionError,
                          RandomPoseResult, fosm, load_machine, machine_from_dict, random_poses,
                          sample_random_poses, workspace_grid)
-from reliability.checks import require_size
-from reliability.errors import InputError, InputTypeError, SavedResultError, SizeBudgetError
-from reliability.comparison import fosm_versus_monte_carlo
-from reliability.fosm import error_sigma
+from reliability.basics.checks import require_size
+from reliability.basics.errors import InputError, InputTypeError, SavedResultError, SizeBudgetError
+from reliability.sampling.fosm_comparison import fosm_versus_monte_carlo
+from reliability.first_order.fosm import error_sigma
 from studies.report.plots import plot_comprehensive_error_scatter
-from reliability.sampling import draw_errors
-from reliability.statistics import binomial_interval, proportion
-from reliability.worst_case import continuous_worst
+from reliability.model.error_draws import draw_errors
+from reliability.basics.statistics import binomial_interval, proportion
+from reliability.first_order.workspace_search import continuous_worst
 
 ROOT = Path(__file__).resolve().parent.parent
 HOB = reliability.hobbing_machine()
@@ -400,7 +400,7 @@ CATALOGUE = [
     ("statistics-confidence-string", lambda tmp: binomial_interval(5, 10, "0.95"), T,
      ["confidence", "'0.95'"]),
     ("statistics-fractions-strings",
-     lambda tmp: reliability.statistics.between_experiment_interval([["a"], ["b"]]), T,
+     lambda tmp: reliability.basics.statistics.between_experiment_interval([["a"], ["b"]]), T,
      ["fractions", "dtype"]),
     ("GridExperimentResult-inside-above-poses",
      lambda tmp: GridExperimentResult(limits=HOB.limits, inside=np.full((2, 6), 200),
@@ -497,7 +497,7 @@ CATALOGUE = [
                                              TM, QM, samples=10),
      InputError, ["sample_at_poses", "correlated"]),
     ("failure_probability-correlated-machine",
-     lambda tmp: reliability.rare.failure_probability(
+     lambda tmp: reliability.sampling.rare_events.failure_probability(
          MILL.with_correlation({("X.ey", "X.dz"): 0.5}), TM, QM[0]),
      InputError, ["failure_probability", "correlated"]),
     ("saved_random_csv-mixed-k", _random_cell(3, "k", "2"), F, ["row 3", "'k'"]),
@@ -760,7 +760,7 @@ def test_interrupted_save_keeps_the_old_file_and_leaves_no_temporary(tmp_path, m
     def broken_replace(source, target):
         raise KeyboardInterrupt
 
-    monkeypatch.setattr("reliability.files.os.replace", broken_replace)
+    monkeypatch.setattr("reliability.basics.files.os.replace", broken_replace)
     other = GridExperimentResult(limits=HOB.limits, inside=np.full((1, 6), 3), n_poses=125)
     with pytest.raises(KeyboardInterrupt):
         other.save_csv(path, overwrite=True)

@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 
 from allocation import AllocationProblem
-from reliability.errors import MachineDescriptionError
-from reliability.machine import load_machine, machine_from_dict
-from reliability.poses import workspace_grid
+from reliability.basics.errors import MachineDescriptionError
+from reliability.model.machine import load_machine, machine_from_dict
+from reliability.model.poses import workspace_grid
 from studies import cli
 
 MILL = Path(__file__).parent / "machines" / "mill3.toml"

@@ -20,8 +20,8 @@ import tomli_w
 import allocation
 from allocation import AllocationProblem, Catalogue, load_catalogue, solve_catalogue
 from reliability import hobbing_machine, load_machine, workspace_grid
-from reliability.errors import InputError, InputTypeError
-from reliability.machine import OUTPUTS
+from reliability.basics.errors import InputError, InputTypeError
+from reliability.model.machine import OUTPUTS
 from studies import cli
 from studies.workflows.sweep import SweepSpec, SweepTask, run_sweep
 

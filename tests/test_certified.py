@@ -1,6 +1,6 @@
-"""The certified worst pose over the continuous workspace (reliability.certified and
-reliability.pose_expansion, docs/certified-workspace.md): the expansion against the chain,
-the enclosures, the box bounds against the chain inside random boxes, the certificate
+"""The certified worst pose over the continuous workspace (reliability.first_order.certificate and
+reliability.first_order.pose_expansion, docs/certified-workspace.md): the expansion against the
+chain, the enclosures, the box bounds against the chain inside random boxes, the certificate
 against random poses, grids and closed forms, the stack reading, bad input."""
 
 from __future__ import annotations
@@ -11,14 +11,14 @@ import numpy as np
 import pytest
 
 from reliability import OUTPUTS
-from reliability.certified import _SigmaModel, _StackModel, certified_worst
-from reliability.errors import InputError
-from reliability.kinematics import jacobian, jacobian_and_derivative, output_variance
-from reliability.pose_expansion import (CHECK_RTOL, basis_ranges, fit_expansion,
-                                        interval_tree, jacobian_expansion, point_tree,
-                                        variance_expansion)
-from reliability.poses import workspace_grid
-from reliability.worst_case import continuous_worst
+from reliability.first_order.certificate import _SigmaModel, _StackModel, certified_worst
+from reliability.basics.errors import InputError
+from reliability.model.kinematics import jacobian, jacobian_and_derivative, output_variance
+from reliability.first_order.pose_expansion import (CHECK_RTOL, basis_ranges, fit_expansion,
+                                                    interval_tree, jacobian_expansion, point_tree,
+                                                    variance_expansion)
+from reliability.model.poses import workspace_grid
+from reliability.first_order.workspace_search import continuous_worst
 
 RTOL = 1e-3
 
@@ -113,7 +113,7 @@ def test_a_function_of_higher_degree_is_refused(trunnion5):
 def test_basis_ranges_contain_and_reach_the_sampled_range(kind):
     """The range of every basis function and derivative on an interval contains 2001
     samples and is reached by them (to the sampling resolution)."""
-    from reliability.pose_expansion import basis_values
+    from reliability.first_order.pose_expansion import basis_values
 
     rng = np.random.default_rng(7)
     span = 1.0 if kind == "linear" else 7.0
@@ -299,7 +299,7 @@ def test_bad_inputs(mill3):
 def test_verify_samples_at_the_certified_worst_poses(trunnion5, trunnion_table):
     """verify(worst_poses=...) samples each output at its certified worst pose under the
     study's reading and says whether the interval reaches the target."""
-    from reliability.verification import verify
+    from reliability.sampling.verification import verify
 
     poses = trunnion_table[list(trunnion5.axes)].to_numpy()
     check = verify(trunnion5, trunnion5.initial_allocation, points=3, repeats=2,

@@ -15,13 +15,13 @@ import numpy as np
 import pytest
 
 from allocation import AllocationProblem, screen_rows, solve_convex_allocation
-from reliability.chunks import chunks
-from reliability.errors import InputError, SavedResultError
-from reliability.fosm import error_sigma, fosm
-from reliability.kinematics import jacobian_and_derivative
-from reliability.poses import grid_axis_points, random_poses, workspace_grid
-from reliability.sampling import GridExperiment
-from reliability.worst_case import _negative_sigma_and_gradient, continuous_worst
+from reliability.basics.chunks import chunks
+from reliability.basics.errors import InputError, SavedResultError
+from reliability.first_order.fosm import error_sigma, fosm
+from reliability.model.kinematics import jacobian_and_derivative
+from reliability.model.poses import grid_axis_points, random_poses, workspace_grid
+from reliability.sampling.grid_experiment import GridExperiment
+from reliability.first_order.workspace_search import _negative_sigma_and_gradient, continuous_worst
 
 TINY = 40_000  # bytes: about 25 hobbing poses per chunk
 
@@ -145,7 +145,7 @@ def test_chunked_problem_equals_the_whole_array_problem(hobbing, grid3):
 
 
 def test_unreachable_target_is_reported_from_chunks(hobbing_dict, grid3):
-    from reliability.machine import machine_from_dict
+    from reliability.model.machine import machine_from_dict
     from allocation.solve import TargetUnreachableError
 
     hobbing_dict["requirements"]["dx"]["limit"] = 1e-4  # far below any reachable σ
@@ -252,7 +252,7 @@ def test_grid_experiment_checkpoint_resumes_without_recomputing(trunnion5, tmp_p
 
 
 def test_output_variance_equals_the_squared_jacobian_sum(any_machine):
-    from reliability.kinematics import output_variance
+    from reliability.model.kinematics import output_variance
 
     q = random_poses(any_machine, 50, rng=2)
     variance = error_sigma(any_machine.initial_allocation) ** 2

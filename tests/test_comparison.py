@@ -1,4 +1,4 @@
-"""Tests of :func:`reliability.comparison.fosm_versus_monte_carlo`."""
+"""Tests of :func:`reliability.sampling.fosm_comparison.fosm_versus_monte_carlo`."""
 
 from __future__ import annotations
 
@@ -7,10 +7,10 @@ import pytest
 
 import reliability
 from reliability import OUTPUTS
-from reliability.comparison import fosm_versus_monte_carlo
-from reliability.fosm import fosm
-from reliability.results import GridExperimentResult
-from reliability.sampling import GridExperiment
+from reliability.sampling.fosm_comparison import fosm_versus_monte_carlo
+from reliability.first_order.fosm import fosm
+from reliability.sampling.experiment_results import GridExperimentResult
+from reliability.sampling.grid_experiment import GridExperiment
 
 COLUMNS = ["output", "limit", "fosm_worst_one_sided", "fosm_worst_two_sided",
            "fosm_one_sided", "fosm_two_sided", "mc_estimate", "mc_lower", "mc_upper",

@@ -14,9 +14,9 @@ import pytest
 from allocation import AllocationProblem
 from allocation.continuous import certify, check_continuous, solve_continuous
 from reliability import OUTPUTS, workspace_grid
-from reliability.errors import InputError
-from reliability.fosm import error_sigma
-from reliability.kinematics import output_variance
+from reliability.basics.errors import InputError
+from reliability.first_order.fosm import error_sigma
+from reliability.model.kinematics import output_variance
 from studies import cli
 from studies.report.extras import EXTRAS
 from studies.workflows.sweep import SweepSpec

@@ -12,15 +12,17 @@ from scipy.stats import norm
 
 from allocation import AllocationProblem
 from allocation.correlated import solve_correlated
-from reliability.correlation import (check_correlation_matrix, correlate_items,
-                                     correlation_factor, correlation_pairs,
-                                     correlation_to_toml, draw_correlated, draw_grid_errors,
-                                     grid_factors, normal_to_marginal, output_covariance)
-from reliability.errors import InputError
-from reliability.fosm import error_sigma, fosm
-from reliability.machine import MachineDescriptionError, machine_from_dict
-from reliability.poses import workspace_grid
-from reliability.sampling import GridExperiment, sample_random_poses
+from reliability.first_order.output_covariance import output_covariance
+from reliability.model.correlation import (check_correlation_matrix, correlation_pairs,
+                                           correlation_to_toml)
+from reliability.model.error_draws import (correlate_items, correlation_factor, draw_correlated,
+                                           draw_grid_errors, grid_factors, normal_to_marginal)
+from reliability.basics.errors import InputError
+from reliability.first_order.fosm import error_sigma, fosm
+from reliability.model.machine import MachineDescriptionError, machine_from_dict
+from reliability.model.poses import workspace_grid
+from reliability.sampling.grid_experiment import GridExperiment
+from reliability.sampling.pose_sampling import sample_random_poses
 
 Z = 4.0  # statistical tests: |estimate − truth| ≤ Z standard errors
 
@@ -340,7 +342,7 @@ def test_with_correlation_takes_a_full_matrix(hobbing):
 
 def test_continuous_worst_pose_search_uses_the_correlation(mill3):
     """The continuous search's σ at its pose equals correlated FOSM there."""
-    from reliability.worst_case import continuous_worst
+    from reliability.first_order.workspace_search import continuous_worst
     correlated = mill3.with_correlation({("X.ey", "X.dz"): 0.7})
     grid = reliability.workspace_grid(correlated, 3)
     table = continuous_worst(correlated, correlated.initial_allocation, grid, starts=2)

@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 
 from allocation import AllocationProblem, CostModel
-from reliability.errors import MachineDescriptionError
-from reliability.machine import load_machine, machine_from_dict
-from reliability.machine_checks import likely_mistakes
+from reliability.basics.errors import MachineDescriptionError
+from reliability.model.machine import load_machine, machine_from_dict
+from reliability.model.machine_checks import likely_mistakes
 
 MILL = Path(__file__).parent / "machines" / "mill3.toml"
 ARCSEC_PER_RAD = 180 * 3600 / np.pi

@@ -17,8 +17,8 @@ import allocation
 from allocation import AllocationProblem, Catalogue, solve_catalogue
 from allocation import discrete
 from reliability import hobbing_machine, load_machine, workspace_grid
-from reliability.errors import InputError, InputTypeError
-from reliability.machine import OUTPUTS
+from reliability.basics.errors import InputError, InputTypeError
+from reliability.model.machine import OUTPUTS
 
 MILL = Path(__file__).parent / "machines" / "mill3.toml"
 

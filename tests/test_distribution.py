@@ -12,11 +12,11 @@ from scipy.stats import norm
 
 from allocation import AllocationProblem
 from reliability import load_machine, machine_from_dict
-from reliability.errors import InputError, MachineDescriptionError
-from reliability.fosm import error_sigma
-from reliability.machine import machine_to_dict
-from reliability.poses import workspace_grid
-from reliability.verification import verify
+from reliability.basics.errors import InputError, MachineDescriptionError
+from reliability.first_order.fosm import error_sigma
+from reliability.model.machine import machine_to_dict
+from reliability.model.poses import workspace_grid
+from reliability.sampling.verification import verify
 from studies import cli
 from studies.workflows.sweep import SweepSpec
 

@@ -9,9 +9,9 @@ import pytest
 
 from allocation import AllocationProblem
 from allocation.result_files import allocation_to_csv, read_allocation_csv
-from reliability.errors import InputError, InputTypeError
-from reliability.files import check_destination
-from reliability.poses import workspace_grid
+from reliability.basics.errors import InputError, InputTypeError
+from reliability.basics.files import check_destination
+from reliability.model.poses import workspace_grid
 from studies.cli.options import destination
 
 

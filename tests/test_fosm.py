@@ -10,9 +10,9 @@ import pytest
 from scipy.stats import norm, truncnorm
 
 from reliability import OUTPUTS
-from reliability.fosm import (FosmResult, error_sigma, fosm, one_sided_probability,
-                              reliability_index, required_index, two_sided_probability)
-from reliability.poses import workspace_grid
+from reliability.first_order.fosm import (FosmResult, error_sigma, fosm, one_sided_probability,
+                                          reliability_index, required_index, two_sided_probability)
+from reliability.model.poses import workspace_grid
 
 T_LIN, T_ANG = 0.003, 1.45e-5          # Table 4
 Q0 = np.array([0.0, 0.0, 100.0, 0.0, 0.0, 0.0])  # C X Z A Y M: no rotation, Z = 100

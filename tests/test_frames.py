@@ -9,12 +9,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from reliability.errors import InputError, MachineDescriptionError
-from reliability.fosm import fosm
-from reliability.kinematics import ideal_rotation, jacobian_and_derivative
-from reliability.machine import load_machine, machine_from_dict
-from reliability.poses import workspace_grid
-from reliability.sampling import GridExperiment
+from reliability.basics.errors import InputError, MachineDescriptionError
+from reliability.first_order.fosm import fosm
+from reliability.model.kinematics import ideal_rotation, jacobian_and_derivative
+from reliability.model.machine import load_machine, machine_from_dict
+from reliability.model.poses import workspace_grid
+from reliability.sampling.grid_experiment import GridExperiment
 
 GANTRY = Path(__file__).parent.parent / "docs" / "examples" / "gantry5.toml"
 
@@ -117,7 +117,7 @@ def test_frame_is_read_and_refused_by_name(tmp_path):
 
 
 def test_the_continuous_certificate_refuses_the_workpiece_frame_by_name(gantry):
-    from reliability.worst_case import certified_worst
+    from reliability.first_order.workspace_search import certified_worst
 
     with pytest.raises(InputError, match="'workpiece' frame"):
         certified_worst(gantry, gantry.initial_allocation)

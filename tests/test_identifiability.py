@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from reliability.fosm import fosm
-from reliability.identifiability import indistinguishable_groups
-from reliability.poses import workspace_grid
+from reliability.first_order.fosm import fosm
+from reliability.model.identifiability import indistinguishable_groups
+from reliability.model.poses import workspace_grid
 
 
 def _union_find_groups(machine, poses, rtol=1e-12):

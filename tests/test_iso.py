@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 from allocation import AllocationProblem
-from reliability.errors import InputError
-from reliability.iso import iso_names, iso_symbol, name_table
-from reliability.machine import MachineDescriptionError, error_names, machine_from_dict
+from reliability.basics.errors import InputError
+from reliability.model.iso_names import iso_names, iso_symbol, name_table
+from reliability.model.machine import MachineDescriptionError, error_names, machine_from_dict
 
 
 def test_the_standards_symbols_for_a_linear_and_a_rotary_axis(hobbing):

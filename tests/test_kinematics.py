@@ -1,7 +1,7 @@
 """Tests of the chain model: transforms (Eqs. 1-14), Eq. 16/18 and the analytic Jacobian.
 
 The reference used here is written from the paper, independently of
-``reliability.kinematics``: ideal motions and error matrices are typed in from Eqs. 1-14,
+``reliability.model.kinematics``: ideal motions and error matrices are typed in from Eqs. 1-14,
 the chain is the literal product of Eq. 16 (generalised with axis and tool offsets as in
 the kinematics module docstring, ``Π [O_i E^m_i M_i E^p_i] · T``), and E = M⁻¹ M_e
 (Eq. 18) is formed with ``numpy.linalg.inv``.
@@ -14,8 +14,9 @@ import math
 import numpy as np
 import pytest
 
-from reliability import COMPONENTS, machine_from_dict, transforms
-from reliability.poses import random_poses, workspace_grid
+from reliability import COMPONENTS, machine_from_dict
+from reliability.model import transforms
+from reliability.model.poses import random_poses, workspace_grid
 
 EPS = np.finfo(float).eps
 

@@ -4,6 +4,10 @@
   ``studies.report`` <- ``studies.cli``; ``studies.paper`` and ``studies.benchmarks`` (and the
   two entry points ``studies.reproduce_paper`` and ``studies.__main__``) may import anything
   and nothing else imports them.
+- Inside ``reliability`` the rooms run one way too: ``basics`` <- ``model`` <-
+  ``first_order`` <- ``sampling``; ``acceptance`` and ``measured`` stand on ``model`` and
+  ``basics`` (``measured`` may read ``acceptance``'s test definitions), and ``sampling`` may use
+  both. No room imports the package ``reliability`` itself (that would import every room).
 - No two modules import each other, directly or through a cycle (imports inside functions
   count too).
 - Importing any installed module changes neither the matplotlib backend nor the BLAS
@@ -124,6 +128,59 @@ def strongly_connected(graph: dict[str, set[str]]) -> list[list[str]]:
     return components
 
 
+#: What each room of ``reliability`` may import besides itself.
+RELIABILITY_ROOMS = {
+    "reliability.basics": set(),
+    "reliability.model": {"reliability.basics"},
+    "reliability.first_order": {"reliability.model", "reliability.basics"},
+    "reliability.acceptance": {"reliability.model", "reliability.basics"},
+    "reliability.measured": {"reliability.acceptance", "reliability.model",
+                             "reliability.basics"},
+    "reliability.sampling": {"reliability.first_order", "reliability.measured",
+                             "reliability.acceptance", "reliability.model",
+                             "reliability.basics"},
+}
+
+
+def reliability_room(name: str) -> str | None:
+    """The room of ``reliability`` a module lives in (None for the package itself)."""
+    parts = name.split(".")
+    if parts[0] != "reliability" or len(parts) < 2:
+        return None
+    return ".".join(parts[:2])
+
+
+def test_every_reliability_module_lives_in_a_room():
+    homeless = [name for name in MODULES if name.startswith("reliability.")
+                and reliability_room(name) not in RELIABILITY_ROOMS]
+    assert not homeless, f"modules of reliability outside its rooms: {homeless}"
+    for package in RELIABILITY_ROOMS:
+        path = ROOT / package.replace(".", "/") / "__init__.py"
+        if path.exists():
+            assert ast.get_docstring(ast.parse(path.read_text())), f"{package} has no purpose line"
+
+
+def test_rooms_of_reliability_import_one_way():
+    upward = []
+    for name, targets in GRAPH.items():
+        here = reliability_room(name)
+        if here is None:
+            continue
+        for target in targets:
+            there = reliability_room(target)
+            if target == "reliability":
+                upward.append(f"{name} -> reliability (the package imports every room)")
+            elif there is not None and there != here and there not in RELIABILITY_ROOMS[here]:
+                upward.append(f"{name} -> {target} ({here} may not import {there})")
+    assert not upward, "imports against the rooms' one-way rule:\n" + "\n".join(upward)
+
+
+def test_the_room_rule_of_reliability_sees_an_upward_import():
+    assert reliability_room("reliability.model.machine") == "reliability.model"
+    assert "reliability.sampling" not in RELIABILITY_ROOMS["reliability.first_order"]
+    assert "reliability.first_order" not in RELIABILITY_ROOMS["reliability.acceptance"]
+
+
 def test_no_import_cycles():
     cycles = [component for component in strongly_connected(GRAPH) if len(component) > 1]
     assert not cycles, f"modules importing each other: {cycles}"
@@ -135,7 +192,7 @@ def test_the_cycle_finder_finds_cycles():
 
 
 def test_the_room_check_sees_an_upward_import():
-    assert room("reliability.fosm") == "reliability"
+    assert room("reliability.first_order.fosm") == "reliability"
     assert room("studies.report.writer") == "studies.report"
     assert room("studies.paper.tables") == "studies.paper"
     assert FLOORS[room("studies.cli.verify")] > FLOORS[room("studies.workflows.sweep")]

@@ -1,5 +1,5 @@
 """The exact probability of the linearised output under truncated-normal errors
-(reliability.linear_exact), against independent computations."""
+(reliability.first_order.linear_exact), against independent computations."""
 
 from __future__ import annotations
 
@@ -9,14 +9,15 @@ from scipy.integrate import quad
 from scipy.stats import norm, truncnorm
 
 from reliability import OUTPUTS
-from reliability.errors import InputError
-from reliability.fosm import fosm
-from reliability.linear_exact import (TAIL_TOLERANCE, _series_sum, fast_truncated_normal_cf,
-                                      linear_two_sided, series_terms, truncated_normal_cf,
-                                      truncated_normal_cf_derivative)
-from reliability.poses import workspace_grid
-from reliability.sampling import draw_errors
-from reliability.streams import spawn
+from reliability.basics.errors import InputError
+from reliability.first_order.fosm import fosm
+from reliability.first_order.linear_exact import (TAIL_TOLERANCE, _series_sum,
+                                                  fast_truncated_normal_cf, linear_two_sided,
+                                                  series_terms, truncated_normal_cf,
+                                                  truncated_normal_cf_derivative)
+from reliability.model.poses import workspace_grid
+from reliability.model.error_draws import draw_errors
+from reliability.basics.streams import spawn
 
 K = 3.0
 

@@ -8,7 +8,7 @@ import math
 import numpy as np
 import pytest
 
-from reliability.machine_checks import describe, likely_mistakes
+from reliability.model.machine_checks import describe, likely_mistakes
 
 
 def _with_axis(machine, position, **changes):
@@ -116,7 +116,7 @@ def test_every_warning_is_one_sentence_naming_an_item(request, name):
 
 
 def test_checks_refuse_what_is_not_a_machine(hobbing_dict):
-    from reliability.errors import InputTypeError
+    from reliability.basics.errors import InputTypeError
 
     for call in (likely_mistakes, describe):
         with pytest.raises(InputTypeError, match="machine must be a Machine.*dict"):

@@ -16,10 +16,11 @@ import pytest
 from scipy.stats import norm
 
 from reliability import load_machine
-from reliability.errors import InputError
-from reliability.fosm import fosm
-from reliability.machine_yield import RowEvents, YieldModel, machine_yield
-from reliability.sampling import GridExperiment, draw_errors
+from reliability.basics.errors import InputError
+from reliability.first_order.fosm import fosm
+from reliability.sampling.machine_yield import RowEvents, YieldModel, machine_yield
+from reliability.model.error_draws import draw_errors
+from reliability.sampling.grid_experiment import GridExperiment
 from studies import cli
 from studies.workflows import machine_study
 
@@ -229,7 +230,7 @@ def test_summary_opens_with_the_yield_of_both_allocations(mill):
 
 
 def test_yields_near_one_are_printed_with_their_failure_probability():
-    from reliability.machine_yield import yield_text
+    from reliability.sampling.machine_yield import yield_text
     assert yield_text(0.835) == "0.8350"
     assert yield_text(1 - 2.5e-7) == "0.99999975"
     assert yield_text(1 - 1e-12) != "1" and yield_text(1.0) == "1"

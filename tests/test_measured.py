@@ -1,4 +1,5 @@
-"""Measured error profiles (reliability.measured): reading, checks, FOSM and Monte-Carlo means."""
+"""Measured error profiles (reliability.model.measured_profiles): reading, checks, FOSM and
+Monte-Carlo means."""
 
 from __future__ import annotations
 
@@ -9,12 +10,12 @@ import numpy as np
 import pytest
 from scipy.stats import norm
 
-from reliability.errors import InputError, InputTypeError
-from reliability.fosm import fosm
-from reliability.measured import (MeasuredProfile, SystematicErrors, measured_profile,
-                                  read_profile_csv)
-from reliability.poses import grid_axis_points, workspace_grid
-from reliability.sampling import GridExperiment
+from reliability.basics.errors import InputError, InputTypeError
+from reliability.first_order.fosm import fosm
+from reliability.model.measured_profiles import (MeasuredProfile, SystematicErrors,
+                                                 measured_profile, read_profile_csv)
+from reliability.model.poses import grid_axis_points, workspace_grid
+from reliability.sampling.grid_experiment import GridExperiment
 
 EXAMPLE = Path(__file__).resolve().parent.parent / "docs" / "examples" / \
     "x_vertical_straightness.csv"

@@ -80,7 +80,7 @@ def test_machine_with_items_differing_from_defaults_round_trips(hobbing_dict):
 # ----- FOSM results ------------------------------------------------------------------------
 from allocation import AllocationProblem, AllocationResult  # noqa: E402
 from reliability import FosmResult, fosm, workspace_grid  # noqa: E402
-from reliability.errors import SavedResultError  # noqa: E402
+from reliability.basics.errors import SavedResultError
 
 FOSM_ARRAYS = ("poses", "limits", "targets", "mean", "sigma", "beta", "one_sided",
                "two_sided", "worst_pose")
@@ -321,7 +321,7 @@ def test_infeasible_allocation_says_so_on_its_first_line(allocation_results, mil
 
 
 # ----- bad arguments ---------------------------------------------------------------------
-from reliability.errors import InputError, InputTypeError  # noqa: E402
+from reliability.basics.errors import InputError, InputTypeError
 
 
 def test_bad_arguments_to_save_load_and_summary_are_refused(fosm_trunnion, allocation_results,

@@ -15,7 +15,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg  # noqa: E402
 from matplotlib.collections import LineCollection  # noqa: E402
 from matplotlib.colors import to_rgba  # noqa: E402
 
-from reliability.statistics import between_experiment_interval  # noqa: E402
+from reliability.basics.statistics import between_experiment_interval
 from studies.report.correlation import plot_cost_against_correlation  # noqa: E402
 from studies.report.plots import (  # noqa: E402
     plot_allocation_comparison,
@@ -472,7 +472,7 @@ def test_convergence_takes_the_history_solve_gwo_returns(mill3):
 
 
 def test_repeats_leaves_out_table9_summary_rows(hobbing):
-    from reliability.sampling import GridExperiment
+    from reliability.sampling.grid_experiment import GridExperiment
     result = GridExperiment(hobbing, points_per_axis=2).run(
         hobbing.initial_allocation, repeats=3, rng=0)
     ax = plot_repeats(result.table9())

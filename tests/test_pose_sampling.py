@@ -14,8 +14,8 @@ import pytest
 from scipy.stats import multivariate_normal, norm
 
 from reliability import fosm, workspace_grid
-from reliability.errors import InputError
-from reliability.pose_sampling import EVENTS, linear_failure, sample_at_poses, worst_poses
+from reliability.basics.errors import InputError
+from reliability.sampling.pose_sampling import EVENTS, linear_failure, sample_at_poses, worst_poses
 
 Z = 3.0
 

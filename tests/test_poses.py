@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from reliability.poses import grid_axis_points, random_poses, workspace_grid
+from reliability.model.poses import grid_axis_points, random_poses, workspace_grid
 
 
 def test_hobbing_grid_shape_and_axis_points(hobbing):

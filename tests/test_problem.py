@@ -16,9 +16,9 @@ import pytest
 from scipy.stats import norm
 
 from allocation import AllocationProblem, screen_rows
-from reliability.fosm import fosm
+from reliability.first_order.fosm import fosm
 from studies.paper.tables import TABLE6
-from reliability.poses import workspace_grid
+from reliability.model.poses import workspace_grid
 
 SIDES = ("one_sided", "two_sided")
 #: Rows equal to DUPLICATE_DIGITS = 10 significant digits are merged, so a removed
@@ -102,7 +102,7 @@ def test_screened_rows_are_rows_of_the_problem(small, side):
 
 @pytest.mark.parametrize("side", SIDES)
 def test_row_matrix_is_the_fosm_variance_over_the_allowed_variance(small, side, hobbing):
-    # σ² / (I/z)² at every pose, with σ from the toolkit's FOSM (reliability.fosm).
+    # σ² / (I/z)² at every pose, with σ from the toolkit's FOSM (reliability.first_order.fosm).
     problem = small[side]
     t = random_allocations(problem, 1, seed=3)[0]
     sigma = fosm(hobbing, t, problem.poses, jacobian=problem.jacobian).sigma

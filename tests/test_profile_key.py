@@ -9,8 +9,8 @@ from pathlib import Path
 import pytest
 
 from reliability import load_machine, machine_from_dict
-from reliability.errors import InputError, MachineDescriptionError
-from reliability.machine import machine_to_dict
+from reliability.basics.errors import InputError, MachineDescriptionError
+from reliability.model.machine import machine_to_dict
 from studies.cli import options
 
 MILL = Path(__file__).parent / "machines" / "mill3.toml"

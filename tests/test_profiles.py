@@ -1,4 +1,5 @@
-"""Error profiles along travel (reliability.profiles) and their use by the grid experiment."""
+"""Error profiles along travel (reliability.model.profiles) and their use by the grid
+experiment."""
 
 from __future__ import annotations
 
@@ -8,13 +9,14 @@ import numpy as np
 import pytest
 from scipy.stats import truncnorm
 
-from reliability.errors import InputError, InputTypeError
-from reliability.fosm import error_sigma, output_sigma
-from reliability.profiles import (ConstantProfile, GaussianProfile, IndependentProfile,
-                                  axis_profiles, cholesky_factor, correlate_along_travel,
-                                  profile_model, standard_normals, to_marginal,
-                                  travel_factors)
-from reliability.sampling import GridExperiment, draw_errors
+from reliability.basics.errors import InputError, InputTypeError
+from reliability.first_order.fosm import error_sigma, output_sigma
+from reliability.model.profiles import (ConstantProfile, GaussianProfile, IndependentProfile,
+                                        axis_profiles, cholesky_factor, correlate_along_travel,
+                                        profile_model, standard_normals, to_marginal,
+                                        travel_factors)
+from reliability.model.error_draws import draw_errors
+from reliability.sampling.grid_experiment import GridExperiment
 
 #: Inside counts of the grid experiment before profiles existed (hobbing machine, initial
 #: allocation, 7 repeats, seed 11, batches of 3): the default must still give them.

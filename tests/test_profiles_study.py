@@ -10,7 +10,7 @@ matplotlib.use("Agg")
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
-from reliability.measured import SystematicErrors, measured_profile  # noqa: E402
+from reliability.model.measured_profiles import SystematicErrors, measured_profile
 from studies.paper.tables import TABLE6  # noqa: E402
 from studies.report.profiles import (consistent_profiles, plot_yield_against_length,  # noqa: E402
                                       profiles_section)

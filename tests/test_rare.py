@@ -11,10 +11,10 @@ import numpy as np
 import pytest
 from scipy.stats import multivariate_normal, norm
 
-from reliability.errors import InputError
-from reliability.rare import (_gamma, failure_probability, linear_model, worst_case_bound,
-                              worst_grid_pose)
-from reliability.sampling import draw_errors
+from reliability.basics.errors import InputError
+from reliability.sampling.rare_events import (_gamma, failure_probability, linear_model,
+                                              worst_case_bound, worst_grid_pose)
+from reliability.model.error_draws import draw_errors
 
 Z = 3.0  # z of every statistical tolerance in this file
 
@@ -222,7 +222,7 @@ def test_same_seed_same_numbers_and_summary(hobbing):
 
 
 def test_refined_design_point_lies_on_the_exact_limit(hobbing):
-    from reliability.rare import _CountingModel, _Problem
+    from reliability.sampling.rare_events import _CountingModel, _Problem
 
     t, pose, jacobian = dx_setup(hobbing, 1e-6)
     model = _CountingModel(lambda x: hobbing.comprehensive_error(pose, x))

@@ -6,7 +6,7 @@ from __future__ import annotations
 import json
 from types import SimpleNamespace
 
-from reliability.verification import rare_event_table, reachable_events
+from reliability.sampling.verification import rare_event_table, reachable_events
 from studies.cli.verify import precision_text, rare_text
 from studies.report.rare import rare_section
 from studies.report.section import Section

@@ -5,8 +5,8 @@ import pytest
 
 from allocation.problem import AllocationProblem
 from allocation.refine import solve_over_workspace
-from reliability.poses import workspace_grid
-from reliability.worst_case import continuous_worst
+from reliability.model.poses import workspace_grid
+from reliability.first_order.workspace_search import continuous_worst
 
 
 @pytest.fixture(scope="module")

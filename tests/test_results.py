@@ -1,4 +1,5 @@
-"""Tests of the Monte-Carlo result objects, :mod:`reliability.results` (Tables 8 and 9).
+"""Tests of the Monte-Carlo result objects, :mod:`reliability.sampling.experiment_results` (Tables
+8 and 9).
 
 Everything is checked on small results built by hand, whose Table 8/9 entries, intervals
 and yields are computed here independently (``statistics.mean``, ``scipy.stats.t``,
@@ -16,8 +17,8 @@ import pytest
 from scipy import stats
 
 from reliability import OUTPUTS
-from reliability.results import (FRAME_COLUMNS, METADATA_COLUMNS, GridExperimentResult,
-                                 RandomPoseResult)
+from reliability.sampling.experiment_results import (FRAME_COLUMNS, METADATA_COLUMNS,
+                                                     GridExperimentResult, RandomPoseResult)
 
 LIMITS = np.array([0.02, 0.02, 0.02, 4.8e-5, 4.8e-5, 4.8e-5])
 # Four experiments of 100 poses; every column varies, experiment 3 is entirely inside.

@@ -1,4 +1,5 @@
-"""Tests of the Monte-Carlo sampling engine, :mod:`reliability.sampling` (Sec. 5.3).
+"""Tests of the Monte-Carlo sampling engine, :mod:`reliability.sampling.grid_experiment` (Sec.
+5.3).
 
 What is checked, and against what:
 
@@ -33,10 +34,12 @@ from scipy import stats
 
 import reliability
 from reliability import OUTPUTS, machine_from_dict
-from reliability.fosm import fosm
+from reliability.first_order.fosm import fosm
 from studies.paper.tables import TABLE6, TABLE9
-from reliability.poses import random_poses, workspace_grid
-from reliability.sampling import GridExperiment, draw_errors, sample_random_poses
+from reliability.model.poses import random_poses, workspace_grid
+from reliability.model.error_draws import draw_errors
+from reliability.sampling.grid_experiment import GridExperiment
+from reliability.sampling.pose_sampling import sample_random_poses
 
 Z = 4.0                    # tolerance of every statistical check, in standard errors
 EPS = np.finfo(float).eps

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from matplotlib import image
 
-from reliability.errors import InputError
+from reliability.basics.errors import InputError
 from studies import cli
 from studies.benchmarks.screenshot import find_browser, main, page_height, screenshot
 

@@ -19,9 +19,9 @@ from scipy.stats import norm
 
 from allocation import (AllocationProblem, AllocationResult, InfeasibleAllocationError,
                         TargetUnreachableError)
-from reliability.fosm import fosm
-from reliability.machine import OUTPUTS
-from reliability.poses import workspace_grid
+from reliability.first_order.fosm import fosm
+from reliability.model.machine import OUTPUTS
+from reliability.model.poses import workspace_grid
 
 #: The convex solver certifies a relative duality gap of at most this (its default).
 GAP = 1e-6

@@ -7,9 +7,9 @@ import pytest
 
 from allocation import AllocationProblem, TargetUnreachableError, solve_convex_allocation
 from allocation import convex
-from reliability.errors import InputError, InputTypeError
-from reliability.fosm import required_index
-from reliability.poses import workspace_grid
+from reliability.basics.errors import InputError, InputTypeError
+from reliability.first_order.fosm import required_index
+from reliability.model.poses import workspace_grid
 
 WIDE = (1e-3, 1.5)  # the default box [0.5, 1.5] cannot hold the stack of the paper's machine
 

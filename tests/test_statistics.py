@@ -1,17 +1,12 @@
-"""Tests for reliability.statistics: intervals against scipy, coverage, refusals."""
+"""Tests for reliability.basics.statistics: intervals against scipy, coverage, refusals."""
 
 import numpy as np
 import pandas as pd
 import pytest
 from scipy import integrate, special, stats
 
-from reliability.statistics import (
-    ProportionEstimate,
-    between_experiment_interval,
-    binomial_interval,
-    machine_yield,
-    proportion,
-)
+from reliability.basics.statistics import (ProportionEstimate, between_experiment_interval,
+                                           binomial_interval, machine_yield, proportion)
 
 # Statistical checks allow Z standard errors of the Monte-Carlo estimate (two-sided
 # false-alarm rate 0.27 % per check for a correct implementation; seeds are fixed).

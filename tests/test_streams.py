@@ -1,12 +1,12 @@
-"""reliability.streams: the one door for rng= and the three rules for extra streams."""
+"""reliability.basics.streams: the one door for rng= and the three rules for extra streams."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from reliability.errors import InputError, InputTypeError
-from reliability.streams import extra_stream, generator, spawn, verification_streams
+from reliability.basics.errors import InputError, InputTypeError
+from reliability.basics.streams import extra_stream, generator, spawn, verification_streams
 
 
 def test_generator_accepts_every_documented_form():

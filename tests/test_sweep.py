@@ -20,11 +20,11 @@ import pandas as pd
 import pytest
 
 from allocation import AllocationProblem
-from reliability.errors import InputError, InputTypeError, SavedResultError
-from reliability.machine import load_machine
-from reliability.poses import workspace_grid
+from reliability.basics.errors import InputError, InputTypeError, SavedResultError
+from reliability.model.machine import load_machine
+from reliability.model.poses import workspace_grid
 from studies.cli import sweep as command
-from reliability.verification import verify
+from reliability.sampling.verification import verify
 from studies.workflows.sweep import SweepSpec, SweepTask, run_sweep, run_task
 
 MACHINES = Path(__file__).parent / "machines"

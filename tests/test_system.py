@@ -8,9 +8,9 @@ from scipy.stats import multivariate_normal, norm
 
 from allocation import AllocationProblem, system_allocation
 from reliability import system_reliability, worst_system_reliability
-from reliability.errors import InputError
-from reliability.poses import workspace_grid
-from reliability.system import rectangle_probability
+from reliability.basics.errors import InputError
+from reliability.model.poses import workspace_grid
+from reliability.first_order.system_reliability import rectangle_probability
 
 Z = 4.0  # standard errors allowed in every statistical comparison below
 

@@ -12,12 +12,12 @@ import pandas as pd
 import pytest
 
 from allocation.result_files import GAP_SHOWN, gap_bound, gap_text
-from reliability.display import bound_text, pose_text, target_text
-from reliability.files import as_written, atomic_write_text
-from reliability.fosm import fosm
-from reliability.poses import workspace_grid
-from reliability.ties import lexicographic_rank, worst_rows
-from reliability.verification import verify
+from reliability.basics.display import bound_text, pose_text, target_text
+from reliability.basics.files import as_written, atomic_write_text
+from reliability.first_order.fosm import fosm
+from reliability.model.poses import workspace_grid
+from reliability.basics.ties import lexicographic_rank, worst_rows
+from reliability.sampling.verification import verify
 from studies import cli
 from studies.cli.options import percent
 from studies.report import writer
@@ -166,7 +166,7 @@ def test_probability_bounds_are_clipped_and_marked_trivial():
 
 
 def test_bonferroni_bound_is_never_negative(trunnion5):
-    from reliability.system import system_reliability
+    from reliability.first_order.system_reliability import system_reliability
 
     poses = workspace_grid(trunnion5, 3)[:4]
     result = system_reliability(trunnion5, 20 * trunnion5.initial_allocation, poses,
@@ -196,7 +196,7 @@ def test_poses_are_printed_in_degrees_with_units():
 
 
 def test_result_objects_print_readable_summaries(mill3):
-    from reliability.statistics import machine_yield
+    from reliability.basics.statistics import machine_yield
 
     estimate = machine_yield(np.r_[np.ones(1987, bool), np.zeros(13, bool)])
     text = repr(estimate)

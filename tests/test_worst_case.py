@@ -1,13 +1,14 @@
-"""reliability.worst_case: the continuous search never reports a better pose than the grid,
-its pose is inside the strokes and really has the σ it reports, and on the paper's machine
+"""reliability.first_order.workspace_search: the continuous search never reports a better pose than
+the grid, its pose is inside the strokes and really has the σ it reports, and on the paper's
+machine
 it finds the δx worst pose between grid points (M between 3.77 and 5.03 rad)."""
 
 import numpy as np
 import pytest
 
-from reliability.fosm import error_sigma, output_sigma
-from reliability.poses import workspace_grid
-from reliability.worst_case import continuous_worst
+from reliability.first_order.fosm import error_sigma, output_sigma
+from reliability.model.poses import workspace_grid
+from reliability.first_order.workspace_search import continuous_worst
 
 
 @pytest.fixture(scope="module")

@@ -10,7 +10,7 @@ import pytest
 from allocation import AllocationProblem
 from allocation.yield_shape import shape_search
 from reliability import load_machine, workspace_grid
-from reliability.machine_yield import YieldModel
+from reliability.sampling.machine_yield import YieldModel
 
 TRUNNION = Path(__file__).parent / "machines" / "trunnion5.toml"
 

@@ -13,8 +13,8 @@ from allocation import YieldUnreachableError, allocate_for_yield, read_allocatio
 from allocation.yield_target import (_cost_at_yield, _machine_yield, equal_yield_margin,
                                      two_sided_target)
 import reliability
-from reliability.errors import InputError, InputTypeError
-from reliability.sampling import GridExperiment
+from reliability.basics.errors import InputError, InputTypeError
+from reliability.sampling.grid_experiment import GridExperiment
 from studies import cli
 
 MACHINE_DIR = Path(__file__).parent / "machines"

@@ -4,8 +4,8 @@ Run as ``python -m studies.benchmarks.acceptance [--machines N] [--reference N]`
 paper's machine and ``docs/examples/paper_tests.toml`` (6 tests: two circles, three
 positioning tests, one rotary test; gp:300 profiles) it times
 
-1. :func:`reliability.acceptance.acceptance` for ``N`` built machines (default 10 000), in
-   full (with the drivers, each error item drawn alone on 200 machines) and results only;
+1. :func:`reliability.acceptance.prediction.acceptance` for ``N`` built machines (default 10 000),
+   in full (with the drivers, each error item drawn alone on 200 machines) and results only;
 2. the simple vectorised reference, on fewer machines (default 1 000): every motion error
    drawn at each position its axis visits (a Cholesky factor per axis), gathered to every
    pose, the exact model of Eq. (18) batched over machines and poses, rotated into the
@@ -25,12 +25,13 @@ from pathlib import Path
 import numpy as np
 
 import reliability
-from reliability.acceptance import (CircularTest, PositioningTest, acceptance, build_path,
-                                    deviation_weights, ideal_chain, positioning_statistics)
-from reliability.acceptance_files import read_tests
-from reliability.chunks import chunks
-from reliability.profiles import GaussianProfile
-from reliability.streams import generator
+from reliability.acceptance.prediction import (CircularTest, PositioningTest, acceptance,
+                                               build_path, deviation_weights, ideal_chain,
+                                               positioning_statistics)
+from reliability.acceptance.definitions import read_tests
+from reliability.basics.chunks import chunks
+from reliability.model.profiles import GaussianProfile
+from reliability.basics.streams import generator
 from studies.workflows.timing import best_time, one_blas_thread
 
 TESTS = Path(__file__).resolve().parents[2] / "docs" / "examples" / "paper_tests.toml"

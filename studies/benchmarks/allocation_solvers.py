@@ -32,8 +32,8 @@ import numpy as np
 import allocation
 import reliability
 from allocation.problem import screen_rows
-from reliability.machine import OUTPUTS
-from reliability.poses import workspace_grid
+from reliability.model.machine import OUTPUTS
+from reliability.model.poses import workspace_grid
 from studies.paper.tables import TABLE6, TABLE7
 from studies.workflows.timing import best_time, one_blas_thread
 

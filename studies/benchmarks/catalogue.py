@@ -35,7 +35,7 @@ from scipy.optimize import Bounds, LinearConstraint, milp
 import allocation
 import reliability
 from allocation import discrete
-from reliability.poses import workspace_grid
+from reliability.model.poses import workspace_grid
 from studies.workflows.timing import best_time, one_blas_thread
 
 EXAMPLE = Path(__file__).resolve().parents[2] / "docs" / "examples" / "paper_catalogue.toml"

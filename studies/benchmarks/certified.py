@@ -7,11 +7,11 @@ the certified two-sided optimum of the 5-point grid problem) and the 5-axis trun
 tests (initial allocation and its two-sided optimum), it prints per output
 
 * the worst σ (or worst-case stack ``Σ|J| t``) on the 5-, 9- and 13-point grids of the
-  workspace (:func:`reliability.poses.workspace_grid`: full turns without repeating
-  0 = 2π) and the time of each grid, evaluated in slices of the first axis by the simple
-  vectorised reference (:func:`reliability.fosm.pose_sigma`, or the Jacobian in chunks);
+  workspace (:func:`reliability.model.poses.workspace_grid`: full turns without repeating 0 = 2π)
+  and the time of each grid, evaluated in slices of the first axis by the simple vectorised
+  reference (:func:`reliability.first_order.fosm.pose_sigma`, or the Jacobian in chunks);
 * the certified worst value, its rigorous bound, the gap, the boxes evaluated and the
-  time of :func:`reliability.worst_case.certified_worst`;
+  time of :func:`reliability.first_order.workspace_search.certified_worst`;
 * ``miss13``: how much larger the certified worst value is than the 13-point grid's;
 
 and the ratio of the certificate's time to each grid's. A grid gives only a lower bound of
@@ -29,10 +29,10 @@ import pandas as pd
 
 import reliability
 from allocation import AllocationProblem
-from reliability.chunks import chunks, jacobian_bytes
-from reliability.fosm import error_sigma, pose_sigma
-from reliability.poses import grid_axis_points, workspace_grid
-from reliability.worst_case import certified_worst
+from reliability.basics.chunks import chunks, jacobian_bytes
+from reliability.first_order.fosm import error_sigma, pose_sigma
+from reliability.model.poses import grid_axis_points, workspace_grid
+from reliability.first_order.workspace_search import certified_worst
 from studies.paper.tables import TABLE6
 from studies.workflows.timing import one_blas_thread
 

@@ -16,8 +16,8 @@ Run as ``python -m studies.benchmarks.machine_yield [--machines N] [--seed S]
    of 0.1, with the machines it evaluated against the ``(1 − p)/(p · CoV²)`` crude sampling
    would need, and both times;
 3. timings: our crude estimator against the simple vectorised reference, the grid experiment
-   (:meth:`reliability.sampling.GridExperiment.run`, one generator per machine) on the same
-   number of machines, in the same run.
+   (:meth:`reliability.sampling.grid_experiment.GridExperiment.run`, one generator per machine) on
+   the same number of machines, in the same run.
 
 Nothing is asserted; the numbers are the result.
 """
@@ -33,9 +33,9 @@ import pandas as pd
 
 import reliability
 from allocation import AllocationProblem
-from reliability.machine_yield import DEFAULT_MACHINES, YieldModel, yield_text
-from reliability.poses import workspace_grid
-from reliability.sampling import GridExperiment
+from reliability.sampling.machine_yield import DEFAULT_MACHINES, YieldModel, yield_text
+from reliability.model.poses import workspace_grid
+from reliability.sampling.grid_experiment import GridExperiment
 from studies.paper.tables import TABLE6
 from studies.workflows.timing import one_blas_thread
 

@@ -30,22 +30,21 @@ What is measured, on the paper's hobbing machine:
    (best of 3), the relative cost difference and the largest constraint violation of the
    peer's answer over all (pose, output) rows of the grid and over the bounds.
 3. **Rare event at 1e-6 on the exact model**: the δx output at its worst grid pose, the
-   Table 4 tolerances scaled so that the linear (FOSM) two-sided failure probability is
-   exactly 1e-6. The errors are independent normals with σ = t/3 (untruncated); the
-   model is the exact chain product ``machine.comprehensive_error``. Ours: importance
-   sampling (:func:`reliability.rare.failure_probability`) to CoV 0.1. Peer: OpenTURNS on
-   the same exact model as a vectorised ``ot.PythonFunction`` of the standard-normal
-   error vector. The failure ``|y| >= I`` has two disjoint tails, each with its own design
-   point, so the peer runs FORM and post-analytical importance sampling on each smooth
-   one-sided limit state ``1 -+ y/I`` and adds the two probabilities (exact, since the
-   tails are disjoint), each tail to CoV 0.1·√2 so that the sum reaches 0.1; FORM with
-   OpenTURNS' default finite-difference gradient, and with the analytic linear gradient
-   (the information ours uses). A second pair compares subset simulation, ours against
-   ``ot.SubsetSampling`` on the two-sided limit state ``1 - |y|/I`` (no design point
-   needed). Exact-model evaluations are counted inside the wrapped function (FORM's
-   included). Reported: mean calls over independent runs, the mean estimate over the
-   exact linear value 1e-6 (the exact model is near-linear there). Both importance
-   samplers draw blocks of ``--batch`` samples (default 100) and test the CoV after each.
+   Table 4 tolerances scaled so that the linear (FOSM) two-sided failure probability is exactly
+   1e-6. The errors are independent normals with σ = t/3 (untruncated); the model is the exact
+   chain product ``machine.comprehensive_error``. Ours: importance sampling
+   (:func:`reliability.sampling.rare_events.failure_probability`) to CoV 0.1. Peer: OpenTURNS on
+   the same exact model as a vectorised ``ot.PythonFunction`` of the standard-normal error vector.
+   The failure ``|y| >= I`` has two disjoint tails, each with its own design point, so the peer
+   runs FORM and post-analytical importance sampling on each smooth one-sided limit state ``1 -+
+   y/I`` and adds the two probabilities (exact, since the tails are disjoint), each tail to CoV
+   0.1·√2 so that the sum reaches 0.1; FORM with OpenTURNS' default finite-difference gradient, and
+   with the analytic linear gradient (the information ours uses). A second pair compares subset
+   simulation, ours against ``ot.SubsetSampling`` on the two-sided limit state ``1 - |y|/I`` (no
+   design point needed). Exact-model evaluations are counted inside the wrapped function (FORM's
+   included). Reported: mean calls over independent runs, the mean estimate over the exact linear
+   value 1e-6 (the exact model is near-linear there). Both importance samplers draw blocks of
+   ``--batch`` samples (default 100) and test the CoV after each.
 
 Times are wall times with BLAS limited to one thread; nothing is asserted.
 """
@@ -64,7 +63,7 @@ from scipy.stats import norm
 
 import allocation
 import reliability
-from reliability.rare import failure_probability, worst_grid_pose
+from reliability.sampling.rare_events import failure_probability, worst_grid_pose
 from studies.workflows.timing import best_time, one_blas_thread
 
 INSTALL_HINT = "pip install 'precision-reliability[bench]'"

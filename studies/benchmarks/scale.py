@@ -42,7 +42,7 @@ def measure(name: str, points: int) -> dict:
     import numpy as np
 
     import reliability
-    from reliability.poses import workspace_grid
+    from reliability.model.poses import workspace_grid
 
     machine = reliability.hobbing_machine()
     grid = workspace_grid(machine, points)
@@ -68,7 +68,7 @@ def measure(name: str, points: int) -> dict:
 
 def _reference_fosm(machine, t, grid):
     """Worst two-sided probability per output from the whole-array Jacobian (Eq. 20)."""
-    from reliability.fosm import error_sigma, output_sigma, two_sided_probability
+    from reliability.first_order.fosm import error_sigma, output_sigma, two_sided_probability
 
     sigma = output_sigma(machine.jacobian(grid), error_sigma(t))
     return two_sided_probability(machine.limits, sigma).min(axis=0)
@@ -80,7 +80,7 @@ def _reference_allocation(machine, grid):
 
     from allocation.convex import solve_convex_allocation
     from allocation.cost import CostModel
-    from reliability.fosm import required_index
+    from reliability.first_order.fosm import required_index
 
     reference = machine.initial_allocation
     lower, upper = 0.25 * reference ** 2, 2.25 * reference ** 2  # box [0.5, 1.5] in u = t²

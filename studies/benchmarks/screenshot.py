@@ -21,7 +21,7 @@ import sys
 import tempfile
 from pathlib import Path
 
-from reliability.errors import InputError
+from reliability.basics.errors import InputError
 
 #: Browsers tried in order when none is given.
 BROWSERS = ("/usr/bin/chromium", "chromium", "chromium-browser", "google-chrome")

@@ -33,7 +33,7 @@ import numpy as np
 import allocation
 import reliability
 from allocation.yield_target import _Search, equal_yield_margin
-from reliability.machine import OUTPUTS
+from reliability.model.machine import OUTPUTS
 from studies.workflows.timing import one_blas_thread
 
 ROOT = Path(__file__).resolve().parents[2]

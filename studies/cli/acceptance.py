@@ -5,9 +5,10 @@ from __future__ import annotations
 
 import pandas as pd
 
-from reliability.acceptance import DEFAULT_PROFILE, acceptance, path_profile, profile_note
-from reliability.acceptance_files import read_tests
-from reliability.files import SIGNIFICANT, write_csv
+from reliability.acceptance.prediction import (DEFAULT_PROFILE, acceptance, path_profile,
+                                               profile_note)
+from reliability.acceptance.definitions import read_tests
+from reliability.basics.files import SIGNIFICANT, write_csv
 
 from . import options
 

@@ -14,9 +14,9 @@ from allocation.continuous import check_continuous, solve_continuous
 from allocation.elasticity import requirement_table
 from allocation.result_files import (allocation_to_csv, cost_shares_text, cost_units_text, gap_text,
                                      nearly_free_text)
-from reliability.errors import InputError
-from reliability.machine import OUTPUTS
-from reliability.poses import workspace_grid
+from reliability.basics.errors import InputError
+from reliability.model.machine import OUTPUTS
+from reliability.model.poses import workspace_grid
 from studies.report.writer import SIGNIFICANT
 
 from . import options

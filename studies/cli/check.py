@@ -4,8 +4,8 @@ from __future__ import annotations
 
 from allocation import CostModel
 from allocation.result_files import cost_shares_text, cost_units_text
-from reliability.identifiability import EQUAL_RTOL, indistinguishable_groups
-from reliability.machine_checks import describe, likely_mistakes
+from reliability.model.identifiability import EQUAL_RTOL, indistinguishable_groups
+from reliability.model.machine_checks import describe, likely_mistakes
 
 from . import options
 

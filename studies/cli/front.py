@@ -15,11 +15,11 @@ import numpy as np
 from allocation import AllocationProblem
 from allocation.front import FRONT_SIDES, cost_reliability_front
 from allocation.result_files import gap_bound, gap_text
-from reliability.display import target_text
-from reliability.errors import InputError
-from reliability.files import SIGNIFICANT, write_csv
-from reliability.machine import OUTPUTS
-from reliability.poses import workspace_grid
+from reliability.basics.display import target_text
+from reliability.basics.errors import InputError
+from reliability.basics.files import SIGNIFICANT, write_csv
+from reliability.model.machine import OUTPUTS
+from reliability.model.poses import workspace_grid
 
 from . import options
 

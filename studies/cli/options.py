@@ -15,12 +15,12 @@ import numpy as np
 from allocation.continuous import DEFAULT_RTOL, WORKSPACE_CHOICES
 from allocation.problem import DEFAULT_FACTORS, bounds_source
 from allocation.result_files import read_allocation_csv
-from reliability import display
-from reliability.errors import InputError
-from reliability.files import check_destination
-from reliability.kinematics import FRAMES
-from reliability.machine import load_machine
-from reliability.machine_yield import DEFAULT_MACHINES
+from reliability.basics import display
+from reliability.basics.errors import InputError
+from reliability.basics.files import check_destination
+from reliability.model.kinematics import FRAMES
+from reliability.model.machine import load_machine
+from reliability.sampling.machine_yield import DEFAULT_MACHINES
 
 SIDE_CHOICES = ("one_sided", "two_sided")
 DISTRIBUTION_CHOICES = ("normal", "truncated")
@@ -203,7 +203,7 @@ def check_bounds(bounds) -> tuple[float, float] | None:
 
 def destination(path, overwrite: bool, option: str = "--out", *, folder: bool = False,
                 markers=()) -> Path:
-    """:func:`reliability.files.check_destination`, its refusals reworded for ``option``."""
+    """:func:`reliability.basics.files.check_destination`, its refusals reworded for ``option``."""
     try:
         return check_destination(path, overwrite, folder=folder, markers=markers)
     except FileExistsError:

@@ -5,11 +5,11 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from reliability.display import OUTPUT_UNITS, target_text, top_contributors, with_unit
-from reliability.fosm import fosm, two_sided_probability
-from reliability.machine import OUTPUTS
-from reliability.poses import workspace_grid
-from reliability.worst_case import certified_worst
+from reliability.basics.display import OUTPUT_UNITS, target_text, top_contributors, with_unit
+from reliability.first_order.fosm import fosm, two_sided_probability
+from reliability.model.machine import OUTPUTS
+from reliability.model.poses import workspace_grid
+from reliability.first_order.workspace_search import certified_worst
 
 from . import options
 

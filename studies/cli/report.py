@@ -3,8 +3,8 @@
 from __future__ import annotations
 
 from allocation import load_catalogue, solve_catalogue
-from reliability.acceptance_files import read_tests
-from reliability.streams import extra_stream
+from reliability.acceptance.definitions import read_tests
+from reliability.basics.streams import extra_stream
 from studies.report import machine_sections
 from studies.report.acceptance import acceptance_section
 from studies.report.catalogue import catalogue_section

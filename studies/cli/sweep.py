@@ -16,7 +16,7 @@ from pathlib import Path
 
 from tqdm import tqdm
 
-from reliability.errors import InputError
+from reliability.basics.errors import InputError
 from studies.workflows.sweep import RESULTS_FILE, SweepSpec, run_sweep
 
 from . import options

@@ -26,7 +26,7 @@ import sys
 
 import pandas as pd
 
-from reliability.machine import hobbing_machine
+from reliability.model.machine import hobbing_machine
 from studies.report.correlation import correlation_section
 from studies.report.writer import check_output_folder, write_section
 from studies.workflows.correlation import VALUES, correlation_sweep

@@ -1,12 +1,12 @@
 """The exact probability of the linearised output under truncated errors, checked by sampling.
 
 Run as ``python -m studies.paper.linear_exact_study [--draws N] [--seed S]``. On the paper's
-machine at its certified two-sided optimum (5-point grid, truncated reading) it takes three
-poses (the worst grid poses of dx and of ex, and a pose drawn at random) and prints per
-output: the normal approximation of FOSM (truncated σ), the exact probability of the linear
-model ``Σ J_oi x_i`` with truncated-normal ``x_i`` (:mod:`reliability.linear_exact`), the
-Monte-Carlo estimate of the same linear model from ``--draws`` draws (default 10⁷) and the
-z-score of the exact value against it (binomial standard error).
+machine at its certified two-sided optimum (5-point grid, truncated reading) it takes three poses
+(the worst grid poses of dx and of ex, and a pose drawn at random) and prints per output: the
+normal approximation of FOSM (truncated σ), the exact probability of the linear model ``Σ J_oi
+x_i`` with truncated-normal ``x_i`` (:mod:`reliability.first_order.linear_exact`), the Monte-Carlo
+estimate of the same linear model from ``--draws`` draws (default 10⁷) and the z-score of the exact
+value against it (binomial standard error).
 """
 
 from __future__ import annotations
@@ -19,12 +19,12 @@ import pandas as pd
 
 import reliability
 from allocation import AllocationProblem
-from reliability.display import axis_units, pose_text
-from reliability.fosm import fosm
-from reliability.linear_exact import linear_two_sided
-from reliability.poses import workspace_grid
-from reliability.sampling import draw_errors
-from reliability.streams import generator, spawn
+from reliability.basics.display import axis_units, pose_text
+from reliability.first_order.fosm import fosm
+from reliability.first_order.linear_exact import linear_two_sided
+from reliability.model.poses import workspace_grid
+from reliability.model.error_draws import draw_errors
+from reliability.basics.streams import generator, spawn
 from studies.workflows.timing import one_blas_thread
 
 CHUNK = 500_000

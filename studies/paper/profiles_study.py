@@ -26,7 +26,7 @@ import pandas as pd
 
 import allocation
 import reliability
-from reliability.measured import SystematicErrors, read_profile_csv
+from reliability.model.measured_profiles import SystematicErrors, read_profile_csv
 from studies.report.profiles import profiles_section
 from studies.report.writer import check_output_folder, write_section
 from studies.workflows.profiles import (PROFILES, SPREAD_OUTPUTS, ProfilesStudy,

@@ -22,9 +22,9 @@ import numpy as np
 
 import allocation
 import reliability
-from reliability.pose_sampling import EVENTS, linear_failure, sample_at_poses
-from reliability.streams import spawn
-from reliability.verification import rare_event_table
+from reliability.sampling.pose_sampling import EVENTS, linear_failure, sample_at_poses
+from reliability.basics.streams import spawn
+from reliability.sampling.verification import rare_event_table
 from studies.workflows.timing import one_blas_thread
 
 PPM_TARGET = 1 - 1e-6

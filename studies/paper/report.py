@@ -9,7 +9,7 @@ import numpy as np
 import pandas as pd
 
 from allocation.result_files import gap_text
-from reliability.files import atomic_write_text
+from reliability.basics.files import atomic_write_text
 from studies.report.markdown import format_cell, markdown_table
 
 from .tables import TABLE7, TABLE9, TABLE9_ALL_INSIDE
@@ -142,7 +142,8 @@ def _between_grid_points(tables) -> str:
                    "one_sided", "grid_two_sided", "two_sided"]]
     return ("## Between grid points\n\nEq. (35) asks for the whole stroke of every axis; "
             "the grid has five points per axis. A bounded local search of the continuous "
-            "workspace from each output's worst grid poses (`reliability.worst_case`) finds "
+            "workspace from each output's worst grid poses "
+            "(`reliability.first_order.workspace_search`) finds "
             "where the grid is optimistic; an allocation optimised on the grid can fall "
             "slightly short between its points.\n\n"
             + markdown_table(frame, {"grid_beta": "{:.4f}".format, "beta": "{:.4f}".format,

@@ -1,6 +1,6 @@
 """Report section: predicted ISO 230 acceptance-test results of built machines, for each
 allocation, with each result's distribution against its limit
-(:func:`reliability.acceptance.acceptance`)."""
+(:func:`reliability.acceptance.prediction.acceptance`)."""
 
 from __future__ import annotations
 
@@ -9,8 +9,8 @@ import math
 import numpy as np
 from matplotlib.figure import Figure
 
-from reliability.acceptance import DEFAULT_PROFILE, acceptance, profile_note
-from reliability.streams import spawn
+from reliability.acceptance.prediction import DEFAULT_PROFILE, acceptance, profile_note
+from reliability.basics.streams import spawn
 
 from .markdown import markdown_table
 from .section import Section
@@ -27,7 +27,7 @@ def acceptance_section(machine, tests, allocations: dict, *, machines: int = 200
     ----------
     machine : Machine
     tests : sequence of tests
-        :func:`reliability.acceptance_files.read_tests`.
+        :func:`reliability.acceptance.definitions.read_tests`.
     allocations : dict
         Label -> tolerances, e.g. ``{"initial": ..., "optimum": ...}``.
     machines : int
@@ -35,7 +35,7 @@ def acceptance_section(machine, tests, allocations: dict, *, machines: int = 200
     profile : str
         Error profile along travel.
     rng : seed or Generator
-        One child stream per allocation (:func:`reliability.streams.spawn`).
+        One child stream per allocation (:func:`reliability.basics.streams.spawn`).
     """
     streams = spawn(rng, len(allocations))
     results = {label: acceptance(machine, tests, t, machines=machines, profile=profile,

@@ -4,7 +4,7 @@ Made from an :class:`allocation.CatalogueResult` (:func:`allocation.solve_catalo
 chosen class of each component with its price, the total price and the proved relative
 gap, what binds, each component's one-class neighbours, the worst load per output, and
 crude Monte-Carlo on the exact model at each output's worst pose at the choice
-(:func:`reliability.pose_sampling.sample_at_poses`).
+(:func:`reliability.sampling.pose_sampling.sample_at_poses`).
 """
 
 from __future__ import annotations
@@ -14,8 +14,8 @@ import pandas as pd
 from allocation.discrete import neighbour_table
 from allocation.result_files import allocation_frame
 
-from reliability.machine import OUTPUTS
-from reliability.pose_sampling import sample_at_poses
+from reliability.model.machine import OUTPUTS
+from reliability.sampling.pose_sampling import sample_at_poses
 
 from .markdown import markdown_table
 from .section import Section

@@ -16,8 +16,8 @@ Each builder takes the :class:`studies.workflows.machine_study.MachineStudy` and
 
 from __future__ import annotations
 
-from reliability.errors import InputError
-from reliability.streams import extra_stream
+from reliability.basics.errors import InputError
+from reliability.basics.streams import extra_stream
 from studies.workflows.profiles import ProfilesStudy, profile_comparison
 
 from .profiles import profiles_section

@@ -17,11 +17,11 @@ from matplotlib.figure import Figure
 from allocation.elasticity import requirement_table
 from allocation.result_files import (MULTIPLIER_DIGITS, allocation_frame, cost_shares_text,
                                      cost_units_text, gap_text, nearly_free_text)
-from reliability.display import (OUTPUT_UNITS, axis_units, pose_frame, shown_positions,
-                                 top_contributors)
-from reliability.files import as_written
-from reliability.identifiability import EQUAL_RTOL, indistinguishable_groups
-from reliability.machine import OUTPUTS
+from reliability.basics.display import (OUTPUT_UNITS, axis_units, pose_frame, shown_positions,
+                                        top_contributors)
+from reliability.basics.files import as_written
+from reliability.model.identifiability import EQUAL_RTOL, indistinguishable_groups
+from reliability.model.machine import OUTPUTS
 from studies.workflows.machine_study import MachineStudy, summary, tolerance_changes
 
 from . import plots

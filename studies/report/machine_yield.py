@@ -1,6 +1,6 @@
 """The report's first answer: the machine yield of each allocation, and what decides it.
 
-The yield (:func:`reliability.machine_yield.machine_yield`) is the share of built machines
+The yield (:func:`reliability.sampling.machine_yield.machine_yield`) is the share of built machines
 that keep all six outputs within their limits at every grid pose, under the study's error
 profile and reading of a tolerance; the failure shares say which requirement (output and
 pose region) fails first in the machines that fail.
@@ -12,7 +12,7 @@ import numpy as np
 import pandas as pd
 from matplotlib.figure import Figure
 
-from reliability.machine_yield import yield_text
+from reliability.sampling.machine_yield import yield_text
 
 from .markdown import markdown_table
 from .section import Section
@@ -127,7 +127,7 @@ def failure_share_figure(study) -> Figure:
 
 def plot_failure_shares(estimate, *, ax=None, title: str = "", count: int = PLOTTED_SHARES):
     """Horizontal bars of the largest failure shares of a
-    :class:`~reliability.machine_yield.YieldEstimate`, with their intervals.
+    :class:`~reliability.sampling.machine_yield.YieldEstimate`, with their intervals.
 
     Returns
     -------

@@ -19,8 +19,8 @@ import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.ticker import FixedLocator, FuncFormatter, NullLocator, PercentFormatter
 
-from reliability.errors import InputError, InputTypeError
-from reliability.streams import generator
+from reliability.basics.errors import InputError, InputTypeError
+from reliability.basics.streams import generator
 
 __all__ = [
     "plot_allocation_comparison",
@@ -293,7 +293,7 @@ def plot_comprehensive_error_scatter(
         Draw at most this many points: all outside points, plus a random subset of the
         inside ones. All points if None.
     rng : None, int or numpy.random.Generator
-        Seed or generator for that subset (through :func:`reliability.streams.generator`).
+        Seed or generator for that subset (through :func:`reliability.basics.streams.generator`).
 
     Returns
     -------
@@ -443,10 +443,10 @@ def plot_reliability_comparison(frame, *, target=None, ax=None, interval=None):
     Parameters
     ----------
     frame : pandas.DataFrame
-        One row per output with columns ``output``, ``fosm_one_sided``,
-        ``fosm_two_sided``, ``mc_estimate``, ``mc_lower``, ``mc_upper``, as
-        :func:`reliability.comparison.fosm_versus_monte_carlo` returns. The bounds are
-        drawn as given, so the figure shows the interval of the frame's table.
+        One row per output with columns ``output``, ``fosm_one_sided``, ``fosm_two_sided``,
+        ``mc_estimate``, ``mc_lower``, ``mc_upper``, as
+        :func:`reliability.sampling.fosm_comparison.fosm_versus_monte_carlo` returns. The bounds
+        are drawn as given, so the figure shows the interval of the frame's table.
     target : float, optional
         Reliability target (e.g. 0.99), drawn as a dotted line.
     ax : matplotlib.axes.Axes, optional
@@ -454,7 +454,7 @@ def plot_reliability_comparison(frame, *, target=None, ax=None, interval=None):
     interval : str, optional
         Name of the interval ``mc_lower``–``mc_upper``, printed in the legend; by default
         ``frame.attrs["mc_interval"]`` (95 % Wilson score interval on Kish's effective
-        sample size for :func:`~reliability.comparison.fosm_versus_monte_carlo`).
+        sample size for :func:`~reliability.sampling.fosm_comparison.fosm_versus_monte_carlo`).
 
     Returns
     -------

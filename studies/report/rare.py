@@ -1,16 +1,16 @@
 """Report section: Monte-Carlo at each output's worst pose beside FOSM, and rare-event
 estimates of each output's and the system's failure probability there.
 
-The computations are :func:`reliability.pose_sampling.sample_at_poses` (crude, optionally
-adaptive, Wilson intervals) and :func:`reliability.verification.rare_event_table`
+The computations are :func:`reliability.sampling.pose_sampling.sample_at_poses` (crude, optionally
+adaptive, Wilson intervals) and :func:`reliability.sampling.verification.rare_event_table`
 (importance sampling or subset simulation on the exact model).
 """
 
 from __future__ import annotations
 
-from reliability.pose_sampling import sample_at_poses
-from reliability.streams import spawn
-from reliability.verification import rare_event_table
+from reliability.sampling.pose_sampling import sample_at_poses
+from reliability.basics.streams import spawn
+from reliability.sampling.verification import rare_event_table
 
 from .markdown import markdown_table
 from .section import Section
@@ -36,7 +36,7 @@ def rare_section(machine, tolerances, *, label: str = "allocation", samples: int
     rare : bool
         Also estimate each event's failure probability by importance sampling.
     target_cov, max_evaluations
-        Options of :func:`reliability.rare.failure_probability`.
+        Options of :func:`reliability.sampling.rare_events.failure_probability`.
     """
     mc_stream, rare_stream = spawn(rng, 2)
     verification = sample_at_poses(machine, tolerances, samples=samples, precision=precision,

@@ -19,8 +19,8 @@ from pathlib import Path
 
 import numpy as np
 
-from reliability.files import (SIGNIFICANT, atomic_write_bytes, atomic_write_text,
-                              check_destination, make_temporary_folder)
+from reliability.basics.files import (SIGNIFICANT, atomic_write_bytes, atomic_write_text,
+                                      check_destination, make_temporary_folder)
 
 from .markdown import markdown_to_html
 
@@ -31,7 +31,7 @@ FIGURE_DPI = 100
 
 def check_output_folder(out, overwrite: bool) -> Path:
     """The report folder, checked before any work by
-    :func:`reliability.files.check_destination`: refused if it is a file, if its parent
+    :func:`reliability.basics.files.check_destination`: refused if it is a file, if its parent
     does not exist, or if it holds an earlier report (:data:`REPORT_MARKERS`) and
     ``overwrite`` is false. :func:`write_report` creates it."""
     return check_destination(out, overwrite, folder=True, markers=REPORT_MARKERS)

@@ -12,8 +12,8 @@ import numpy as np
 import pandas as pd
 
 from allocation.correlated import solve_correlated
-from reliability.fosm import fosm
-from reliability.poses import workspace_grid
+from reliability.first_order.fosm import fosm
+from reliability.model.poses import workspace_grid
 
 #: Correlation coefficients swept by default: −0.8 to 0.8 by 0.2.
 VALUES = tuple(np.round(np.linspace(-0.8, 0.8, 9), 10))

@@ -4,7 +4,7 @@ machine → FOSM of the initial allocation (Eqs. 19–23) → the certified chea
 meeting the targets over the continuous workspace (Eq. 34 with the poses the certificate
 adds, :mod:`allocation.continuous`; or at every grid pose, ``workspace="grid"``) →
 Monte-Carlo verification of both
-allocations (Sec. 5.3, :func:`reliability.verification.verify`). The report's sections are
+allocations (Sec. 5.3, :func:`reliability.sampling.verification.verify`). The report's sections are
 made from the result by :mod:`studies.report.machine_sections`.
 
 Defaults are the report's contract: the exact two-sided probability, the worst case over
@@ -24,12 +24,12 @@ from allocation import AllocationProblem, TargetUnreachableError
 from allocation.continuous import DEFAULT_RTOL, WORKSPACE_CHOICES, check_continuous, \
     solve_continuous
 from allocation.result_files import gap_bound
-from reliability import checks as input_checks
-from reliability.fosm import fosm
-from reliability.machine_yield import DEFAULT_MACHINES
-from reliability.poses import workspace_grid
-from reliability.files import as_written
-from reliability.verification import verify
+from reliability.basics import checks as input_checks
+from reliability.first_order.fosm import fosm
+from reliability.sampling.machine_yield import DEFAULT_MACHINES
+from reliability.model.poses import workspace_grid
+from reliability.basics.files import as_written
+from reliability.sampling.verification import verify
 
 #: Relative change of a tolerance below which it counts as unchanged.
 UNCHANGED = 0.01
@@ -48,7 +48,7 @@ class MachineStudy:
     initial_fosm: object
     optimum: object  # AllocationResult, or None when the targets are out of reach
     optimal_fosm: object
-    checks: dict  # allocation name -> reliability.verification.Verification
+    checks: dict  # allocation name -> reliability.sampling.verification.Verification
     unreachable: object = None  # the TargetUnreachableError when out of reach
     machines: int = DEFAULT_MACHINES  # built machines per allocation's machine yield
     workspace: str = "grid"  # 'continuous' or 'grid'
@@ -111,9 +111,9 @@ def run(machine, *, points: int = 5, side: str = "two_sided", bounds=None,
         ``[bounds]`` table, else [0.5, 1.5] (``summary.json`` names the source).
     seed : int
         Seed of the Monte-Carlo verification of each allocation
-        (:func:`reliability.streams.verification_streams`), as ``precrel verify --seed``.
+        (:func:`reliability.basics.streams.verification_streams`), as ``precrel verify --seed``.
         The optimum is verified (and its FOSM computed) exactly as written to
-        ``allocation.csv`` (:func:`reliability.files.as_written`), so ``precrel verify
+        ``allocation.csv`` (:func:`reliability.basics.files.as_written`), so ``precrel verify
         --tolerances allocation.csv --seed S`` prints the report's Monte-Carlo numbers
         (with ``--certify`` under workspace 'continuous', where the optimum is sampled at
         its certified worst poses).
@@ -122,10 +122,10 @@ def run(machine, *, points: int = 5, side: str = "two_sided", bounds=None,
     progress : callable, optional
         ``progress(text)`` before each step.
     bar : callable, optional
-        Progress-bar factory passed to :func:`reliability.verification.verify`.
+        Progress-bar factory passed to :func:`reliability.sampling.verification.verify`.
     machines : int
         Built machines simulated for each allocation's machine yield, under
-        ``machine.profile`` (:func:`reliability.machine_yield.machine_yield`).
+        ``machine.profile`` (:func:`reliability.sampling.machine_yield.machine_yield`).
     workspace : {'continuous', 'grid'}
         Where the optimum's targets hold: over the continuous strokes, certified to
         ``rtol`` in σ by cutting planes from the ``points``-point grid

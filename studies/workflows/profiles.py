@@ -2,7 +2,7 @@
 experiments, for any machine, allocations and profiles.
 
 :func:`profile_comparison` runs the grid experiment (Sec. 5.3) of each allocation under each
-profile (:func:`reliability.profiles.profile_model`: ``independent``, ``gp:<length>``,
+profile (:func:`reliability.model.profiles.profile_model`: ``independent``, ``gp:<length>``,
 ``constant``); :func:`systematic_effect` shows how a measured (systematic) error profile uses
 up the reliability budget. The report section is :mod:`studies.report.profiles`.
 """
@@ -15,11 +15,11 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-from reliability.fosm import fosm
-from reliability.machine import OUTPUTS
-from reliability.poses import workspace_grid
-from reliability.profiles import profile_model
-from reliability.sampling import GridExperiment
+from reliability.first_order.fosm import fosm
+from reliability.model.machine import OUTPUTS
+from reliability.model.poses import workspace_grid
+from reliability.model.profiles import profile_model
+from reliability.sampling.grid_experiment import GridExperiment
 
 #: Profiles compared by default, from independent to constant (lengths in mm).
 PROFILES = ("independent", "gp:30", "gp:100", "gp:300", "gp:1000", "gp:3000", "constant")
@@ -57,7 +57,7 @@ def profile_comparison(machine, allocations: dict, profiles=PROFILES, repeats=(2
     allocations : dict[str, array_like]
         Label → tolerances.
     profiles : sequence
-        Profile specifications (:func:`reliability.profiles.profile_model`).
+        Profile specifications (:func:`reliability.model.profiles.profile_model`).
     repeats : sequence of int
         Numbers of experiments; each count is its own run from the same seed.
     seed : int

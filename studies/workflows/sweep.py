@@ -14,13 +14,13 @@ profile × seed × repeats. Each task
    (share of experiments in which every pose meets every limit).
 
 Reproducible under any executor: a task's grid experiments draw from the grid stream of
-:func:`reliability.streams.verification_streams` of the task's seed, never from the worker
+:func:`reliability.basics.streams.verification_streams` of the task's seed, never from the worker
 or the order of execution, so serial, process-pool and Dask runs write byte-identical
 ``results.csv``, and a task's numbers are those of ``precrel verify --seed S`` on its
 allocation (the grid experiments, for the ``independent`` profile).
 
 Resumable: each finished task is stored at once, one file per task
-(:class:`reliability.checkpoint.ResultStore`), keyed by its parameters and the toolkit
+(:class:`reliability.basics.result_store.ResultStore`), keyed by its parameters and the toolkit
 version. A sweep started again computes only the tasks without a stored result.
 """
 
@@ -43,14 +43,14 @@ from allocation.continuous import WORKSPACE_CHOICES, check_continuous, solve_con
 from allocation.discrete import CatalogueInfeasibleError, solve_catalogue
 from allocation.problem import AllocationProblem
 from allocation.solve import TargetUnreachableError
-from reliability.checkpoint import ResultStore, canonical_json, machine_fingerprint
-from reliability.errors import InputError, InputTypeError
-from reliability.files import SIGNIFICANT, write_csv
-from reliability.machine import OUTPUTS, hobbing_machine, load_machine
-from reliability.poses import workspace_grid
-from reliability.profiles import profile_model
-from reliability.sampling import GridExperiment
-from reliability.streams import verification_streams
+from reliability.basics.result_store import ResultStore, canonical_json, machine_fingerprint
+from reliability.basics.errors import InputError, InputTypeError
+from reliability.basics.files import SIGNIFICANT, write_csv
+from reliability.model.machine import OUTPUTS, hobbing_machine, load_machine
+from reliability.model.poses import workspace_grid
+from reliability.model.profiles import profile_model
+from reliability.sampling.grid_experiment import GridExperiment
+from reliability.basics.streams import verification_streams
 
 PAPER_MACHINE = "hobbing"
 INDEPENDENT = "independent"
@@ -76,7 +76,7 @@ class SweepTask:
     profile : str
         Error profile along travel of the verification (``"independent"``: the paper's).
     seed : int
-        Seed of the verification (:func:`reliability.streams.verification_streams`).
+        Seed of the verification (:func:`reliability.basics.streams.verification_streams`).
     repeats : int
         Grid experiments of the verification.
     points_per_axis : int

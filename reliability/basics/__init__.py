@@ -1,0 +1,5 @@
+"""Shared basics: the toolkit's exceptions, input checks, random streams, statistics, display
+of poses and units, ties, memory chunks, and the files results are written to and read from.
+
+The ground floor: it imports nothing else of the toolkit.
+"""

@@ -1,0 +1,96 @@
+"""Where every random draw comes from: one door for ``rng=``, two rules for extra streams.
+
+Every function of the toolkit that draws takes ``rng=None`` and passes it through
+:func:`generator`, the only place an argument becomes a :class:`numpy.random.Generator`.
+Extra, independent streams come from one of two named rules, so a reader can tell from
+the call which draws a number depends on:
+
+- :func:`spawn` — ``n`` children of a seed or generator, for the steps of one computation
+  (:func:`verification_streams`, ``spawn(seed, 4)``, gives the grid, random-pose,
+  worst-pose and machine-yield streams of a verification; the first three are those of
+  ``spawn(seed, 3)``);
+- :func:`extra_stream` — stream ``index`` of the family ``[seed, 1]``, for work added on top
+  of a computation that already consumes ``spawn(seed, ...)``, so that adding it changes none
+  of the earlier numbers (the optional report sections, ``precrel verify --precision`` and
+  ``--rare``).
+
+The Monte-Carlo verification of an allocation with seed ``S`` draws from
+:func:`verification_streams` of ``S`` wherever it runs: ``precrel verify --seed S``, both
+allocations of ``precrel report --seed S``, a sweep task with seed ``S`` (its grid
+experiments) and :func:`reliability.sampling.verification.verify` with ``rng=S``. The same seed and
+allocation therefore give the same numbers in Python, on the command line and in a sweep,
+on any machine (numpy's ``SeedSequence`` and ``PCG64`` are platform independent).
+"""
+
+from __future__ import annotations
+
+import numbers
+
+import numpy as np
+
+from .errors import InputError, InputTypeError
+
+#: The entropy word that marks :func:`extra_stream`'s family beside the seed.
+EXTRA_FAMILY = 1
+
+
+def generator(rng, name: str = "rng") -> np.random.Generator:
+    """A generator from ``None``, a non-negative int, a SeedSequence, a BitGenerator or a
+    Generator (returned as is, so its state is shared with the caller).
+
+    Raises
+    ------
+    InputTypeError
+        ``rng`` is of another type (a float, a string, a bool).
+    InputError
+        ``rng`` is a negative integer.
+    """
+    if rng is None or isinstance(rng, (np.random.Generator, np.random.SeedSequence,
+                                       np.random.BitGenerator)):
+        return np.random.default_rng(rng)
+    if isinstance(rng, (bool, np.bool_)) or not isinstance(rng, numbers.Integral):
+        raise InputTypeError(f"{name} must be None, a non-negative integer seed, a "
+                             f"numpy SeedSequence or a Generator; got {rng!r} "
+                             f"({type(rng).__name__})")
+    if rng < 0:
+        raise InputError(f"{name} seed must be a non-negative integer; got {rng}")
+    return np.random.default_rng(int(rng))
+
+
+def spawn(rng, n: int, name: str = "rng") -> list[np.random.Generator]:
+    """``n`` independent child generators of ``rng`` (see :meth:`Generator.spawn`).
+
+    ``spawn(seed, n)[i]`` is the same stream for every ``n > i``.
+    """
+    return generator(rng, name).spawn(n)
+
+
+def extra_stream(seed: int, index: int) -> np.random.Generator:
+    """Stream ``index`` of the extra family of ``seed``: ``SeedSequence([seed, 1],
+    spawn_key=(index,))``, independent of every stream :func:`spawn` derives from ``seed``.
+
+    The extra streams in use: 0, the system-reliability section of a report and
+    ``precrel verify --precision``; 1, the rare-event section and ``precrel verify --rare``;
+    2, the acceptance-test section (``precrel report --tests``); 3, the Monte-Carlo of
+    the component-choice section (``precrel report --catalogue``).
+    """
+    seed = _seed(seed)
+    return np.random.default_rng(np.random.SeedSequence([seed, EXTRA_FAMILY],
+                                                        spawn_key=(int(index),)))
+
+
+def verification_streams(rng) -> list[np.random.Generator]:
+    """The grid-experiment, random-pose, worst-pose and machine-yield streams of a
+    Monte-Carlo verification with seed (or generator) ``rng``: ``spawn(rng, 4)``, whichever
+    command runs it (the first three are ``spawn(rng, 3)``, as before the yield was
+    added)."""
+    return spawn(rng, 4)
+
+
+def _seed(seed) -> int:
+    if isinstance(seed, (bool, np.bool_)) or not isinstance(seed, numbers.Integral):
+        raise InputTypeError(f"seed must be a non-negative integer; got {seed!r} "
+                             f"({type(seed).__name__})")
+    if seed < 0:
+        raise InputError(f"seed must be a non-negative integer; got {seed}")
+    return int(seed)

@@ -1,0 +1,432 @@
+"""The worst pose over the continuous workspace, with a certificate (docs/certified-workspace.md).
+
+Eq. (35) asks the targets over the whole stroke of every axis. For each output o,
+:func:`certified_worst` finds a pose q* and a rigorous upper bound ``U`` of the output's
+spread over the stroke box, with ``(U − value(q*))/value(q*) ≤ rtol``, by branch and bound
+over pose boxes. Two readings of the spread:
+
+* ``'sigma'``: ``σ_o(q) = (Σ_i J_oi(q)² σ_i²)^½`` (Eq. 20). σ² is an exact per-axis
+  expansion (:func:`reliability.first_order.pose_expansion.variance_expansion`); on a box of centre
+  c and half-widths h, Taylor's theorem with the Lagrange remainder gives
+
+      σ²(c + d) ≤ σ²(c) + Σ_a h_a |g_a(c)| + ½ Σ_a h_a² max(H_aa, 0) + Σ_{a<b} h_a h_b |H_ab|
+
+  with the gradient g exact at the centre and the Hessian H enclosed over the box from
+  the expansion's coefficients (each basis function's range on an interval is exact);
+* ``'stack'``: the first-order worst-case stack ``s_o(q) = Σ_i |J_oi(q)| t_i`` (the
+  classical reading of :mod:`allocation.problem`'s ``side='stack'``). Each weighted entry
+  ``w_i = J_oi t_i`` is an exact per-axis expansion
+  (:func:`reliability.first_order.pose_expansion.jacobian_expansion`); on a box
+  ``w_i(c + d) = w_i(c) + ∇w_i(c)·d + r_i`` with ``|r_i| ≤ ½ Σ_ab h_a h_b K_i,ab`` and
+  ``K_i,ab`` a bound of ``|∂_ab w_i|`` over the strokes (:func:`curvature_bound`), so
+  ``s(c + d) ≤ max over the box's vertices of Σ_i |w_i(c) + ∇w_i(c)·d| + Σ_i max|r_i|``
+  (a sum of absolute values of affine functions is convex, so its maximum over a box is
+  at a vertex).
+
+**Branch and bound.** Every step evaluates all open boxes at once (in chunks): the bound,
+and two candidates, the centre and the vertex that maximises the box's linear model (so
+that a maximum on the stroke's boundary is approached to second order). Boxes whose bound
+is at most ``(1 + rtol)`` times the best candidate (on σ, so ``(1 + rtol)²`` on σ²) are
+closed; the others are halved along the axis contributing most to their bound. An axis the
+spread does not depend on contributes exactly nothing and is never split. The first
+candidate is the best point of a coarse grid (:data:`START_POINTS`), improved for σ by a
+bounded local search on the expansion (L-BFGS-B), which also polishes the final candidate.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import pandas as pd
+from scipy.optimize import minimize
+
+from ..basics import checks
+from ..basics.chunks import chunks
+from ..basics.errors import InputError
+from .fosm import DISTRIBUTIONS, error_sigma
+from ..model.kinematics import jacobian, output_variance
+from ..model.machine import OUTPUTS
+from .pose_expansion import interval_tree, jacobian_expansion, point_tree, variance_expansion
+from ..basics.ties import TIE_RTOL, worst_rows
+
+#: The spreads the certificate can bound: σ (Eq. 20) or the first-order worst-case stack.
+READINGS = ("sigma", "stack")
+#: Box evaluations one output may spend before the search stops uncertified.
+MAX_BOX_CALLS = 2_000_000
+#: Default bytes of temporary arrays per chunk of boxes: small enough to stay in cache,
+#: which the per-box contractions (a few passes over each box's states) need to be fast.
+BOX_MEMORY = 8 * 2 ** 20
+#: Relative margin below ``1 + rtol`` at which a box is closed, so that the value at the
+#: reported pose recomputed from the chain (equal to the expansion's to about 1e-15) still
+#: meets ``rtol``.
+CLOSING_MARGIN = 1e-9
+#: Points per axis of the grid that gives the first candidate (σ reading; the stack's
+#: vertex candidates need less, and its grid costs a whole Jacobian row per point).
+START_POINTS = {"sigma": 5, "stack": 3}
+#: Local searches (σ reading) from the best points of that grid.
+START_SEARCHES = 3
+
+
+def certified_worst(machine, tolerances, *, rtol: float = 1e-3, k: float = 3.0,
+                    distribution: str | None = None, reading: str = "sigma",
+                    max_calls: int = MAX_BOX_CALLS, memory: int | None = None
+                    ) -> pd.DataFrame:
+    """Largest σ (or worst-case stack) of each output over the continuous stroke box, with
+    a rigorous bound.
+
+    Parameters
+    ----------
+    machine : Machine
+        With independent errors (``machine.correlation`` None), outputs in the tool
+        frame (``machine.frame``; the expansion is of the tool-frame chain).
+    tolerances : array_like
+        ``(n_errors,)`` allocation, read as ±kσ.
+    rtol : float
+        Relative gap ``bound/value − 1`` at which the search stops, in (0, 1).
+    k : float
+        Coverage factor (σ reading).
+    distribution : {'normal', 'truncated'}, optional
+        Reading of a tolerance for σ (:func:`reliability.first_order.fosm.error_sigma`);
+        ``machine.distribution`` by default. The stack uses the tolerances themselves.
+    reading : {'sigma', 'stack'}
+        The certified spread: σ (Eq. 20) or the worst-case stack ``Σ_i |J_oi| t_i``.
+    max_calls : int
+        Box evaluations per output before the search stops with ``certified`` False.
+    memory : int, optional
+        Bytes of temporary arrays per chunk of boxes (:data:`BOX_MEMORY` by default).
+
+    Returns
+    -------
+    pandas.DataFrame
+        Indexed by output: the pose (one column per axis, mm or rad); ``sigma`` there and
+        ``sigma_bound`` (an upper bound of σ over every pose of the strokes), or ``stack``
+        and ``stack_bound`` under ``reading='stack'``; ``gap`` (``bound/value − 1``),
+        ``certified`` (gap ≤ rtol), ``calls`` (boxes evaluated), ``seconds`` (the search
+        and a sixth of the expansion's time, so the column sums to the total). The value
+        at the pose is computed from the chain itself; among the candidates within
+        :data:`reliability.basics.ties.TIE_RTOL` of the largest, the first in lexicographic order
+        is reported (:func:`reliability.basics.ties.worst_rows`). ``attrs`` holds ``rtol``,
+        ``distribution`` and ``reading``.
+
+    Raises
+    ------
+    InputError
+        For a bad ``rtol``, ``k``, ``distribution``, ``reading``, ``max_calls`` or
+        allocation, correlated errors, a
+        frame other than the tool's, or a machine whose chain fails the expansion check
+        (:mod:`reliability.first_order.pose_expansion`).
+    """
+    rtol = checks.finite_float(rtol, "rtol", 0.0, 1.0, low_open=True, high_open=True)
+    reading = checks.choice(reading, "reading", READINGS)
+    max_calls = checks.positive_int(max_calls, "max_calls")
+    if machine.correlation is not None:
+        raise InputError("machine: certified_worst bounds σ² = Σ J² σ² of independent "
+                         "errors; this machine's errors are correlated")
+    if machine.frame != "tool":
+        raise InputError(f"machine: certified_worst expands the tool-frame chain (Eq. 18); "
+                         f"this study reads its outputs in the {machine.frame!r} frame "
+                         f"(use frame='tool' or the grid and the continuous search)")
+    t = machine.check_tolerances(tolerances)
+    if t.ndim != 1:
+        raise InputError(f"tolerances must be one allocation of shape ({machine.n_errors},)")
+    distribution = machine.distribution if distribution is None else distribution
+    checks.choice(distribution, "distribution", DISTRIBUTIONS)
+    k = checks.finite_float(k, "k", 0.0, low_open=True)
+    started = time.perf_counter()
+    if reading == "sigma":
+        variance = np.square(error_sigma(t, k, distribution))
+        expansion = variance_expansion(machine, variance)
+        models = [_SigmaModel(expansion.restricted(o)) for o in range(len(OUTPUTS))]
+
+        def direct(q, o):
+            return np.sqrt(output_variance(machine, q, variance, "tool")[:, o])
+    else:
+        expansion = jacobian_expansion(machine, t)
+        models = [_StackModel(expansion.restricted(o)) for o in range(len(OUTPUTS))]
+
+        def direct(q, o):
+            return np.abs(jacobian(machine, q, "tool")[:, o, :]) @ t
+    shared = (time.perf_counter() - started) / len(OUTPUTS)  # the expansion, per output
+    rows = [_certify(machine, models[o], lambda q, o=o: direct(q, o), rtol, max_calls,
+                     memory, reading, shared) for o in range(len(OUTPUTS))]
+    frame = pd.DataFrame(rows, index=pd.Index(OUTPUTS, name="output"))
+    frame.attrs.update(rtol=rtol, distribution=distribution, reading=reading)
+    return frame
+
+
+def _certify(machine, model, direct, rtol, max_calls, memory, reading, shared) -> dict:
+    """One output's row: branch and bound on the model, the value at the reported pose
+    from the chain itself; ``shared`` seconds (its share of the expansion) added to its
+    time."""
+    started = time.perf_counter() - shared
+    low, high = model.local_strokes(machine)
+    tied, bound, calls = branch_and_bound(model, low, high, rtol, max_calls, memory)
+    tied[:, model.fixed] = low[model.fixed]  # axes the spread does not depend on
+    poses = model.expansion.pose(np.unique(tied, axis=0))
+    values = direct(poses)
+    choice = worst_rows(values, poses)
+    value = float(values[choice])
+    bound = max(model.spread(bound), value)
+    row = dict(zip(machine.axes, poses[choice]))
+    row.update({reading: value, f"{reading}_bound": bound, "gap": bound / value - 1.0,
+                "certified": bool(bound <= value * (1 + rtol)), "calls": int(calls),
+                "seconds": time.perf_counter() - started})
+    return row
+
+
+def branch_and_bound(model, low, high, rtol, max_calls, memory=None):
+    """Branch and bound of one model over the box ``[low, high]`` of local coordinates.
+
+    Parameters
+    ----------
+    model : _SigmaModel or _StackModel
+        Its ``boxes(low, high)`` gives, per box, a rigorous upper bound of the model's
+        function, each axis' contribution to it and the box's best candidate point.
+    low, high : ndarray (n_axes,)
+    rtol : float
+        Relative tolerance on the spread (``model.spread`` of the function).
+    max_calls : int
+    memory : int, optional
+
+    Returns
+    -------
+    tied : ndarray (n_tied, n_axes)
+        Candidates within :data:`reliability.basics.ties.TIE_RTOL` of the best function value.
+    bound : float
+        Upper bound of the function over the whole box.
+    calls : int
+        Boxes evaluated.
+    """
+    tied, best = model.start(low, high)
+    limit = model.closing_factor(rtol) * (1 - CLOSING_MARGIN)
+    box_low, box_high = low[None, :], high[None, :]
+    closed_bound = -np.inf
+    calls = 0
+    while len(box_low) and calls < max_calls:
+        bound, contribution, points, values = _evaluate(model, box_low, box_high, memory)
+        calls += len(box_low)
+        top = values.max()
+        if top > best * (1 + TIE_RTOL):
+            tied = tied[:0]
+        best = max(best, top)
+        tied = np.unique(np.vstack([tied[model.values(tied) >= best * (1 - TIE_RTOL)],
+                                    points[values >= best * (1 - TIE_RTOL)]]), axis=0)
+        done = bound <= best * limit
+        if done.any():
+            closed_bound = max(closed_bound, bound[done].max())
+        keep = ~done
+        box_low, box_high = _halve(box_low[keep], box_high[keep], contribution[keep])
+    if len(box_low):  # stopped by max_calls: the open boxes still count
+        closed_bound = max(closed_bound, _evaluate(model, box_low, box_high, memory)[0].max())
+        calls += len(box_low)
+    polished = model.polish(tied[:1], low, high)  # the last digits of the best candidate
+    top = float(model.values(polished).max()) if len(polished) else -np.inf
+    if top > best * (1 + TIE_RTOL):
+        tied, best = polished, top
+    return tied, max(closed_bound, best), calls
+
+
+def _evaluate(model, low, high, memory):
+    """``model.boxes`` over all boxes in chunks within the memory budget."""
+    memory = BOX_MEMORY if memory is None else memory
+    parts = [model.boxes(low[part], high[part])
+             for part in chunks(len(low), model.bytes_per_box, memory)]
+    return tuple(np.concatenate(items) for items in zip(*parts))
+
+
+def _halve(low, high, contribution):
+    """Each box split in two along the axis of its largest contribution to the bound."""
+    axis = np.argmax(contribution, axis=1)
+    rows = np.arange(len(low))
+    middle = (low[rows, axis] + high[rows, axis]) / 2
+    left_high, right_low = high.copy(), low.copy()
+    left_high[rows, axis] = middle
+    right_low[rows, axis] = middle
+    return np.vstack([low, right_low]), np.vstack([left_high, high])
+
+
+class _Model:
+    """What both readings share: the expansion, the local stroke box, the start."""
+
+    def __init__(self, expansion):
+        self.expansion = expansion
+        #: Axes the function does not depend on (only the constant basis function left):
+        #: never split, and reported at the low end of their stroke.
+        self.fixed = np.array([len(index) == 1 and index[0] == 0
+                               for index in expansion.basis_index])
+        # the first contraction's six states (three derivatives, midpoint and radius)
+        # and their temporaries dominate
+        values = int(np.prod(expansion.coefficients.shape[expansion.n_axes:]))
+        self.bytes_per_box = 8 * (4 * expansion.coefficients.size
+                                  + 4 * expansion.n_axes ** 2 * values)
+
+    def local_strokes(self, machine):
+        low = np.array([axis.stroke[0] for axis in machine.axis_specs], dtype=float)
+        high = np.array([axis.stroke[1] for axis in machine.axis_specs], dtype=float)
+        return self.expansion.local(low), self.expansion.local(high)
+
+    def start(self, low, high):
+        """The best points of the :data:`START_POINTS` grid and their value."""
+        grid = _grid(low, high, START_POINTS[self.reading])
+        values = self.grid_values(grid)
+        return grid[values >= values.max() * (1 - TIE_RTOL)], float(values.max())
+
+    def grid_values(self, points):
+        """:meth:`values` at many points, in chunks within :data:`BOX_MEMORY`."""
+        per_point = 8 * 2 * self.expansion.coefficients.size
+        return np.concatenate([self.values(points[part])
+                               for part in chunks(len(points), per_point, BOX_MEMORY)])
+
+
+def _grid(low, high, points) -> np.ndarray:
+    """The ``points``-point grid of a box, ``(points^n_axes, n_axes)``."""
+    axes = [np.linspace(lo, hi, points) for lo, hi in zip(low, high)]
+    return np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, len(low))
+
+
+class _SigmaModel(_Model):
+    """σ² of one output: second-order Taylor bound on boxes (module docstring)."""
+
+    reading = "sigma"
+
+    def values(self, x):
+        return self.expansion.values(x) if len(x) else np.empty(0)
+
+    def spread(self, value):
+        return float(np.sqrt(max(value, 0.0)))
+
+    def closing_factor(self, rtol):
+        return (1 + rtol) ** 2
+
+    def start(self, low, high):
+        """The grid's best points improved by L-BFGS-B on σ² from the best few."""
+        grid = _grid(low, high, START_POINTS[self.reading])
+        values = self.grid_values(grid)
+        found = self.polish(grid[np.argsort(-values, kind="stable")[:START_SEARCHES]],
+                            low, high)
+        candidates = np.vstack([grid, found])
+        values = np.concatenate([values, self.values(found)])
+        best = float(values.max())
+        return candidates[values >= best * (1 - TIE_RTOL)], best
+
+    def polish(self, starts, low, high):
+        """Local maxima of σ² from a few starting points (bounded L-BFGS-B with the
+        expansion's gradient, σ² scaled to about 1 so that the search's absolute
+        tolerances mean the same for every machine and unit)."""
+        scale = float(np.abs(self.values(starts)).max()) if len(starts) else 1.0
+        scale = scale if scale > 0 else 1.0
+
+        def negative(x):
+            tree = point_tree(self.expansion, x[None, :], 1)
+            gradient = np.array([tree[(a,)][0] for a in range(len(x))])
+            return -tree[()][0] / scale, -gradient / scale
+
+        return np.array([np.clip(minimize(negative, x, jac=True, method="L-BFGS-B",
+                                          bounds=list(zip(low, high))).x, low, high)
+                         for x in starts])
+
+    def boxes(self, low, high):
+        """Bound, contributions, candidate points and their values for boxes."""
+        e = self.expansion
+        centre, half = (low + high) / 2, (high - low) / 2
+        n = e.n_axes
+        point = point_tree(e, centre, 1)
+        value = point[()]
+        gradient = np.stack([point[(a,)] for a in range(n)], axis=1)
+        hessian = interval_tree(e, low, high, 2)
+        quadratic = np.zeros((len(low), n, n))
+        for (a, b), (mid, rad) in hessian.items():
+            if a == b:
+                quadratic[:, a, a] = np.maximum(mid + rad, 0.0)  # d_a² ≥ 0
+            else:
+                quadratic[:, a, b] = quadratic[:, b, a] = np.abs(mid) + rad
+        contribution = half * np.abs(gradient) + 0.5 * half * np.einsum(
+            "bac,bc->ba", quadratic, half)
+        bound = value + contribution.sum(axis=1) + e.margin
+        vertex = np.clip(centre + half * np.sign(gradient), low, high)
+        vertex_value = e.values(vertex)
+        better = vertex_value > value
+        points = np.where(better[:, None], vertex, centre)
+        return bound, contribution, points, np.where(better, vertex_value, value)
+
+
+class _StackModel(_Model):
+    """The weighted Jacobian row ``w_i = J_oi t_i`` of one output: the worst-case stack
+    bounded by the vertices of its linear model plus the second-order remainder (module
+    docstring)."""
+
+    reading = "stack"
+
+    def __init__(self, expansion):
+        super().__init__(expansion)
+        n = expansion.n_axes
+        # the linear model's vertices over the axes the row depends on (others: 0)
+        moving = [[0.0] if fixed else [-1.0, 1.0] for fixed in self.fixed]
+        self.vertices = np.array(np.meshgrid(*moving, indexing="ij")).reshape(n, -1).T
+        self.curvature = curvature_bound(expansion)
+        values = expansion.coefficients.shape[-1]
+        self.bytes_per_box = 8 * (3 * len(self.vertices) * values + 4 * (n + 1) * values
+                                  + 2 * expansion.coefficients.size)
+
+    def values(self, x):
+        return np.abs(self.expansion.values(x)).sum(axis=-1) if len(x) else np.empty(0)
+
+    def polish(self, starts, low, high):
+        """No local search: the stack is not smooth, its boxes' vertex candidates serve."""
+        return starts[:0]
+
+    def spread(self, value):
+        return float(value)
+
+    def closing_factor(self, rtol):
+        return 1 + rtol
+
+    def boxes(self, low, high):
+        e = self.expansion
+        centre, half = (low + high) / 2, (high - low) / 2
+        n = e.n_axes
+        point = point_tree(e, centre, 1)
+        value = point[()]  # (b, n_errors)
+        gradient = np.stack([point[(a,)] for a in range(n)], axis=1)  # (b, a, n_errors)
+        remainder = 0.5 * half * (half @ self.curvature)  # (b, a): Σ_i over the errors
+        steps = half[:, None, :] * self.vertices[None]  # (b, v, a)
+        linear = np.abs(value[:, None, :] + np.matmul(steps, gradient))  # (b, v, i)
+        totals = linear.sum(axis=-1)  # (b, v)
+        best_vertex = np.argmax(totals, axis=1)
+        rows = np.arange(len(low))
+        bound = totals[rows, best_vertex] + remainder.sum(axis=1) + e.margin.sum()
+        contribution = half * np.abs(gradient).sum(axis=-1) + remainder
+        vertex = np.clip(centre + steps[rows, best_vertex], low, high)
+        vertex_value = self.values(vertex)
+        centre_value = np.abs(value).sum(axis=-1)
+        better = vertex_value > centre_value
+        points = np.where(better[:, None], vertex, centre)
+        return bound, contribution, points, np.where(better, vertex_value, centre_value)
+
+
+def curvature_bound(expansion) -> np.ndarray:
+    """``K_ab ≥ Σ_i max |∂²w_i/∂x_a∂x_b|`` over the whole stroke box, ``(n_axes, n_axes)``.
+
+    ``w_i`` is of degree 1 in each axis, so ``∂_a ∂_b w_i`` (a ≠ b) keeps the terms whose
+    basis functions on axes a and b are not the constant, each differentiated once, and
+    ``∂_a² w_i`` keeps the rotary terms in cos θ_a, sin θ_a (a linear axis enters
+    affinely). Every basis function and its derivatives are at most 1 in magnitude on the
+    strokes (``|u| ≤ 1``), so ``Σ_k |C_k,i|`` over those terms bounds each entry.
+    """
+    magnitude = np.abs(expansion.coefficients)
+    magnitude = magnitude.reshape(magnitude.shape[:expansion.n_axes] + (-1,)).sum(axis=-1)
+    n = expansion.n_axes
+    moving = [np.asarray(index) != 0 for index in expansion.basis_index]
+    out = np.zeros((n, n))
+    for a in range(n):
+        for b in range(a, n):
+            if a == b and expansion.kinds[a] == "linear":
+                continue
+            weight = magnitude
+            for axis in {a, b}:
+                shape = [1] * n
+                shape[axis] = -1
+                weight = weight * moving[axis].reshape(shape)
+            out[a, b] = out[b, a] = weight.sum()
+    return out

@@ -1,0 +1,150 @@
+"""The worst pose between grid points: a continuous search of the workspace.
+
+Eq. (35) asks the reliability target to hold over the whole stroke of every axis; the paper (and
+the allocation problem, docs/model.md) checks it on a grid of five points per axis. FOSM's σ varies
+smoothly with the pose, so the grid can miss a slightly worse pose between its points. This module
+starts a bounded local search (L-BFGS-B on σ over the strokes) from each output's worst grid poses
+and reports how much worse the continuous workspace is. :func:`certified_worst`
+(:mod:`reliability.first_order.certificate`) bounds σ over the whole stroke box rigorously instead
+(docs/certified-workspace.md). The search uses the analytic gradient of σ
+(:func:`reliability.model.kinematics.jacobian_and_derivative`), and σ over the grid can be passed
+in when the caller already has it, so the grid is not evaluated again.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+from scipy.optimize import minimize
+
+from ..basics import checks
+from .certificate import certified_worst
+from ..basics.errors import InputError
+from .fosm import error_sigma, one_sided_probability, pose_sigma, two_sided_probability
+from ..model.kinematics import jacobian_and_derivative
+from ..model.machine import OUTPUTS
+from ..basics.ties import SEARCH_RTOL, worst_rows
+
+__all__ = ["certified_worst", "continuous_worst", "snap_to_resolution", "worst_first"]
+
+#: Resolution of a searched pose, as a fraction of each axis' stroke.
+POSE_RESOLUTION = 1e-4
+
+
+def continuous_worst(machine, tolerances, grid, *, k: float = 3.0, starts: int = 3,
+                     grid_sigma=None, memory: int | None = None) -> pd.DataFrame:
+    """Largest σ of each output over the continuous workspace, from the grid's worst poses.
+
+    Parameters
+    ----------
+    machine : Machine
+    tolerances : array_like
+        ``(n_errors,)`` allocation, read as ±kσ.
+    grid : array_like
+        ``(n_poses, n_axes)`` poses to start from (e.g. the workspace grid).
+    k : float
+        Coverage factor.
+    starts : int
+        Local searches per output, from its ``starts`` worst grid poses.
+    grid_sigma : ndarray (n_poses, 6), optional
+        σ of every output at the grid poses for this allocation (e.g. from
+        ``AllocationProblem.sigma``); computed in chunks of poses otherwise.
+    memory : int, optional
+        Bytes of temporary arrays when σ over the grid is computed here.
+
+    Returns
+    -------
+    pandas.DataFrame
+        Per output: ``grid_beta`` and ``beta`` (continuous), the two-sided and one-sided
+        probabilities at each, and the continuous worst pose (one column per axis),
+        rounded to :data:`POSE_RESOLUTION` of each stroke (:func:`snap_to_resolution`);
+        poses whose σ is within :data:`reliability.basics.ties.SEARCH_RTOL` of the largest are
+        tied and the first in lexicographic order is reported
+        (:func:`reliability.basics.ties.worst_rows`). The search is local, so ``beta`` is an
+        upper bound on the true continuous worst β.
+    """
+    starts = checks.positive_int(starts, "starts")
+    t = machine.check_tolerances(tolerances)
+    if t.ndim != 1:
+        raise InputError(f"tolerances must be one allocation of shape ({machine.n_errors},); "
+                         f"got {t.shape}")
+    sigma_x = error_sigma(t, k)
+    grid = np.atleast_2d(machine.check_positions(grid))
+    if grid.ndim != 2 or len(grid) == 0:
+        raise InputError(f"grid must have shape (n_poses, {len(machine.axes)}) with at least "
+                         f"one pose; got {grid.shape}")
+    checks.poses_in_strokes(machine, grid, "grid")
+    if grid_sigma is None:
+        grid_sigma = pose_sigma(machine, grid, sigma_x, memory=memory)
+    grid_sigma = np.asarray(grid_sigma, dtype=float)
+    if grid_sigma.shape != (len(grid), len(OUTPUTS)):
+        raise InputError(f"grid_sigma must have shape ({len(grid)}, {len(OUTPUTS)}); "
+                         f"got {grid_sigma.shape}")
+    bounds = [axis.stroke for axis in machine.axis_specs]
+    rows = []
+    for o in range(len(OUTPUTS)):
+        def negative_sigma(q, o=o):
+            return _negative_sigma_and_gradient(machine, q, sigma_x, o)
+
+        found = [minimize(negative_sigma, start, jac=True, method="L-BFGS-B",
+                          bounds=bounds).x
+                 for start in grid[worst_first(grid_sigma[:, o], grid, starts)]]
+        found = snap_to_resolution(machine, np.array(found))
+        found_sigma = -np.array([negative_sigma(q)[0] for q in found])
+        best = grid_sigma[:, o].max()
+        candidates = np.vstack([grid[worst_rows(grid_sigma[:, o], grid)], found])
+        values = np.concatenate([[best], found_sigma])
+        choice = worst_rows(values, candidates, rtol=SEARCH_RTOL)
+        rows.append(_row(machine, o, best, values[choice], candidates[choice]))
+    return pd.DataFrame(rows, index=pd.Index(OUTPUTS, name="output"))
+
+
+def worst_first(values, poses, count: int) -> list[int]:
+    """The ``count`` rows of largest value, each chosen by the tie rule among the rest."""
+    remaining = np.array(values, dtype=float)
+    rows = []
+    for _ in range(min(count, len(remaining))):
+        rows.append(worst_rows(remaining, poses))
+        remaining[rows[-1]] = np.nan
+    return rows
+
+
+def snap_to_resolution(machine, poses) -> np.ndarray:
+    """Poses found by a search, rounded to :data:`POSE_RESOLUTION` of each stroke's span.
+
+    A local search fixes the position of a smooth maximum only to about the square root of
+    its tolerance, so the digits beyond this resolution differ between computers; σ at the
+    rounded pose differs from σ at the found one only to second order.
+    """
+    low = np.array([axis.stroke[0] for axis in machine.axis_specs])
+    high = np.array([axis.stroke[1] for axis in machine.axis_specs])
+    step = POSE_RESOLUTION * (high - low)
+    safe = np.where(step > 0, step, 1.0)
+    return np.clip(low + np.round((poses - low) / safe) * safe, low, high)
+
+
+def _negative_sigma_and_gradient(machine, q, sigma_x, output: int):
+    """``−σ_o(q)`` and its gradient over the axis positions, analytically.
+
+    ``σ_o² = jᵀ Σ j`` with ``Σ = D R D`` (Eq. 20 for R = I: ``Σ_i J_oi² σ_i²``), so
+    ``∂σ_o/∂q_a = (∂j/∂q_a)ᵀ Σ j / σ_o``; R is ``machine.correlation`` or the identity.
+    """
+    jac, derivative = jacobian_and_derivative(machine, q, machine.frame)
+    if machine.correlation is None:
+        weighted = jac[output] * np.square(sigma_x)  # Σ j, (n_errors,)
+    else:
+        weighted = sigma_x * (machine.correlation @ (sigma_x * jac[output]))
+    sigma = np.sqrt(weighted @ jac[output])  # Eq. (20)
+    gradient = derivative[:, output, :] @ weighted / sigma
+    return -sigma, -gradient
+
+
+def _row(machine, output: int, grid_sigma: float, sigma: float, pose) -> dict:
+    limit = machine.limits[output]
+    row = {"grid_beta": limit / grid_sigma, "beta": limit / sigma,
+           "grid_two_sided": two_sided_probability(limit, grid_sigma),
+           "two_sided": two_sided_probability(limit, sigma),
+           "grid_one_sided": one_sided_probability(limit, grid_sigma),
+           "one_sided": one_sided_probability(limit, sigma)}
+    row.update(dict(zip(machine.axes, pose)))
+    return row
