@@ -428,7 +428,7 @@ def test_example_test_files_load(hobbing, machine_file, tests_file):
 
 
 def test_report_section_has_a_figure_and_both_allocations(mill3):
-    from studies.report.acceptance import FIGURE, acceptance_section
+    from studies.report.acceptance_section import FIGURE, acceptance_section
     tests = [CircularTest("c", "xy", CENTRE, 100.0, 0.004), _x_test()]
     section = acceptance_section(mill3, tests, {"initial": mill3.initial_allocation,
                                                 "tight": mill3.initial_allocation / 2},

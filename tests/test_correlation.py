@@ -295,8 +295,8 @@ def test_cost_derivative_matches_finite_difference(mill3, mill_sweep):
 
 # ----- study and report section ------------------------------------------------------------
 def test_sweep_and_section_on_the_test_mill(mill3, mill_sweep):
-    from studies.report.correlation import correlation_section
-    from studies.workflows.correlation import correlation_sweep
+    from studies.report.correlation_section import correlation_section
+    from studies.workflows.correlation_sweep import correlation_sweep
 
     results, _ = mill_sweep
     sweep = correlation_sweep(mill3, ("EXX", "EBX"), [-0.5, 0.0, 0.5])

@@ -158,7 +158,7 @@ def test_command_refuses_bad_options_before_any_work(argv, words, capsys):
 
 
 def test_front_section(mill3):
-    from studies.report.tradeoff import front_section
+    from studies.report.tradeoff_sections import front_section
 
     section = front_section(mill3, targets=[0.9, 0.999], poses=workspace_grid(mill3, 3))
     summary = section.summary

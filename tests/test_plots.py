@@ -16,7 +16,7 @@ from matplotlib.collections import LineCollection  # noqa: E402
 from matplotlib.colors import to_rgba  # noqa: E402
 
 from reliability.basics.statistics import between_experiment_interval
-from studies.report.correlation import plot_cost_against_correlation  # noqa: E402
+from studies.report.correlation_section import plot_cost_against_correlation  # noqa: E402
 from studies.report.plots import (  # noqa: E402
     plot_allocation_comparison,
     plot_comprehensive_error_scatter,
@@ -25,7 +25,7 @@ from studies.report.plots import (  # noqa: E402
     plot_reliability_comparison,
     plot_repeats,
 )
-from studies.report.profiles import plot_yield_against_length  # noqa: E402
+from studies.report.profiles_section import plot_yield_against_length  # noqa: E402
 
 NAMES = ["X.dx", "X.dy", "X.ez", "C-X.dx", "C-X.ez"]
 INITIAL = np.array([0.003, 0.003, 1.45e-5, 0.003, 1.45e-5])

@@ -8,7 +8,7 @@ from types import SimpleNamespace
 
 from reliability.sampling.verification import rare_event_table, reachable_events
 from studies.cli.verify import precision_text, rare_text
-from studies.report.rare import rare_section
+from studies.report.rare_section import rare_section
 from studies.report.section import Section
 
 

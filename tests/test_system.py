@@ -155,7 +155,7 @@ def test_system_allocation_refuses_bad_target(hobbing, grid):
 
 
 def test_system_section(mill3):
-    from studies.report.tradeoff import system_section
+    from studies.report.tradeoff_sections import system_section
 
     poses = workspace_grid(mill3, 3)
     section = system_section(mill3, {"initial": mill3.initial_allocation}, poses=poses,

@@ -6,8 +6,8 @@ from allocation import load_catalogue, solve_catalogue
 from reliability.acceptance.definitions import read_tests
 from reliability.basics.streams import extra_stream
 from studies.report import machine_sections
-from studies.report.acceptance import acceptance_section
-from studies.report.catalogue import catalogue_section
+from studies.report.acceptance_section import acceptance_section
+from studies.report.catalogue_section import catalogue_section
 from studies.report.extras import EXTRAS, allocations, builders
 from studies.report.writer import REPORT_MARKERS, write_report
 from studies.workflows import machine_study

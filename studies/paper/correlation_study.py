@@ -27,9 +27,9 @@ import sys
 import pandas as pd
 
 from reliability.model.machine import hobbing_machine
-from studies.report.correlation import correlation_section
+from studies.report.correlation_section import correlation_section
 from studies.report.writer import check_output_folder, write_section
-from studies.workflows.correlation import VALUES, correlation_sweep
+from studies.workflows.correlation_sweep import VALUES, correlation_sweep
 from studies.workflows.timing import one_blas_thread
 
 #: The X axis' pitch and vertical straightness (EBX, EZX).

@@ -27,9 +27,9 @@ import pandas as pd
 import allocation
 import reliability
 from reliability.model.measured_profiles import SystematicErrors, read_profile_csv
-from studies.report.profiles import profiles_section
+from studies.report.profiles_section import profiles_section
 from studies.report.writer import check_output_folder, write_section
-from studies.workflows.profiles import (PROFILES, SPREAD_OUTPUTS, ProfilesStudy,
+from studies.workflows.profile_comparison import (PROFILES, SPREAD_OUTPUTS, ProfilesStudy,
                                         profile_comparison, systematic_effect)
 from studies.workflows.timing import one_blas_thread
 

@@ -4,25 +4,25 @@ Each builder takes the :class:`studies.workflows.machine_study.MachineStudy` and
 :class:`~studies.report.section.Section`:
 
 - ``front``: the certified cost–reliability front and the worst-case stack
-  (:func:`studies.report.tradeoff.front_section`);
+  (:func:`studies.report.tradeoff_sections.front_section`);
 - ``system``: the probability that all six outputs are inside at once, at the worst pose, for
-  the initial and the optimal allocation (:func:`studies.report.tradeoff.system_section`);
+  the initial and the optimal allocation (:func:`studies.report.tradeoff_sections.system_section`);
 - ``rare``: Monte-Carlo at each output's worst pose and rare-event estimates of the optimal
-  allocation's failure probabilities (:func:`studies.report.rare.rare_section`);
+  allocation's failure probabilities (:func:`studies.report.rare_section.rare_section`);
 - ``profiles``: machine-level yield and Table 9's spread as the motion errors' correlation
   along travel runs from independent to constant
-  (:func:`studies.report.profiles.profiles_section`).
+  (:func:`studies.report.profiles_section.profiles_section`).
 """
 
 from __future__ import annotations
 
 from reliability.basics.errors import InputError
 from reliability.basics.streams import extra_stream
-from studies.workflows.profiles import ProfilesStudy, profile_comparison
+from studies.workflows.profile_comparison import ProfilesStudy, profile_comparison
 
-from .profiles import profiles_section
-from .rare import rare_section
-from .tradeoff import front_section, system_section
+from .profiles_section import profiles_section
+from .rare_section import rare_section
+from .tradeoff_sections import front_section, system_section
 
 #: Every optional section, in report order.
 EXTRAS = ("front", "system", "rare", "profiles")

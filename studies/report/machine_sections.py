@@ -25,7 +25,7 @@ from reliability.model.machine import OUTPUTS
 from studies.workflows.machine_study import MachineStudy, summary, tolerance_changes
 
 from . import plots
-from .machine_yield import yield_section, yield_sentence
+from .yield_section import yield_section, yield_sentence
 from .markdown import markdown_table
 from .section import Section
 

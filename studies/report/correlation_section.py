@@ -5,7 +5,7 @@ from __future__ import annotations
 from matplotlib.figure import Figure
 
 from allocation.result_files import gap_text
-from studies.workflows.correlation import VALUES, correlation_sweep
+from studies.workflows.correlation_sweep import VALUES, correlation_sweep
 
 from .markdown import markdown_table
 from .section import Section
@@ -36,7 +36,7 @@ def correlation_section(machine, pair, values=VALUES, *, side: str = "two_sided"
         Correlation coefficients.
     side : {'one_sided', 'two_sided'}
     sweep : DataFrame, optional
-        A precomputed :func:`studies.workflows.correlation.correlation_sweep` table.
+        A precomputed :func:`studies.workflows.correlation_sweep.correlation_sweep` table.
     """
     if sweep is None:
         sweep = correlation_sweep(machine, pair, values, side=side)

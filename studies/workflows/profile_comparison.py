@@ -4,7 +4,7 @@ experiments, for any machine, allocations and profiles.
 :func:`profile_comparison` runs the grid experiment (Sec. 5.3) of each allocation under each
 profile (:func:`reliability.model.profiles.profile_model`: ``independent``, ``gp:<length>``,
 ``constant``); :func:`systematic_effect` shows how a measured (systematic) error profile uses
-up the reliability budget. The report section is :mod:`studies.report.profiles`.
+up the reliability budget. The report section is :mod:`studies.report.profiles_section`.
 """
 
 from __future__ import annotations

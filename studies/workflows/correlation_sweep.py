@@ -3,7 +3,7 @@
 For each coefficient the worst-case problem on the 5-point grid is solved to a certified
 optimum by :func:`allocation.correlated.solve_correlated`; the table also gives the
 worst-pose reliability that the optimum designed for an uncorrelated pair actually has under
-that correlation. The report section is :mod:`studies.report.correlation`.
+that correlation. The report section is :mod:`studies.report.correlation_section`.
 """
 
 from __future__ import annotations

@@ -20,7 +20,7 @@ def plot_yield_against_length(comparison, *, repeats=None, ax=None):
     Parameters
     ----------
     comparison : pandas.DataFrame
-        :func:`studies.workflows.profiles.profile_comparison`'s table.
+        :func:`studies.workflows.profile_comparison.profile_comparison`'s table.
     repeats : int, optional
         Which number of experiments to show; the largest by default.
     ax : matplotlib.axes.Axes, optional
@@ -58,7 +58,7 @@ def profiles_section(study) -> Section:
 
     Parameters
     ----------
-    study : studies.workflows.profiles.ProfilesStudy
+    study : studies.workflows.profile_comparison.ProfilesStudy
     """
     comparison = study.comparison
     longest = int(comparison["repeats"].max())
