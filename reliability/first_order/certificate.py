@@ -44,7 +44,8 @@ from scipy.optimize import minimize
 from ..basics import checks
 from ..basics.chunks import chunks
 from ..basics.errors import InputError
-from .fosm import DISTRIBUTIONS, error_sigma
+from ..model.error_draws import DISTRIBUTIONS
+from .fosm import error_sigma
 from ..model.kinematics import jacobian, output_variance
 from ..model.machine import OUTPUTS
 from .pose_expansion import interval_tree, jacobian_expansion, point_tree, variance_expansion

@@ -37,10 +37,9 @@ from ..model.kinematics import check_frame, output_variance
 from .linear_exact import linear_two_sided
 from ..model.machine import OUTPUTS
 from ..basics.ties import worst_rows
+from ..model.error_draws import DISTRIBUTIONS
 
 SIDES = ("one_sided", "two_sided")
-#: The readings of a tolerance: σ = t/k of a normal, or that normal truncated at ±t.
-DISTRIBUTIONS = ("normal", "truncated")
 
 
 def error_sigma(tolerances, k: float = 3.0, distribution: str = "normal") -> np.ndarray:

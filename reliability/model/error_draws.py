@@ -26,8 +26,9 @@ from scipy.special import ndtr, ndtri
 from ..basics import checks, streams
 from ..basics.errors import InputError
 
-#: The readings of a tolerance a draw can take: truncated at ±t or untruncated normal.
-DISTRIBUTIONS = ("truncated", "normal")
+#: The readings of a tolerance (one list for the whole toolkit): untruncated normal with
+#: σ = t/k, or the normal truncated at ±t (Sec. 5.3).
+DISTRIBUTIONS = ("normal", "truncated")
 
 
 def draw_errors(tolerances, size, *, k: float = 3.0, distribution: str = "truncated",

@@ -33,6 +33,7 @@ from .correlation import (check_correlation_matrix, correlation_to_toml, parse_c
                           with_correlation)
 from ..basics.errors import InputError, InputTypeError, MachineDescriptionError
 from .iso_names import iso_names
+from .error_draws import DISTRIBUTIONS
 from .profiles import profile_model
 
 COMPONENTS = ("dx", "dy", "dz", "ex", "ey", "ez")
@@ -561,10 +562,6 @@ def _parse_frame(value, where: str) -> str:
         raise MachineDescriptionError(f"{where}: expected \"tool\" (Eq. 18, turns with the "
                                       f"rotary axes) or \"workpiece\"; got {value!r}")
     return value
-
-
-#: Readings of a tolerance t: σ = t/3 of a normal, or that normal truncated at ±t.
-DISTRIBUTIONS = ("normal", "truncated")
 
 
 def _parse_distribution(table, source: str) -> str:

@@ -52,10 +52,10 @@ from ..model.kinematics import chain_factors, transports
 from ..model.machine import OUTPUTS
 from ..model.poses import workspace_grid
 from ..basics.ties import worst_rows
+from ..model.error_draws import DISTRIBUTIONS
 
 EVENTS = OUTPUTS + ("system",)
 METHODS = ("importance", "subset")
-DISTRIBUTIONS = ("normal", "truncated")
 P0 = 0.1  # conditional probability of each subset level (Au & Beck 2001)
 CHAIN_CORRELATION = 0.8  # ρ of conditional sampling; a common heuristic choice
 MIN_SUBSET_LEVEL = 500  # samples per subset level below which the CoV estimate is unreliable

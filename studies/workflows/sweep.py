@@ -51,13 +51,13 @@ from reliability.model.poses import workspace_grid
 from reliability.model.profiles import profile_model
 from reliability.sampling.grid_experiment import GridExperiment
 from reliability.basics.streams import verification_streams
+from reliability.model.error_draws import DISTRIBUTIONS
 
 PAPER_MACHINE = "hobbing"
 INDEPENDENT = "independent"
 SIDES = ("one_sided", "two_sided")
 SPEC_KEYS = {"machines", "sides", "targets", "profiles", "seeds", "repeats",
              "points_per_axis", "bounds", "catalogue", "distribution", "workspace"}
-DISTRIBUTIONS = ("normal", "truncated")
 RESULTS_FILE = "results.csv"
 TASKS_FOLDER = "tasks"
 
