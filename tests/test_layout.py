@@ -252,3 +252,65 @@ def test_stable_entry_points_run(command):
                           text=True, timeout=120)
     assert done.returncode == 0, done.stderr
     assert "usage:" in done.stdout
+
+
+#: What ``reliability`` and ``allocation`` exported at their top in 0.2.0, before the rooms.
+EXPORTED_IN_0_2_0 = {
+    "reliability": [
+        "Axis", "COMPONENTS", "CostCoefficients", "FosmResult", "GridExperiment",
+        "GridExperimentResult", "Machine", "MachineDescriptionError", "OUTPUTS",
+        "PoseSamplingResult", "RandomPoseResult", "SystemReliability", "fosm",
+        "hobbing_machine", "load_machine", "machine_from_dict", "random_poses", "rare",
+        "sample_at_poses", "sample_random_poses", "system_reliability", "workspace_grid",
+        "worst_system_reliability"],
+    "allocation": [
+        "AllocationProblem", "AllocationResult", "Catalogue", "CatalogueClass",
+        "CatalogueInfeasibleError", "CatalogueResult", "Component", "ContinuousAllocation",
+        "ConvexSolution", "CostModel", "FcemResult", "GwoResult", "InfeasibleAllocationError",
+        "ScreenedRows", "TargetUnreachableError", "YieldAllocation", "YieldUnreachableError",
+        "allocate_for_yield", "allocation_point", "cost_reliability_front", "cost_weights",
+        "fcem_coefficient", "grey_wolf", "grey_wolf_reference", "load_catalogue",
+        "read_allocation_csv", "requirement_table", "screen_rows", "solve_catalogue",
+        "solve_continuous", "solve_convex_allocation", "solve_exact", "solve_gwo",
+        "solve_over_workspace", "system_allocation"],
+}
+
+
+@pytest.mark.parametrize("package", sorted(EXPORTED_IN_0_2_0))
+def test_every_name_exported_in_0_2_0_still_works(package):
+    import importlib
+    module = importlib.import_module(package)
+    missing = [name for name in EXPORTED_IN_0_2_0[package] if not hasattr(module, name)]
+    assert not missing, f"{package} no longer exports {missing}"
+    assert set(EXPORTED_IN_0_2_0[package]) <= set(module.__all__)
+
+
+def test_rare_at_the_top_is_the_rare_event_module():
+    import reliability
+    from reliability.sampling import rare_events
+    assert reliability.rare is rare_events
+    assert callable(reliability.rare.failure_probability)
+
+
+def test_no_module_is_left_at_a_path_of_0_2_0():
+    flat = sorted(p.stem for p in (ROOT / "reliability").glob("*.py") if p.stem != "__init__")
+    assert flat == [], f"modules left at the top of reliability: {flat}"
+
+
+def test_no_two_library_modules_share_a_name():
+    """No two modules of ``reliability`` and ``allocation`` share a name, and no module of
+    ``studies.workflows`` or ``studies.report`` shares one with them (command-line modules are
+    named after their commands, benchmarks after what they measure)."""
+    def short_names(prefixes):
+        found = {}
+        for name, path in MODULES.items():
+            if name.startswith(prefixes) and path.name != "__init__.py":
+                found.setdefault(name.rsplit(".", 1)[1], []).append(name)
+        return found
+
+    library = short_names(("reliability.", "allocation."))
+    shared = {short: full for short, full in library.items() if len(full) > 1}
+    assert not shared, f"library modules of one name in two places: {shared}"
+    studies = short_names(("studies.workflows.", "studies.report."))
+    clash = {short: full + library[short] for short, full in studies.items() if short in library}
+    assert not clash, f"studies modules named like library modules: {clash}"
