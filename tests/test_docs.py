@@ -58,3 +58,37 @@ def test_tutorial_python_runs(monkeypatch):
         exec(compile(block, "docs/tutorial.md", "exec"), namespace)
     assert namespace["relative"] < 1.0
     assert namespace["result"].repeats == 20
+
+
+CODE_NAME = re.compile(r"`[^`]*?\b((?:reliability|allocation|studies)(?:\.[A-Za-z_]\w*)+)[^`]*`")
+FILE_SUFFIXES = (".csv", ".md", ".json", ".toml", ".png", ".html", ".py")
+
+
+def resolves(dotted: str) -> bool:
+    """Whether ``dotted`` names an importable module or an attribute reached from one."""
+    import importlib
+    parts = dotted.split(".")
+    for cut in range(len(parts), 0, -1):
+        try:
+            found = importlib.import_module(".".join(parts[:cut]))
+        except ImportError:
+            continue
+        for name in parts[cut:]:
+            if not hasattr(found, name):
+                return False
+            found = getattr(found, name)
+        return True
+    return False
+
+
+def test_the_resolver_tells_a_module_from_a_missing_one():
+    assert resolves("reliability.first_order.fosm.error_sigma")
+    assert not resolves("reliability.fosm_that_never_was")
+
+
+@pytest.mark.parametrize("page", PAGES + [ROOT / "README.md"], ids=lambda p: p.name)
+def test_code_names_in_the_docs_resolve(page):
+    names = {m for m in CODE_NAME.findall(page.read_text()) if not m.endswith(FILE_SUFFIXES)
+             and not any(f"{m}{s}" in page.read_text() for s in FILE_SUFFIXES)}
+    missing = sorted(name for name in names if not resolves(name))
+    assert not missing, f"{page.name} names modules or objects that do not exist: {missing}"

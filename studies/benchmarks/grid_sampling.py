@@ -17,7 +17,7 @@ Nothing is asserted; the numbers are the result.
 BLAS threads. ``evaluate`` spends its time in one batched product of small matrices
 (20 × (125 × 12) · (12 × 750)); a multi-threaded OpenBLAS on a shared machine can make
 that call tens of times slower than on one thread (measured here: 0.3 s instead of 5 ms
-on 2 busy cores). As in ``studies.benchmark_allocation``, BLAS is limited to one thread
+on 2 busy cores). As in ``studies.benchmarks.allocation_solvers``, BLAS is limited to one thread
 unless ``OPENBLAS_NUM_THREADS`` (or ``OMP_NUM_THREADS``) is set; then, unless
 ``--no-thread-comparison``, the same timings are repeated in a child process with as many
 BLAS threads as CPUs (numpy's default), so the difference is visible.
