@@ -9,7 +9,7 @@ certified cheapest choice of catalogue components (:mod:`allocation.discrete`).
 """
 
 from .catalogue import Catalogue, CatalogueClass, Component, load_catalogue
-from .continuous import ContinuousAllocation, solve_continuous
+from .continuous import ContinuousAllocation, solve_continuous, solve_over_workspace
 from .convex import ConvexSolution, InfeasibleAllocationError, solve_convex_allocation
 from .cost import CostModel, cost_weights
 from .discrete import CatalogueInfeasibleError, CatalogueResult, solve_catalogue
@@ -18,7 +18,6 @@ from .fuzzy_evaluation import FcemResult, fcem_coefficient
 from .front import allocation_point, cost_reliability_front
 from .gwo import GwoResult, grey_wolf, grey_wolf_reference
 from .problem import AllocationProblem, ScreenedRows, screen_rows
-from .refine import solve_over_workspace
 from .result_files import read_allocation_csv
 from .solve import AllocationResult, TargetUnreachableError, solve_exact, solve_gwo
 from .system_target import system_allocation

@@ -37,7 +37,7 @@ from reliability.first_order.fosm import error_sigma
 from studies.report.plots import plot_comprehensive_error_scatter
 from reliability.model.error_draws import draw_errors
 from reliability.basics.statistics import binomial_interval, proportion
-from reliability.first_order.workspace_search import continuous_worst
+from reliability.first_order.workspace_search import continuous_worst, searched_worst
 
 ROOT = Path(__file__).resolve().parent.parent
 HOB = reliability.hobbing_machine()
@@ -376,6 +376,15 @@ CATALOGUE = [
      ["grid", "axis 'Y'", "outside"]),
     ("continuous_worst-two-allocations",
      lambda tmp: continuous_worst(MILL, np.vstack([TM, TM]), QM), E, ["one allocation"]),
+    ("searched_worst-scale-short",
+     lambda tmp: searched_worst(MILL, TM, QM, scale=[1.0, 1.0]), E, ["scale", "one per output"]),
+    ("searched_worst-scale-zero",
+     lambda tmp: searched_worst(MILL, TM, QM, scale=np.zeros(6)), E, ["scale", "positive"]),
+    ("searched_worst-scale-nan",
+     lambda tmp: searched_worst(MILL, TM, QM, scale=np.full(6, np.nan)), E, ["scale", "finite"]),
+    ("searched_worst-distribution",
+     lambda tmp: searched_worst(MILL, TM, QM, distribution="uniform"), E,
+     ["distribution", "uniform"]),
     # ----- statistics -------------------------------------------------------------------
     ("statistics-proportion-more-successes", lambda tmp: proportion(11, 10), ValueError,
      ["successes"]),

@@ -1,6 +1,8 @@
 """Allocations certified over the continuous workspace (allocation.continuous,
 docs/continuous-allocation.md): the loop's optimum against independent checks, its
-refusals and its plain "not certified", the command line and the study's summary."""
+refusals and its plain "not certified", its searched-only mode and
+``solve_over_workspace`` (pose cutting planes from the local search alone), the command
+line and the study's summary."""
 
 from __future__ import annotations
 
@@ -11,11 +13,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from allocation import AllocationProblem
+from allocation import AllocationProblem, solve_over_workspace
 from allocation.continuous import certify, check_continuous, solve_continuous
 from reliability import OUTPUTS, workspace_grid
 from reliability.basics.errors import InputError
 from reliability.first_order.fosm import error_sigma
+from reliability.first_order.workspace_search import continuous_worst
 from reliability.model.kinematics import output_variance
 from studies import cli
 from studies.report.extras import EXTRAS
@@ -178,6 +181,106 @@ def test_stack_reading_reaches_the_corner_optimum(mill3):
                                       bounds=BOX).solve_exact()
     np.testing.assert_allclose(result.cost, corners.cost, rtol=1e-6)
     assert result.grid.cost < result.cost and result.searches == 0
+
+
+# ----- searched only: the loop without the certificate, and solve_over_workspace --------
+TOLERANCE = 1e-6  # solve_over_workspace's default shortfall in β
+SEARCHED_RTOL = TOLERANCE / (1 - TOLERANCE)  # the same shortfall as σ over the allowed σ
+
+
+@pytest.mark.parametrize("name", ["mill3", "trunnion5"])
+def test_searched_only_mode_is_solve_over_workspace(name, request):
+    """From poses that miss every stroke end, the searched-only loop and
+    ``solve_over_workspace`` add the same poses and reach the same allocation, which an
+    independent check finds short nowhere: σ over what the target allows at 20 000 random
+    poses and the stroke box's corners never exceeds 1 + the tolerance (the grid optimum
+    exceeds it by far). On the all-linear mill the optimum is the corner optimum."""
+    machine = request.getfixturevalue(name)
+    problem = AllocationProblem.build(machine, interior_poses(machine), bounds=BOX)
+    searched = solve_continuous(problem, rtol=SEARCHED_RTOL, certify=False)
+    assert searched.searched_only and not searched.certified and not searched.capped
+    assert searched.statement.startswith("not certified: searched only")
+    assert searched.certificate is None and searched.certificate_calls == 0
+    assert len(searched.added) > 0 and set(searched.added["source"]) == {"search"}
+    result, added = solve_over_workspace(problem)
+    np.testing.assert_array_equal(result.tolerances, searched.tolerances)
+    np.testing.assert_array_equal(added, searched.result.problem.poses[len(problem.poses):])
+    assert result.certificate["certified"]
+    assert np.all(dense_sigma_ratio(problem, result.tolerances) <= 1 + TOLERANCE)
+    assert dense_sigma_ratio(problem, searched.grid.tolerances).max() > 1.1
+    if name == "mill3":
+        corners = AllocationProblem.build(machine, vertices(machine), bounds=BOX).solve_exact()
+        np.testing.assert_allclose(result.cost, corners.cost, rtol=1e-6)
+
+
+def test_searched_only_cap_raises_in_solve_over_workspace(mill_interior):
+    capped = solve_continuous(mill_interior, rtol=SEARCHED_RTOL, certify=False, max_solves=1)
+    assert capped.capped and capped.searched_only and not capped.certified
+    assert capped.statement.startswith("NOT certified") and "stopped after 1 solves" \
+        in capped.reason
+    with pytest.raises(RuntimeError, match="after 1 rounds"):
+        solve_over_workspace(mill_interior, max_rounds=1)
+
+
+@pytest.fixture(scope="module")
+def coarse_problem(hobbing):
+    """Two-sided worst case on a 3-point grid: coarse, so the gaps are wide."""
+    return AllocationProblem.build(hobbing, workspace_grid(hobbing, 3), side="two_sided")
+
+
+def test_refined_optimum_holds_between_grid_points(hobbing, coarse_problem):
+    grid_optimum = coarse_problem.solve_exact()
+    before = continuous_worst(hobbing, grid_optimum.tolerances, coarse_problem.poses)
+    assert np.any(before["beta"] < coarse_problem.required_index * (1 - 1e-4))
+    refined, added = solve_over_workspace(coarse_problem)
+    assert len(added) > 0
+    required = coarse_problem.required_index
+    # From the same starts as the refinement's last check (grid and added poses): met.
+    starts = np.vstack([coarse_problem.poses, added])
+    after = continuous_worst(hobbing, refined.tolerances, starts)
+    assert np.all(after["beta"] >= required * (1 - 1e-6))
+    # The search is local: from the bare grid it may land on a neighbouring local worst,
+    # which still misses the target by far less than the grid optimum did.
+    from_grid = continuous_worst(hobbing, refined.tolerances, coarse_problem.poses)
+    assert np.all(from_grid["beta"] >= required * (1 - 1e-4))
+    assert refined.certificate["certified"]
+    assert refined.cost >= grid_optimum.cost  # more poses can only cost more
+
+
+def test_with_poses_appends_rows_for_new_poses(hobbing, coarse_problem):
+    extra = np.array([[0.1, 10.0, 150.0, 0.2, 20.0, 0.3]])
+    bigger = coarse_problem.with_poses(extra)
+    assert len(bigger.poses) == len(coarse_problem.poses) + 1
+    assert len(bigger.rows.matrix) == len(coarse_problem.rows.matrix) + 6
+    np.testing.assert_allclose(bigger.rows.matrix[-6:],
+                               bigger.row_matrix(hobbing.jacobian(extra))[0])
+    assert bigger.rows.counts["added"] == 6
+
+
+def test_mean_reading_refused(hobbing):
+    problem = AllocationProblem.build(hobbing, workspace_grid(hobbing, 2), workspace="mean")
+    with pytest.raises(ValueError, match="worst-case"):
+        solve_over_workspace(problem)
+
+
+def test_searched_only_refusals_and_the_workpiece_frame(mill3):
+    """Searched only needs the search (σ readings, ``search=True``); it does not need the
+    certificate's tool frame, so a workpiece-frame study runs searched only."""
+    stack = AllocationProblem.build(mill3, workspace_grid(mill3, 2), side="stack")
+    with pytest.raises(InputError, match="stack reading"):
+        solve_continuous(stack, certify=False)
+    problem = AllocationProblem.build(mill3, workspace_grid(mill3, 2))
+    with pytest.raises(InputError, match="search=True"):
+        solve_continuous(problem, certify=False, search=False)
+    with pytest.raises(InputError, match="rtol"):
+        solve_continuous(problem, certify=False, rtol=-1e-3)
+    workpiece = AllocationProblem.build(mill3, interior_poses(mill3), bounds=BOX,
+                                        frame="workpiece")
+    with pytest.raises(InputError, match="'workpiece' frame"):
+        solve_continuous(workpiece)
+    result, added = solve_over_workspace(workpiece)
+    assert len(added) > 0
+    assert workpiece.with_poses(added).meets_targets(result.tolerances)
 
 
 # ----- refusals ---------------------------------------------------------------------------
