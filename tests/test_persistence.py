@@ -13,7 +13,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from reliability import hobbing_machine, load_machine, machine_from_dict
+from reliability import hobbing_machine, load_machine, machine_from_dict, machine_from_toml
 
 MACHINE_DIR = Path(__file__).parent / "machines"
 MACHINE_FILES = sorted(MACHINE_DIR.glob("*.toml"))
@@ -38,6 +38,7 @@ def test_machine_pickles_and_deep_copies_to_an_equal_machine(machine):
 def test_to_toml_loads_back_to_an_equal_machine(machine, tmp_path):
     text = machine.to_toml()
     assert machine_from_dict(tomllib.loads(text)) == machine
+    assert machine_from_toml(text, source="again") == machine
     path = tmp_path / "again.toml"
     path.write_text(text)
     assert load_machine(path) == machine
