@@ -18,7 +18,7 @@ The names most users need are exported here.
 from .basics.errors import MachineDescriptionError
 from .first_order.fosm import FosmResult, fosm
 from .model.machine import (COMPONENTS, OUTPUTS, Axis, CostCoefficients, Machine, hobbing_machine,
-                            load_machine, machine_from_dict)
+                            load_machine, machine_from_dict, machine_from_toml)
 from .sampling import rare_events as rare
 from .sampling.pose_sampling import PoseSamplingResult, sample_at_poses
 from .model.poses import random_poses, workspace_grid
@@ -31,6 +31,7 @@ from .first_order.system_reliability import (SystemReliability, system_reliabili
 __all__ = ["COMPONENTS", "OUTPUTS", "Axis", "CostCoefficients", "FosmResult",
            "GridExperiment", "GridExperimentResult", "Machine", "MachineDescriptionError",
            "PoseSamplingResult", "RandomPoseResult", "SystemReliability", "fosm",
-           "hobbing_machine", "load_machine", "machine_from_dict", "random_poses", "rare",
+           "hobbing_machine", "load_machine", "machine_from_dict", "machine_from_toml",
+           "random_poses", "rare",
            "sample_at_poses", "sample_random_poses", "system_reliability", "workspace_grid",
            "worst_system_reliability"]

@@ -16,7 +16,7 @@ import pandas as pd
 import pytest
 from scipy.stats import norm
 
-from reliability import machine_from_dict
+from reliability import load_machine, machine_from_dict
 from reliability.acceptance.prediction import (CircularTest, PositioningTest, RotaryTest,
                                                acceptance, build_path, circular_deviation,
                                                default_targets, deviation_weights, ideal_chain,
@@ -323,6 +323,21 @@ def test_csv_table_rows_and_columns(hobbing):
     assert np.all(frame.loc[limited, "pass_probability"] <= frame.loc[limited, "pass_high"])
 
 
+def test_summary_gives_the_set_up_the_table_and_each_tests_pass_probability(hobbing):
+    tests = _paper_tests(hobbing)
+    result = acceptance(hobbing, tests, machines=50, driver_machines=5, rng=11)
+    text = result.summary()
+    first, rest = text.split("\n\n", 1)
+    assert first.startswith(f"50 built machines through {len(tests)} acceptance tests; ")
+    assert "gp:300" in first and "σ = t/3" in first
+    assert rest == result.results_text()
+    lines = text.splitlines()
+    assert "Wilson 95 %:" in lines[-len(tests) - 2]
+    for row, line in zip(result.test_pass().itertuples(), lines[-len(tests) - 1:]):
+        assert line == (f"  {row.test}: {row.pass_probability:.4f} [{row.pass_low:.4f}, "
+                        f"{row.pass_high:.4f}]")
+
+
 def test_independent_profile_is_refused_naming_it(mill3):
     with pytest.raises(InputError, match="independent.*test 'c'"):
         acceptance(mill3, [CircularTest("c", "xy", CENTRE, 50.0, 0.01)],
@@ -463,6 +478,23 @@ def test_command_writes_the_csv_and_refuses_bad_files(tmp_path, capsys):
     assert cli.main(["acceptance", machine, "--tests", tests, "--profile",
                      "independent"]) == 2
     assert "independent" in capsys.readouterr().err
+
+
+def test_command_csv_reads_back_as_the_results_table(tmp_path, capsys):
+    machine = str(MACHINES / "trunnion5.toml")
+    tests = str(EXAMPLES / "trunnion5_tests.toml")
+    assert cli.main(["acceptance", machine, "--tests", tests, "--machines", "40", "--seed",
+                     "3", "--out", str(tmp_path)]) == 0
+    printed = capsys.readouterr().out
+    loaded = load_machine(machine)
+    result = acceptance(loaded, read_tests(tests, loaded), machines=40, rng=3)
+    assert result.results_text() in printed
+    written = pd.read_csv(tmp_path / "acceptance.csv")
+    expected = result.to_frame()
+    assert written[["test", "quantity"]].equals(expected[["test", "quantity"]])
+    numbers = [c for c in expected.columns if c not in ("test", "quantity")]
+    np.testing.assert_allclose(written[numbers].to_numpy(float),
+                               expected[numbers].to_numpy(float), rtol=5e-6, atol=0)
 
 
 def test_report_with_tests_adds_the_section(tmp_path, capsys):

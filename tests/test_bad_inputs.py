@@ -98,7 +98,7 @@ def _grid_file(edit):
         edit(lines)
         path = tmp / "table9.csv"
         path.write_text("\n".join(lines) + "\n")
-        return GridExperimentResult.load_csv(path)
+        return GridExperimentResult.load(path)
     return run
 
 
@@ -124,7 +124,7 @@ def _random_file(edit):
         edit(lines)
         path = tmp / "random.csv"
         path.write_text("\n".join(lines) + "\n")
-        return RandomPoseResult.load_csv(path)
+        return RandomPoseResult.load(path)
     return run
 
 
@@ -446,13 +446,13 @@ CATALOGUE = [
     # ----- require_size -----------------------------------------------------------------
     ("require_size-over", lambda tmp: require_size(10**20, 8, None, "a thing", "do less"), S,
      ["a thing", "budget", "do less"]),
-    # ----- saved grid results (GridExperimentResult.load_csv) -------------------------
-    ("saved_grid_csv-empty-file", _file(b"", GridExperimentResult.load_csv), F, ["saved.csv"]),
-    ("saved_grid_csv-garbage", _file(b"\x00\xff\xfe garbage \x81\n\x00", GridExperimentResult.load_csv),
+    # ----- saved grid results (GridExperimentResult.load) -------------------------
+    ("saved_grid_csv-empty-file", _file(b"", GridExperimentResult.load), F, ["saved.csv"]),
+    ("saved_grid_csv-garbage", _file(b"\x00\xff\xfe garbage \x81\n\x00", GridExperimentResult.load),
      F, ["saved.csv"]),
     ("saved_grid_csv-header-only", _file((GRID_CSV_HEADER + "\n").encode(),
-                                   GridExperimentResult.load_csv), F, ["saved.csv", "no rows"]),
-    ("saved_grid_csv-other-table", _file(b"a,b\n1,2\n", GridExperimentResult.load_csv), F,
+                                   GridExperimentResult.load), F, ["saved.csv", "no rows"]),
+    ("saved_grid_csv-other-table", _file(b"a,b\n1,2\n", GridExperimentResult.load), F,
      ["saved.csv", "'repeat'"]),
     ("saved_grid_csv-truncated", _grid_file(lambda ls: ls.__setitem__(-1, ls[-1][:12])), F,
      ["table9.csv", "row 12"]),
@@ -490,8 +490,8 @@ CATALOGUE = [
      ["lacks column", "'points_per_axis'"]),
     ("saved_grid_csv-from_frame-not-a-table",
      lambda tmp: GridExperimentResult.from_frame({"repeat": [1]}), F, ["expected a table"]),
-    # ----- saved random-pose results (RandomPoseResult.load_csv) ----------------------
-    ("saved_random_csv-empty-file", _file(b"", RandomPoseResult.load_csv), F, ["saved.csv"]),
+    # ----- saved random-pose results (RandomPoseResult.load) ----------------------
+    ("saved_random_csv-empty-file", _file(b"", RandomPoseResult.load), F, ["saved.csv"]),
     ("saved_random_csv-duplicated-output", _random_file(lambda ls: ls.__setitem__(2, ls[1])), F,
      ["random.csv", "row 2", "more than once"]),
     ("saved_random_csv-missing-output", _random_file(lambda ls: ls.pop(3)), F,
@@ -735,7 +735,7 @@ from reliability import GridExperiment
 machine = reliability.load_machine(sys.argv[1])
 result = GridExperiment(machine, 3).run(machine.initial_allocation * 3, repeats=9,
                                         batch=int(sys.argv[3]), rng=2024)
-result.save_csv(sys.argv[2])
+result.save(sys.argv[2])
 """
 
 
@@ -743,7 +743,7 @@ def test_same_seed_same_bytes_across_batches_and_processes(tmp_path):
     machine_file = Path(__file__).parent / "machines" / "mill3.toml"
     result = GridExperiment(MILL, 3).run(TM * 3, repeats=9, batch=9, rng=2024)
     assert 0 < result.inside.min() < result.n_poses  # counts that a change would move
-    here = result.save_csv(tmp_path / "here.csv").read_bytes()
+    here = result.save(tmp_path / "here.csv").read_bytes()
     for batch in (1, 4):
         out = tmp_path / f"process-{batch}.csv"
         subprocess.run([sys.executable, "-c", SAVE_SCRIPT, str(machine_file), str(out),
@@ -753,17 +753,17 @@ def test_same_seed_same_bytes_across_batches_and_processes(tmp_path):
 
 def test_random_pose_results_round_trip_exactly(tmp_path):
     result = sample_random_poses(MILL, TM, 500, rng=1, chunk=200)
-    path = result.save_csv(tmp_path / "random.csv")
-    back = RandomPoseResult.load_csv(path)
+    path = result.save(tmp_path / "random.csv")
+    back = RandomPoseResult.load(path)
     np.testing.assert_array_equal(back.inside, result.inside)
     np.testing.assert_array_equal(back.fosm_two_sided, result.fosm_two_sided)
-    assert back.n_samples == 500 and back.save_csv(tmp_path / "again.csv").read_bytes() == \
+    assert back.n_samples == 500 and back.save(tmp_path / "again.csv").read_bytes() == \
         path.read_bytes()
 
 
 # ----- saves are atomic ----------------------------------------------------------------------
 def test_interrupted_save_keeps_the_old_file_and_leaves_no_temporary(tmp_path, monkeypatch):
-    path = _grid_result().save_csv(tmp_path / "table9.csv")
+    path = _grid_result().save(tmp_path / "table9.csv")
     before = path.read_bytes()
 
     def broken_replace(source, target):
@@ -772,7 +772,7 @@ def test_interrupted_save_keeps_the_old_file_and_leaves_no_temporary(tmp_path, m
     monkeypatch.setattr("reliability.basics.files.os.replace", broken_replace)
     other = GridExperimentResult(limits=HOB.limits, inside=np.full((1, 6), 3), n_poses=125)
     with pytest.raises(KeyboardInterrupt):
-        other.save_csv(path, overwrite=True)
+        other.save(path, overwrite=True)
     assert path.read_bytes() == before
     assert [p.name for p in tmp_path.iterdir()] == ["table9.csv"]
 
@@ -782,7 +782,7 @@ import sys
 import reliability
 machine = reliability.load_machine(sys.argv[1])
 reliability.sample_random_poses(machine, machine.initial_allocation * 3, 700, rng=99,
-                                chunk=300).save_csv(sys.argv[2])
+                                chunk=300).save(sys.argv[2])
 """
 
 
@@ -790,7 +790,7 @@ def test_random_pose_results_same_bytes_across_processes(tmp_path):
     machine_file = Path(__file__).parent / "machines" / "mill3.toml"
     here = sample_random_poses(MILL, TM * 3, 700, rng=99, chunk=300)
     assert 0 < here.inside.min() < 700
-    expected = here.save_csv(tmp_path / "here.csv").read_bytes()
+    expected = here.save(tmp_path / "here.csv").read_bytes()
     out = tmp_path / "process.csv"
     subprocess.run([sys.executable, "-c", RANDOM_SCRIPT, str(machine_file), str(out)],
                    check=True, cwd=ROOT)

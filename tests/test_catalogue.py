@@ -296,6 +296,11 @@ def test_report_adds_a_component_choice_section(tmp_path, capsys):
     np.testing.assert_allclose(
         allocation.read_allocation_csv(out / "choice_tolerances.csv", machine),
         result.tolerances, rtol=1e-5)  # the report writes 6 significant digits
+    # the report's choice and tolerances are the files the library writes, at its digits
+    assert (out / "choice.csv").read_bytes() == \
+        result.to_csv(tmp_path / "choice.csv", significant=6).read_bytes()
+    assert (out / "choice_tolerances.csv").read_bytes() == allocation.result_files.\
+        allocation_to_csv(result, tmp_path / "tolerances.csv", significant=6).read_bytes()
 
 
 def test_report_refuses_a_bad_catalogue_before_any_work(tmp_path, capsys):

@@ -1,5 +1,5 @@
-"""Where files may be written (one check for the library and the command line) and the
-allocation CSV's one writer and one reader."""
+"""Where files may be written (one check for the library and the command line), the
+allocation CSV's one writer and one reader, and the result store's records."""
 
 from __future__ import annotations
 
@@ -9,8 +9,9 @@ import pytest
 
 from allocation import AllocationProblem
 from allocation.result_files import allocation_to_csv, read_allocation_csv
-from reliability.basics.errors import InputError, InputTypeError
+from reliability.basics.errors import InputError, InputTypeError, SavedResultError
 from reliability.basics.files import check_destination
+from reliability.basics.result_store import ResultStore
 from reliability.model.poses import workspace_grid
 from studies.cli.options import destination
 
@@ -100,3 +101,19 @@ def test_allocation_csv_reader_refuses_a_damaged_file_naming_it(mill3, tmp_path)
     reordered.to_csv(tmp_path / "reversed.csv", index=False)
     np.testing.assert_array_equal(read_allocation_csv(tmp_path / "reversed.csv", mill3),
                                   mill3.initial_allocation)
+
+
+def test_result_store_round_trip_keeps_values_and_refuses_other_types(tmp_path):
+    store = ResultStore(tmp_path / "tasks", version="1.0")
+    parameters = {"machine": "mill3", "seed": np.int64(3), "target": 0.99}
+    result = {"inside": np.array([[5, 6], [7, 8]]), "cost": np.float64(0.8), "ok": True}
+    assert parameters not in store and store.load(parameters) is None
+    path = store.save(parameters, result)
+    assert path.parent == tmp_path / "tasks" and parameters in store
+    assert store.load(parameters) == {"inside": [[5, 6], [7, 8]], "cost": 0.8, "ok": True}
+    assert ResultStore(tmp_path / "tasks", version="1.1").load(parameters) is None
+    path.write_text(path.read_text().replace("0.8", "0.9"))
+    with pytest.raises(SavedResultError, match="checksum"):
+        store.load(parameters)
+    with pytest.raises(InputTypeError, match="cannot save a set"):
+        store.save(parameters, {"names": {"a"}})

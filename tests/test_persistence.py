@@ -1,5 +1,6 @@
 """Results that persist: machines pickle, copy, compare and write TOML; FOSM and allocation
-results save to JSON and reload with every field verified; summaries print readably."""
+results save to JSON and reload with every field verified; summaries print readably; every
+saveable result has to_frame, summary, save and load under the same names."""
 
 from __future__ import annotations
 
@@ -13,7 +14,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from reliability import hobbing_machine, load_machine, machine_from_dict
+from reliability import hobbing_machine, load_machine, machine_from_dict, machine_from_toml
 
 MACHINE_DIR = Path(__file__).parent / "machines"
 MACHINE_FILES = sorted(MACHINE_DIR.glob("*.toml"))
@@ -38,6 +39,7 @@ def test_machine_pickles_and_deep_copies_to_an_equal_machine(machine):
 def test_to_toml_loads_back_to_an_equal_machine(machine, tmp_path):
     text = machine.to_toml()
     assert machine_from_dict(tomllib.loads(text)) == machine
+    assert machine_from_toml(text, source="again") == machine
     path = tmp_path / "again.toml"
     path.write_text(text)
     assert load_machine(path) == machine
@@ -344,3 +346,20 @@ def test_bad_arguments_to_save_load_and_summary_are_refused(fosm_trunnion, alloc
     with pytest.raises(InputTypeError, match="problem must be an AllocationProblem"):
         AllocationResult.load(path, problem="mill3")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["exact.json"]
+
+
+# ----- one protocol ------------------------------------------------------------------------
+def test_every_saveable_result_has_the_same_four_methods():
+    import inspect
+
+    from reliability import GridExperimentResult, RandomPoseResult
+
+    for kind in (FosmResult, AllocationResult, GridExperimentResult, RandomPoseResult):
+        for name in ("to_frame", "summary", "save"):
+            assert callable(getattr(kind, name)), (kind.__name__, name)
+        assert inspect.ismethod(kind.load) and kind.load.__self__ is kind, kind.__name__
+        save = inspect.signature(kind.save).parameters
+        assert list(save)[:3] == ["self", "path", "overwrite"], kind.__name__
+        assert save["overwrite"].default is False, kind.__name__
+        assert list(inspect.signature(kind.load).parameters)[0] == "path", kind.__name__
+        assert not {"save_csv", "load_csv"} & set(dir(kind)), kind.__name__

@@ -142,26 +142,26 @@ def test_from_frame_round_trip_in_any_row_order(result):
     _same(GridExperimentResult.from_frame(shuffled), result)
 
 
-def test_save_and_load_csv_round_trip(result, tmp_path):
+def test_save_and_load_round_trip(result, tmp_path):
     path = tmp_path / "table9.csv"
-    written = result.save_csv(path)
+    written = result.save(path)
     assert written == path and path.exists()
-    back = GridExperimentResult.load_csv(path)
+    back = GridExperimentResult.load(path)
     _same(back, result)
     assert (back.distribution, back.k, back.points_per_axis) == ("normal", 2.5, 3)
     pd.testing.assert_frame_equal(pd.read_csv(path), result.to_frame(), check_dtype=False)
 
 
-def test_save_csv_refuses_to_overwrite(result, tmp_path):
+def test_save_refuses_to_overwrite(result, tmp_path):
     path = tmp_path / "table9.csv"
-    result.save_csv(path)
+    result.save(path)
     before = path.read_text()
     other = GridExperimentResult(limits=LIMITS, inside=np.full((2, 6), 7), n_poses=N_POSES)
     with pytest.raises(FileExistsError, match="overwrite"):
-        other.save_csv(path)
+        other.save(path)
     assert path.read_text() == before
-    other.save_csv(path, overwrite=True)
-    _same(GridExperimentResult.load_csv(path), other)
+    other.save(path, overwrite=True)
+    _same(GridExperimentResult.load(path), other)
 
 
 @pytest.mark.parametrize("column", FRAME_COLUMNS + METADATA_COLUMNS)

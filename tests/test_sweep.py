@@ -110,6 +110,19 @@ def test_different_seeds_give_different_streams(mill, tmp_path):
     assert len({tuple(row) for row in fractions}) > 1
 
 
+def test_results_csv_reads_back_as_the_result_table(mill, tmp_path):
+    result = run_sweep(small_spec(mill, sides=("two_sided",), targets=(0.99,), seeds=(0,)),
+                       tmp_path / "store")
+    frame = result.to_frame()
+    pd.testing.assert_frame_equal(frame, result.frame)
+    assert frame is not result.frame and "1 task(s)" in result.summary()
+    written = pd.read_csv(result.path, keep_default_na=False)
+    assert list(written.columns) == list(frame.columns)
+    numbers = frame.select_dtypes("number").columns
+    np.testing.assert_allclose(written[numbers].to_numpy(float),
+                               frame[numbers].to_numpy(float), rtol=5e-6, atol=0)
+
+
 def test_killed_sweep_resumes_without_recomputing_finished_tasks(mill, tmp_path):
     spec = small_spec(mill)
     killed = Counting(fail_after=5)

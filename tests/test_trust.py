@@ -11,7 +11,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from allocation.result_files import GAP_SHOWN, gap_bound, gap_text
+from allocation.result_files import (GAP_SHOWN, allocation_to_csv, gap_bound, gap_text,
+                                     read_allocation_csv)
 from reliability.basics.display import bound_text, pose_text, target_text
 from reliability.basics.files import as_written, atomic_write_text
 from reliability.first_order.fosm import fosm
@@ -82,7 +83,7 @@ def test_the_report_verifies_the_allocation_as_written(tmp_path, mill3):
     from studies.workflows import machine_study
 
     study = machine_study.run(mill3, points=3, repeats=2, samples=500, seed=9)
-    written = pd.read_csv(_written_allocation(tmp_path, study))["allocated"].to_numpy()
+    written = read_allocation_csv(_written_allocation(tmp_path, study), mill3)
     np.testing.assert_array_equal(study.allocated, written)
     check = verify(mill3, written, points=3, repeats=2, samples=500, rng=9)
     pd.testing.assert_frame_equal(check.worst_poses, study.checks["optimum"].worst_poses)
@@ -91,11 +92,15 @@ def test_the_report_verifies_the_allocation_as_written(tmp_path, mill3):
 
 
 def _written_allocation(folder, study) -> Path:
-    from allocation.result_files import allocation_frame
+    """The report's allocation.csv (its allocation section written alone), checked to be
+    byte for byte the allocation CSV's one writer at the report's digits."""
+    from studies.report.machine_sections import allocation_section
 
-    path = folder / "allocation.csv"
-    allocation_frame(study.optimum).to_csv(path, index=False,
-                                           float_format=f"%.{writer.SIGNIFICANT}g")
+    writer.write_section(folder / "report", allocation_section(study))
+    path = folder / "report" / "allocation.csv"
+    same = allocation_to_csv(study.optimum, folder / "allocation.csv",
+                             significant=writer.SIGNIFICANT)
+    assert path.read_bytes() == same.read_bytes()
     return path
 
 
@@ -127,7 +132,7 @@ def test_an_interrupted_report_leaves_nothing_and_a_rerun_works(tmp_path, capsys
                                                                 monkeypatch):
     out = tmp_path / "report"
     drawn = []
-    real_png = writer._png
+    real_png = writer.png_bytes
 
     def interrupt_late(figure):
         drawn.append(figure)
@@ -135,11 +140,11 @@ def test_an_interrupted_report_leaves_nothing_and_a_rerun_works(tmp_path, capsys
             raise KeyboardInterrupt
         return real_png(figure)
 
-    monkeypatch.setattr(writer, "_png", interrupt_late)
+    monkeypatch.setattr(writer, "png_bytes", interrupt_late)
     assert cli.main(["report", MILL, "--out", str(out), *QUICK, *SKIP_EXTRAS]) == 130
     assert not out.exists()
     assert list(tmp_path.iterdir()) == []  # no staging folder left behind
-    monkeypatch.setattr(writer, "_png", real_png)
+    monkeypatch.setattr(writer, "png_bytes", real_png)
     assert cli.main(["report", MILL, "--out", str(out), *QUICK, *SKIP_EXTRAS]) == 0
     assert (out / "report.html").is_file()
     capsys.readouterr()

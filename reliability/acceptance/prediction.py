@@ -613,6 +613,42 @@ class AcceptanceResult:
         return ", ".join(f"{r.item} {100 * r.share:.0f} %" for r in rows.itertuples()
                          if r.share >= 0.005)
 
+    def summary(self) -> str:
+        """The set-up (built machines, error profile, reading of a tolerance), then
+        :meth:`results_text`."""
+        return (f"{self.n_machines} built machines through {len(self.tests)} acceptance "
+                f"tests; {profile_note(self.profile)}; tolerances read as "
+                f"{self.distribution} with σ = t/{self.k:g}\n\n{self.results_text()}")
+
+    def results_text(self) -> str:
+        """Each result's limit, mean and 95 % quantile in µm, its pass probability with
+        its interval and the items that drive it, then each test's pass probability: what
+        ``precrel acceptance`` prints below its heading."""
+        lines = [self._printed_table().to_string(index=False), "",
+                 f"pass probability of each test (every limited quantity), Wilson "
+                 f"{100 * self.confidence:g} %:"]
+        lines += [f"  {row.test}: {row.pass_probability:.4f} "
+                  f"[{row.pass_low:.4f}, {row.pass_high:.4f}]"
+                  for row in self.test_pass().itertuples()]
+        return "\n".join(lines)
+
+    def _printed_table(self) -> pd.DataFrame:
+        """:meth:`to_frame` with limits, means and quantiles in µm and the drivers."""
+        rows = []
+        for row in self.to_frame().itertuples():
+            if row.test == "all":
+                continue
+            limited = pd.notna(row.limit)
+            rows.append({
+                "test": row.test, "quantity": row.quantity,
+                "limit µm": f"{1000 * row.limit:.3g}" if limited else "-",
+                "mean µm": f"{1000 * row.mean:.3g}", "q95 µm": f"{1000 * row.q95:.3g}",
+                "pass": f"{row.pass_probability:.4f} [{row.pass_low:.4f}, "
+                        f"{row.pass_high:.4f}]" if limited else "-",
+                "driven by (share of mean square)":
+                    self.top_drivers(row.test, row.quantity) or "-"})
+        return pd.DataFrame(rows)
+
     def _pass(self, ok) -> dict[str, float]:
         k, n = int(np.count_nonzero(ok)), len(ok)
         low, high = binomial_interval(k, n, self.confidence, method="wilson")

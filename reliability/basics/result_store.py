@@ -14,16 +14,14 @@ import hashlib
 import json
 from pathlib import Path
 
-import numpy as np
-
-from .errors import InputError, InputTypeError, SavedResultError
+from .errors import InputError, SavedResultError
 from .files import atomic_write_text
-from .saved_results import toolkit_version
+from .saved_results import plain_json, toolkit_version
 
 
 def canonical_json(value) -> str:
     """JSON with sorted keys and no spaces: equal values give equal text (and hashes)."""
-    return json.dumps(value, sort_keys=True, separators=(",", ":"), default=_plain)
+    return json.dumps(value, sort_keys=True, separators=(",", ":"), default=plain_json)
 
 
 def task_key(parameters, version: str | None = None) -> str:
@@ -114,11 +112,3 @@ def _checksum(body) -> str:
 def _mapping(value):
     return dict(value) if hasattr(value, "items") else value
 
-
-def _plain(value):
-    """NumPy scalars and arrays as plain JSON values."""
-    if isinstance(value, np.generic):
-        return value.item()
-    if isinstance(value, np.ndarray):
-        return value.tolist()
-    raise InputTypeError(f"cannot store {type(value).__name__} in a result file")

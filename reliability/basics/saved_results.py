@@ -54,7 +54,7 @@ def save_payload(path, kind: str, payload: dict, overwrite: bool = False) -> Pat
     check_destination(path, overwrite)
     document = {"format": kind, "format_version": FORMAT_VERSION,
                 "toolkit_version": toolkit_version(), "payload": payload}
-    text = json.dumps(document, indent=1, default=_plain)
+    text = json.dumps(document, indent=1, default=plain_json)
     return atomic_write_text(path, text + "\n", overwrite)
 
 
@@ -107,15 +107,22 @@ def encode_frame(frame: pd.DataFrame | None) -> dict | None:
             "columns": {str(c): frame[c].tolist() for c in frame.columns}}
 
 
-def _plain(value):
-    """JSON form of numpy scalars and arrays (the ``default`` of :func:`json.dumps`)."""
+def plain_json(value):
+    """JSON form of numpy scalars and arrays: the ``default`` of :func:`json.dumps` for every
+    JSON file of results (saved results here, the result store's records).
+
+    Raises
+    ------
+    InputTypeError
+        For any other type (a ``TypeError``).
+    """
     if isinstance(value, np.ndarray):
         return value.tolist()
     if isinstance(value, np.generic):
         return value.item()
     if isinstance(value, tuple):
         return list(value)
-    raise TypeError(f"cannot save a {type(value).__name__} in a result file")
+    raise InputTypeError(f"cannot save a {type(value).__name__} in a result file")
 
 
 # ----- verified reading --------------------------------------------------------------

@@ -17,6 +17,10 @@ normal at ``±t`` (Sec. 5.3) has a slightly smaller spread; ``distribution='trun
 standard deviation instead, and ``exact_two_sided`` is then the exact probability of the linearised
 output under truncated errors (:mod:`reliability.first_order.linear_exact`), not the normal
 approximation; under ``'normal'`` the two coincide.
+
+The result, :class:`FosmResult`, gives its table (``to_frame``) and its verdicts for reading
+(``summary``), and is saved as JSON with its metadata and reloaded with every field
+verified (``save``/``load``, :mod:`reliability.basics.saved_results`).
 """
 
 from __future__ import annotations
@@ -30,9 +34,9 @@ from scipy.stats import norm
 from ..basics import checks
 from ..basics.chunks import chunks, jacobian_bytes
 from .output_covariance import correlated_sigma, euler_terms
-from ..basics.display import axis_units
+from ..basics.display import OUTPUT_UNITS, axis_units, output_limits_text, pose_columns
 from ..basics.errors import InputError
-from .fosm_files import fosm_summary, load_fosm, save_fosm
+from ..basics.saved_results import check_count, encode_frame, load_payload, save_payload
 from ..model.kinematics import check_frame, output_variance
 from .linear_exact import linear_two_sided
 from ..model.machine import OUTPUTS
@@ -40,6 +44,11 @@ from ..basics.ties import worst_rows
 from ..model.error_draws import DISTRIBUTIONS
 
 SIDES = ("one_sided", "two_sided")
+#: The format tag of a saved FOSM result (:mod:`reliability.basics.saved_results`).
+SAVED_FORMAT = "precrel.fosm_result"
+#: Relative tolerance within which a saved file's β and probabilities must follow from its
+#: limits, μ and σ.
+CONSISTENCY_RTOL = 1e-9
 
 
 def error_sigma(tolerances, k: float = 3.0, distribution: str = "normal") -> np.ndarray:
@@ -197,8 +206,24 @@ class FosmResult:
             object.__setattr__(self, "exact_two_sided", self.two_sided)
 
     def summary(self, top: int = 3) -> str:
-        """Readable verdicts, worst poses as axis positions and the ``top`` contributors."""
-        return fosm_summary(self, top)
+        """The verdict per output, the worst poses as axis positions and the ``top``
+        contributors to σ² at each worst pose."""
+        top = check_count(top, "top")
+        meets = self.meets_targets("two_sided")
+        short = [o for o, ok in zip(OUTPUTS, meets) if not ok]
+        verdict = "every target met" if not short else f"short: {', '.join(short)}"
+        name = f" of {self.machine}" if self.machine else ""
+        lines = [f"FOSM reliability{name}: {len(self.poses)} poses, tolerances read as "
+                 f"±{self.k:g}σ ({self.distribution}); outputs in the {self.frame} frame",
+                 f"Worst pose, two-sided: {int(meets.sum())} of {len(OUTPUTS)} targets met; "
+                 f"{verdict}", "", _verdict_table(self).to_string(), "",
+                 "Worst pose of each output (axis positions)",
+                 _worst_pose_table(self).to_string(), "",
+                 "Largest contributors to σ² at the worst pose [% of σ²]"]
+        for output in OUTPUTS:
+            share = self.contributions[output].nlargest(top)
+            lines.append(f"  {output}: " + ", ".join(f"{e} {p:.1f}" for e, p in share.items()))
+        return "\n".join(lines)
 
     def __repr__(self) -> str:
         return self.summary()
@@ -219,14 +244,63 @@ class FosmResult:
         return worst_poses(limits, sigma, mean, poses)
 
     def save(self, path, overwrite: bool = False):
-        """Save as JSON with its metadata (:mod:`reliability.basics.saved_results`); returns
-        the path."""
-        return save_fosm(self, path, overwrite)
+        """Save as JSON with its metadata (:mod:`reliability.basics.saved_results`); an
+        existing file is kept unless ``overwrite``. Returns the path."""
+        payload = {"machine": self.machine, "axes": self.axes, "units": self.units,
+                   "k": self.k, "distribution": self.distribution, "frame": self.frame,
+                   "poses": self.poses,
+                   "limits": self.limits, "targets": self.targets, "mean": self.mean,
+                   "sigma": self.sigma, "beta": self.beta, "one_sided": self.one_sided,
+                   "two_sided": self.two_sided, "exact_two_sided": self.exact_two_sided,
+                   "worst_pose": self.worst_pose,
+                   "contributions": encode_frame(self.contributions)}
+        return save_payload(path, SAVED_FORMAT, payload, overwrite)
 
     @classmethod
     def load(cls, path) -> "FosmResult":
-        """Reload a result written by :meth:`save`, verifying every field."""
-        return load_fosm(cls, path)
+        """Reload a result written by :meth:`save`; a damaged or inconsistent field raises
+        :class:`~reliability.basics.errors.SavedResultError` naming the file and the field.
+
+        The saved β and probabilities are checked against :meth:`reliability_fields` of the
+        saved limits, means and σ, and the worst poses against :meth:`worst_rows`; under
+        the normal reading ``exact_two_sided`` must equal ``two_sided``, and a file written
+        before that field existed loads (the field is ``two_sided``) unless its reading was
+        'truncated'.
+        """
+        data = load_payload(path, SAVED_FORMAT)
+        axes = data.texts("axes", unique=True)
+        units = data.texts("units", size=len(axes))
+        for position, unit in enumerate(units):
+            if unit not in ("mm", "rad"):
+                raise data.error("units", f"entry {position} is {unit!r}; expected 'mm' or "
+                                          f"'rad'")
+        poses = data.array("poses", (None, len(axes)))
+        n = len(poses)
+        if n < 1:
+            raise data.error("poses", "expected at least one pose")
+        limits = data.array("limits", (6,), positive=True)
+        targets = data.array("targets", (6,), low=0.0, high=1.0)
+        mean = data.array("mean", (n, 6))
+        sigma = data.array("sigma", (n, 6), positive=True)
+        fields = {"beta": data.array("beta", (n, 6)),
+                  "one_sided": data.array("one_sided", (n, 6), low=0.0, high=1.0),
+                  "two_sided": data.array("two_sided", (n, 6), low=0.0, high=1.0)}
+        _check_consistent(data, fields, cls.reliability_fields(limits, sigma, mean))
+        worst = data.array("worst_pose", (6,), dtype=np.int64, low=0, high=n - 1)
+        if not np.array_equal(worst, cls.worst_rows(limits, sigma, mean, poses)):
+            raise data.error("worst_pose", "is not the pose of lowest two-sided probability "
+                                           "(first pose among ties)")
+        contributions = data.frame("contributions", columns=OUTPUTS)
+        _check_contributions(data, contributions)
+        distribution = data.text("distribution", ("normal", "truncated"))
+        fields["exact_two_sided"] = _saved_exact_two_sided(data, distribution,
+                                                           fields["two_sided"])
+        return cls(poses=poses, limits=limits, targets=targets, mean=mean, sigma=sigma,
+                   worst_pose=worst, contributions=contributions, axes=axes, units=units,
+                   machine=data.text("machine"), k=data.number("k", positive=True),
+                   distribution=distribution,
+                   frame=data.text("frame", ("tool", "workpiece")) if "frame" in data.data
+                   else "tool", **fields)
 
     def worst(self, side: str = "two_sided") -> np.ndarray:
         """Lowest probability over the poses, per output (the workspace constraint)."""
@@ -267,6 +341,78 @@ class FosmResult:
         if side not in SIDES:
             raise InputError(f"unknown side {side!r}; use 'one_sided' or 'two_sided'")
         return getattr(self, side)
+
+
+# ----- the result printed and saved -------------------------------------------------
+def _verdict_table(result) -> pd.DataFrame:
+    """Per output: limit, target, worst and mean probabilities, β and σ at the worst pose
+    and the verdict, as printed."""
+    rows = np.arange(len(OUTPUTS))
+    worst = result.worst_pose
+    sigma = [f"{s:.4g} {u}" for s, u in zip(result.sigma[worst, rows], OUTPUT_UNITS)]
+    exact = {} if result.distribution == "normal" else \
+        {"P worst exact linear": result.exact_two_sided.min(axis=0).round(6)}
+    return pd.DataFrame({
+        "limit": output_limits_text(result.limits),
+        "target": result.targets,
+        "P worst 2-sided": result.worst("two_sided").round(6),
+        "P worst 1-sided": result.worst("one_sided").round(6),
+        **exact,
+        "P mean 2-sided": result.workspace_mean("two_sided").round(6),
+        "β at worst": result.beta[worst, rows].round(3),
+        "σ at worst": sigma,
+        "meets (2-sided)": np.where(result.meets_targets("two_sided"), "yes", "NO"),
+    }, index=pd.Index(OUTPUTS, name="output"))
+
+
+def _worst_pose_table(result) -> pd.DataFrame:
+    """Each output's worst pose as its row number and axis positions with units."""
+    axes = result.axes or tuple(f"q{i}" for i in range(result.poses.shape[1]))
+    units = result.units or ("",) * len(axes)
+    table = pose_columns(result.poses[result.worst_pose], axes, units)
+    table.insert(0, "pose #", result.worst_pose)
+    table.index = pd.Index(OUTPUTS, name="output")
+    return table
+
+
+def _saved_exact_two_sided(data, distribution: str, two_sided: np.ndarray) -> np.ndarray:
+    """The saved exact linear probability; ``two_sided`` itself under the normal reading
+    (where it is the exact value), also for files written before the field existed."""
+    if "exact_two_sided" not in data.data:
+        if distribution == "truncated":
+            raise data.error("exact_two_sided", "missing (a file of the 'truncated' reading "
+                                                "written before the field existed; recompute "
+                                                "the result)")
+        return two_sided
+    exact = data.array("exact_two_sided", two_sided.shape, low=0.0, high=1.0)
+    if distribution == "normal" and not np.array_equal(exact, two_sided):
+        raise data.error("exact_two_sided", "differs from two_sided under the normal reading")
+    return exact
+
+
+def _check_consistent(data, fields, expected) -> None:
+    """β and both probabilities must be what limits, μ and σ give (Eqs. 21–22)."""
+    for key in expected:
+        if not np.allclose(fields[key], expected[key], rtol=CONSISTENCY_RTOL, atol=0):
+            first = np.argwhere(~np.isclose(fields[key], expected[key],
+                                            rtol=CONSISTENCY_RTOL, atol=0))[0]
+            raise data.error(key, f"entry {first.tolist()} does not follow from the saved "
+                                  f"limits, mean and sigma")
+
+
+def _check_contributions(data, frame: pd.DataFrame) -> None:
+    """The saved contributions must be shares (>= 0) of each output summing to 100 %."""
+    values = frame[list(OUTPUTS)]
+    try:
+        numbers = values.to_numpy(dtype=float)
+    except (TypeError, ValueError):
+        raise data.error("contributions", "expected numbers") from None
+    if not (np.isfinite(numbers).all() and (numbers >= 0).all()
+            and np.allclose(numbers.sum(axis=0), 100.0, rtol=1e-9)):
+        raise data.error("contributions", "each output's column must be shares "
+                                          "(>= 0) summing to 100 %")
+    if len(set(frame.index)) != len(frame.index):
+        raise data.error("contributions", "error names repeat")
 
 
 def fosm(machine, tolerances, poses, *, k: float = 3.0, means=None,

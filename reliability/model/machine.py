@@ -190,8 +190,8 @@ class Machine:
                    for f in fields(self) if f.compare)
 
     def to_toml(self) -> str:
-        """The description as machine-file TOML text; :func:`machine_from_dict` of its
-        parsed text gives an equal machine."""
+        """The description as machine-file TOML text (the machine file's one writer);
+        :func:`machine_from_toml` of it gives an equal machine."""
         import tomli_w
 
         return tomli_w.dumps(machine_to_dict(self))
@@ -367,27 +367,36 @@ def hobbing_machine() -> Machine:
     Table 2 (an erratum, docs/model.md).
     """
     text = resources.files("reliability").joinpath("machines/hobbing.toml").read_text()
-    return machine_from_dict(tomllib.loads(text), source="hobbing.toml")
+    return machine_from_toml(text, source="hobbing.toml")
 
 
 def load_machine(path) -> Machine:
-    """Load and validate a machine description from a TOML file.
+    """Load and validate a machine description from a TOML file (the machine file's one
+    reader; :meth:`Machine.to_toml` gives the text to write one).
 
     Raises
     ------
     MachineDescriptionError
-        Naming the offending key, axis or value.
+        Naming the file and the offending key, axis or value.
     """
     path = Path(path)
     try:
-        data = tomllib.loads(path.read_text(encoding="utf-8"))
-    except tomllib.TOMLDecodeError as exc:
-        raise MachineDescriptionError(f"{path}: not valid TOML: {exc}") from None
+        text = path.read_text(encoding="utf-8")
     except UnicodeDecodeError as exc:
         raise MachineDescriptionError(f"{path}: not a text file (UTF-8 TOML expected): byte "
                                       f"{exc.start} is {exc.object[exc.start:exc.start + 1]!r}"
                                       ) from None
-    return machine_from_dict(data, source=str(path))
+    return machine_from_toml(text, source=str(path))
+
+
+def machine_from_toml(text: str, source: str = "machine") -> Machine:
+    """Validate machine-file TOML text (what :meth:`Machine.to_toml` returns) and build a
+    :class:`Machine`; errors name ``source``."""
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise MachineDescriptionError(f"{source}: not valid TOML: {exc}") from None
+    return machine_from_dict(data, source=source)
 
 
 def machine_from_dict(data: Mapping, source: str = "machine") -> Machine:

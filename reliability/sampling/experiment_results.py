@@ -133,7 +133,7 @@ class GridExperimentResult:
         return f"GridExperimentResult:\n{self.summary()}"
 
     def to_frame(self) -> pd.DataFrame:
-        """Long table, one row per experiment and output (saved by :meth:`save_csv`)."""
+        """Long table, one row per experiment and output (what :meth:`save` writes)."""
         repeat = np.repeat(np.arange(1, self.repeats + 1), len(OUTPUTS))
         inside = self.inside.ravel()
         return pd.DataFrame({"repeat": repeat, "output": np.tile(OUTPUTS, self.repeats),
@@ -179,13 +179,14 @@ class GridExperimentResult:
                    distribution=str(metadata["distribution"]), k=float(k),
                    points_per_axis=points)
 
-    def save_csv(self, path, overwrite: bool = False) -> Path:
-        """Write :meth:`to_frame` to CSV; an existing file is kept unless ``overwrite``."""
+    def save(self, path, overwrite: bool = False) -> Path:
+        """Write :meth:`to_frame` to CSV atomically; an existing file is kept unless
+        ``overwrite``. Returns the path."""
         return write_csv(self.to_frame(), path, overwrite, index=False)
 
     @classmethod
-    def load_csv(cls, path) -> "GridExperimentResult":
-        """Read and verify a file written by :meth:`save_csv` (see :meth:`from_frame`)."""
+    def load(cls, path) -> "GridExperimentResult":
+        """Read and verify a file written by :meth:`save` (see :meth:`from_frame`)."""
         return cls.from_frame(read_saved_csv(path), source=str(path))
 
 
@@ -254,7 +255,7 @@ class RandomPoseResult:
         return frame
 
     def saved_frame(self) -> pd.DataFrame:
-        """The table :meth:`save_csv` writes: one row per output with the counts, the
+        """The table :meth:`save` writes: one row per output with the counts, the
         FOSM averages and how the errors were drawn."""
         return pd.DataFrame({"output": OUTPUTS, "limit": self.limits, "inside": self.inside,
                              "outside": self.n_samples - self.inside,
@@ -262,9 +263,9 @@ class RandomPoseResult:
                              "fosm_two_sided": self.fosm_two_sided,
                              "distribution": self.distribution, "k": self.k})
 
-    def save_csv(self, path, overwrite: bool = False) -> Path:
+    def save(self, path, overwrite: bool = False) -> Path:
         """Write :meth:`saved_frame` to CSV atomically; an existing file is kept unless
-        ``overwrite``."""
+        ``overwrite``. Returns the path."""
         return write_csv(self.saved_frame(), path, overwrite, index=False)
 
     @classmethod
@@ -295,8 +296,8 @@ class RandomPoseResult:
                    k=float(k[0]))
 
     @classmethod
-    def load_csv(cls, path) -> "RandomPoseResult":
-        """Read and verify a file written by :meth:`save_csv`."""
+    def load(cls, path) -> "RandomPoseResult":
+        """Read and verify a file written by :meth:`save` (see :meth:`from_frame`)."""
         return cls.from_frame(read_saved_csv(path), source=str(path))
 
 

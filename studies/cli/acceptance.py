@@ -3,8 +3,6 @@ ISO 230 acceptance tests?"""
 
 from __future__ import annotations
 
-import pandas as pd
-
 from reliability.acceptance.prediction import (DEFAULT_PROFILE, acceptance, path_profile,
                                                profile_note)
 from reliability.acceptance.definitions import read_tests
@@ -61,12 +59,7 @@ def run(args) -> int:
           f"{result.distribution} with σ = t/{result.k:g}; geometric errors only (no servo, "
           f"dynamic or thermal effects), plus each linear axis' repeatability and reversal "
           f"in positioning tests.\n")
-    print(printed_table(result).to_string(index=False))
-    passing = result.test_pass()
-    print("\npass probability of each test (every limited quantity), Wilson 95 %:")
-    for row in passing.itertuples():
-        print(f"  {row.test}: {row.pass_probability:.4f} "
-              f"[{row.pass_low:.4f}, {row.pass_high:.4f}]")
+    print(result.results_text())
     if out is not None:
         out.mkdir(exist_ok=True)
         path = write_csv(result.to_frame(), out / RESULT_FILE, overwrite=args.overwrite,
@@ -74,21 +67,3 @@ def run(args) -> int:
         print(f"\nwritten {path}")
     return 0
 
-
-def printed_table(result) -> pd.DataFrame:
-    """The result table with limits, means and quantiles in µm and the drivers."""
-    frame = result.to_frame()
-    rows = []
-    for row in frame.itertuples():
-        if row.test == "all":
-            continue
-        limited = pd.notna(row.limit)
-        rows.append({
-            "test": row.test, "quantity": row.quantity,
-            "limit µm": f"{1000 * row.limit:.3g}" if limited else "-",
-            "mean µm": f"{1000 * row.mean:.3g}", "q95 µm": f"{1000 * row.q95:.3g}",
-            "pass": f"{row.pass_probability:.4f} [{row.pass_low:.4f}, {row.pass_high:.4f}]"
-            if limited else "-",
-            "driven by (share of mean square)": result.top_drivers(row.test, row.quantity)
-            or "-"})
-    return pd.DataFrame(rows)

@@ -15,7 +15,6 @@ gives the same files.
 from __future__ import annotations
 
 import argparse
-import io
 import sys
 import time
 from dataclasses import dataclass, field
@@ -40,7 +39,7 @@ from reliability.first_order.workspace_search import continuous_worst
 from studies.cli import options, program
 from studies.report import machine_sections, plots
 from studies.report.section import Section
-from studies.report.writer import SIGNIFICANT
+from studies.report.writer import SIGNIFICANT, png_bytes
 from studies.report.writer import write_report as write_machine_report
 from studies.workflows.machine_study import run as run_machine_study
 from studies.workflows.machine_study import summary
@@ -64,6 +63,8 @@ SIDES = {"": "one_sided", "_two_sided": "two_sided"}
 #: Subfolder holding the paper's machine run through the generic machine study: the report
 #: ``precrel report --seed S`` writes for any machine, under the machine file's one reading.
 MACHINE_REPORT = "machine"
+#: Resolution of the paper's figures (a report's figures: studies.report.writer.FIGURE_DPI).
+FIGURE_DPI = 110
 OUTPUT_FILES = (
     "table4_initial.csv", "table5_coefficients.csv", "table6_allocation.csv",
     "table7_cost.csv", "table8_experiment.csv", "table9_repeats.csv", "table9_summary.csv",
@@ -327,10 +328,7 @@ def write_outputs(study: Study, out: Path, log) -> None:
         write_csv(frame, out / name, overwrite=True, float_format=f"%.{SIGNIFICANT}g")
     log("tables written; drawing figures")
     for name, fig in figures(study, frames).items():
-        image = io.BytesIO()
-        fig.savefig(image, format=Path(name).suffix[1:], dpi=110, metadata={"Software": None})
-        atomic_write_bytes(out / name, image.getvalue(), overwrite=True)
-        plt.close(fig)
+        atomic_write_bytes(out / name, png_bytes(fig, FIGURE_DPI), overwrite=True)
     write_report(study, frames, out / "report.md")
     log(f"the generic machine report into {out / MACHINE_REPORT}/")
     generic = run_machine_study(study.machine, seed=study.seed, repeats=study.repeats)

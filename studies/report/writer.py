@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from reliability.basics.files import (SIGNIFICANT, atomic_write_bytes, atomic_write_text,
-                                      check_destination, make_temporary_folder)
+                                      check_destination, make_temporary_folder, write_csv)
 
 from .markdown import markdown_to_html
 
@@ -92,12 +92,11 @@ def _assemble(folder: Path, sections, summary: dict, title: str) -> list[str]:
         merged.update(section.summary)
         for name, frame in section.tables.items():
             index = frame.index.name is not None or any(frame.index.names)
-            atomic_write_text(folder / name, frame.to_csv(
-                index=index, float_format=f"%.{SIGNIFICANT}g"))
+            write_csv(frame, folder / name, index=index, float_format=f"%.{SIGNIFICANT}g")
             names.append(name)
     for section in sections:
         for name, figure in section.figures.items():
-            images[name] = _png(figure)
+            images[name] = png_bytes(figure)
             atomic_write_bytes(folder / name, images[name])
             names.append(name)
     atomic_write_text(folder / "report.md", render_markdown(title, sections))
@@ -130,11 +129,12 @@ def rounded(value):
     return value
 
 
-def _png(figure) -> bytes:
-    """The figure as PNG bytes, without a creation-software stamp (stable bytes)."""
+def png_bytes(figure, dpi: int = FIGURE_DPI) -> bytes:
+    """The figure as PNG bytes at ``dpi``, without a creation-software stamp (stable bytes),
+    and closed: how every figure of a report or of the paper's reproduction is written."""
     import matplotlib.pyplot as plt
     buffer = io.BytesIO()
-    figure.savefig(buffer, format="png", dpi=FIGURE_DPI, metadata={"Software": None})
+    figure.savefig(buffer, format="png", dpi=dpi, metadata={"Software": None})
     plt.close(figure)
     return buffer.getvalue()
 

@@ -235,6 +235,10 @@ class SweepResult:
     resumed: int
     path: Path
 
+    def to_frame(self) -> pd.DataFrame:
+        """One row per task, as written to ``results.csv`` (a copy of :attr:`frame`)."""
+        return self.frame.copy()
+
     def summary(self) -> str:
         """How many tasks, how each ended, and where the table is."""
         status = self.frame["status"].value_counts()
