@@ -62,7 +62,7 @@ from reliability.sampling.machine_yield import YieldModel
 from reliability.model.machine import OUTPUTS
 from reliability.model.poses import workspace_grid
 from reliability.sampling.grid_experiment import GridExperiment
-from reliability.basics.statistics import machine_yield
+from reliability.basics.statistics import all_within_share
 
 from .convex import InfeasibleAllocationError, solve_convex_allocation
 from .front import CommonTargetSolver
@@ -300,13 +300,14 @@ def allocate_for_yield(machine, yield_target: float, *, profile=None, distributi
         design_yield_target=float(design_target), tolerances=chosen.t, cost=chosen.cost,
         output_targets=two_sided_target(best.z),
         method="per-output targets" if chosen is best else "error shape",
-        design_yield=machine_yield(chosen.passes),
-        verified_yield=machine_yield(verify(chosen.t)), lower_bound=float(lower.dual_bound),
+        design_yield=all_within_share(chosen.passes),
+        verified_yield=all_within_share(verify(chosen.t)),
+        lower_bound=float(lower.dual_bound),
         lower_bound_tolerances=np.asarray(lower.t),
         naive=NaiveAllocation(target=float(two_sided_target(naive.z[0])),
                               tolerances=naive.t, cost=naive.cost,
-                              design_yield=machine_yield(naive.passes),
-                              verified_yield=machine_yield(verify(naive.t))),
+                              design_yield=all_within_share(naive.passes),
+                              verified_yield=all_within_share(verify(naive.t))),
         profile=machine.profile, distribution=machine.distribution, points=int(points),
         machines=machines, seed=seed, evaluations=search.evaluations,
         seconds={"build": built - started, "targets": targets_found - built,

@@ -104,7 +104,7 @@ from ..model.machine import OUTPUTS
 from ..model.profiles import axis_profiles, travel_factors
 from ..model.error_draws import DISTRIBUTIONS
 from .grid_experiment import GridExperiment
-from ..basics.statistics import machine_yield as binomial_yield, share_interval
+from ..basics.statistics import all_within_share, share_interval
 
 #: Built machines simulated when not told otherwise (the command line's ``--machines``).
 DEFAULT_MACHINES = 4000
@@ -718,7 +718,7 @@ class _Samples:
         rows, weights = np.concatenate(self.rows), np.concatenate(self.weights)
         if method == "crude":
             passed = self.n - len(rows)
-            interval = binomial_yield(passed, confidence, trials=self.n)
+            interval = all_within_share(passed, confidence, trials=self.n)
             estimate, low, high = float(interval.estimate), float(interval.lower), \
                 float(interval.upper)
             p = 1.0 - estimate
