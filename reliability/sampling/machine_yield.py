@@ -33,8 +33,11 @@ One engine
 Every verdict on a built machine comes from :meth:`YieldModel.output_ratios`: for given
 standard normal draws ``u`` it evaluates the exact chain at every grid pose and keeps, per
 machine and output, the largest ``|y_o|/I_o``; the machine passes when all six are below 1
-(Eq. 19 at every pose). :meth:`YieldModel.estimate` (``precrel verify``, ``report``) and
-the error-shape stage of :func:`allocation.allocate_for_yield` use it.
+(Eq. 19 at every pose). :meth:`YieldModel.estimate` (``precrel verify``, both allocations
+of ``precrel report``, :func:`reliability.sampling.verification.verify`), both stages of
+:func:`allocation.allocate_for_yield` (per-output targets and error shape, on fixed draws:
+common random numbers), its naive method and its verification sample all use it, so the
+same draws give the same verdicts wherever they are judged.
 
 Estimators
 ----------
@@ -380,7 +383,8 @@ class YieldModel:
         Output ``o`` of a machine holds its limit at every pose (Eq. 19 everywhere) when its
         ratio is below 1, and the machine passes when all six are. This is the one
         evaluation of built machines behind the yield: :meth:`worst_ratios`,
-        :meth:`worst_rows` and :meth:`estimate` derive from it.
+        :meth:`worst_rows` and :meth:`estimate` derive from it, and so do both stages of
+        :func:`allocation.allocate_for_yield`.
 
         Parameters
         ----------
