@@ -248,7 +248,8 @@ def allocate_for_yield(machine, yield_target: float, *, profile=None, distributi
         Box as factors of the initial allocation (default as
         :meth:`AllocationProblem.build`).
     machines : int
-        Built machines in the design sample and, independently, in the verification sample.
+        Built machines in each sample: the design samples of the two stages and,
+        independently, the verification sample.
     seed : int
         Seed of the samples: the design sample of the per-output stage, the verification
         sample and the design sample of the shape stage draw from the first three streams
