@@ -43,9 +43,13 @@ of its own; the cheaper of the two stages is the result (:attr:`YieldAllocation.
 The per-output stage cannot trade one error against another inside an output; on the paper's
 machine, whose failing machines fail several outputs at once, that is where the saving is.
 
-All per-output yields go through one function, :func:`_machine_yield` (the crude grid experiment of
-:class:`reliability.sampling.grid_experiment.GridExperiment`), so a better estimator is swapped in
-at one place.
+One engine. Every yield of both stages, of the verification and of the naive method is a
+share of built machines judged by
+:meth:`reliability.sampling.machine_yield.YieldModel.output_ratios` (per machine and output,
+the largest ``|y_o|/I_o`` over the grid of the exact chain) on fixed standard normal draws,
+one draw per sample from the seed (:func:`reliability.basics.streams.yield_allocation_streams`):
+the engine of :func:`reliability.sampling.machine_yield.machine_yield`, which ``precrel
+verify`` and ``report`` print.
 """
 
 from __future__ import annotations
@@ -61,8 +65,7 @@ from reliability.first_order.fosm import required_index
 from reliability.sampling.machine_yield import YieldModel
 from reliability.model.machine import OUTPUTS
 from reliability.model.poses import workspace_grid
-from reliability.sampling.grid_experiment import GridExperiment
-from reliability.basics.statistics import machine_yield
+from reliability.basics.statistics import all_within_share
 
 from .convex import InfeasibleAllocationError, solve_convex_allocation
 from .front import CommonTargetSolver
@@ -83,6 +86,10 @@ FIRST_STEP = 0.3
 PRICE_SCALE = 4.0
 #: Machines simulated by default (design and verification samples each).
 DEFAULT_MACHINES = 2000
+#: The samples of built machines, in the order of their streams
+#: (:func:`reliability.basics.streams.yield_allocation_streams`; the fourth stream is the
+#: bootstrap's of :func:`equal_yield_margin`).
+SAMPLES = ("design", "verification", "shape")
 
 
 @dataclass(frozen=True, eq=False)
@@ -241,9 +248,12 @@ def allocate_for_yield(machine, yield_target: float, *, profile=None, distributi
         Box as factors of the initial allocation (default as
         :meth:`AllocationProblem.build`).
     machines : int
-        Built machines in the design sample and, independently, in the verification sample.
+        Built machines in each sample: the design samples of the two stages and,
+        independently, the verification sample.
     seed : int
-        Seed of both samples (``streams.spawn(seed, 2)``).
+        Seed of the samples: the design sample of the per-output stage, the verification
+        sample and the design sample of the shape stage draw from the first three streams
+        of :func:`reliability.basics.streams.yield_allocation_streams`, once each.
     rounds : int
         Rounds of the search over the six per-output targets (0: the naive method only).
     naive_steps, restore_steps : int
@@ -300,13 +310,14 @@ def allocate_for_yield(machine, yield_target: float, *, profile=None, distributi
         design_yield_target=float(design_target), tolerances=chosen.t, cost=chosen.cost,
         output_targets=two_sided_target(best.z),
         method="per-output targets" if chosen is best else "error shape",
-        design_yield=machine_yield(chosen.passes),
-        verified_yield=machine_yield(verify(chosen.t)), lower_bound=float(lower.dual_bound),
+        design_yield=all_within_share(chosen.passes),
+        verified_yield=all_within_share(verify(chosen.t)),
+        lower_bound=float(lower.dual_bound),
         lower_bound_tolerances=np.asarray(lower.t),
         naive=NaiveAllocation(target=float(two_sided_target(naive.z[0])),
                               tolerances=naive.t, cost=naive.cost,
-                              design_yield=machine_yield(naive.passes),
-                              verified_yield=machine_yield(verify(naive.t))),
+                              design_yield=all_within_share(naive.passes),
+                              verified_yield=all_within_share(verify(naive.t))),
         profile=machine.profile, distribution=machine.distribution, points=int(points),
         machines=machines, seed=seed, evaluations=search.evaluations,
         seconds={"build": built - started, "targets": targets_found - built,
@@ -346,7 +357,10 @@ def equal_yield_margin(result: YieldAllocation, *, level: float | None = None,
     four times, one shift is added beyond each end, and its cost at the level is
     interpolated linearly between the shifts whose yields bracket it.
     The error bar is the bootstrap standard error over the sample's machines (Poisson
-    weights, the same resample for both families, so the difference is paired).
+    weights, the same resample for both families, so the difference is paired). The shared
+    sample and the weights draw from the second and the fourth stream of
+    :func:`reliability.basics.streams.yield_allocation_streams` of ``seed`` (by default
+    ``result.seed + 1``), and the machines are judged by the engine of the search.
 
     Returns
     -------
@@ -373,7 +387,7 @@ def equal_yield_margin(result: YieldAllocation, *, level: float | None = None,
     for name, allocate in families.items():
         shifts[name], costs[name], passes[name] = _family(allocate, sample, spacing, target)
         costs[name] = costs[name] / result.initial_cost
-    weights = streams.spawn(seed, 3)[2].poisson(1.0, (resamples, machines))
+    weights = search.streams[3].poisson(1.0, (resamples, machines))
     at_y = {name: _cost_at_yield(costs[name], passes[name], target, weights)
             for name in families}
     point = {name: float(_cost_at_yield(costs[name], passes[name], target,
@@ -470,7 +484,12 @@ class _Point:
 
 
 class _Search:
-    """The per-output-target family of allocations, solved and simulated with CRN."""
+    """The per-output-target family of allocations, solved and simulated with CRN.
+
+    Every sample of built machines is one draw of standard normals ``u`` from its stream of
+    :func:`~reliability.basics.streams.yield_allocation_streams` (design, verification,
+    shape design), made when first needed and kept, and judged by :attr:`model`'s
+    :meth:`~reliability.sampling.machine_yield.YieldModel.output_ratios`."""
 
     def __init__(self, machine, points, bounds, machines, seed, design_target,
                  gap_tol=1e-6, problem=None):
@@ -481,12 +500,9 @@ class _Search:
         self.solver = CommonTargetSolver(self.problem, gap_tol)
         self.gap_tol = gap_tol
         self.z_build = float(self.problem.required_index[0])
-        self.experiment = GridExperiment(machine, points, profile=machine.profile)
-        design, verification, shape = streams.spawn(seed, 3)
-        self.design_seed = int(design.integers(2 ** 62))
-        self.shape_seed = int(shape.integers(2 ** 62))
-        self.points = points
-        self.verification_seed = int(verification.integers(2 ** 62))
+        self.model = YieldModel(machine, points_per_axis=points)
+        self.streams = streams.yield_allocation_streams(seed)
+        self._draws = {}
         self.machines = machines
         self.design_target = design_target
         self.floor = float(required_index(0.5, "two_sided"))
@@ -526,16 +542,30 @@ class _Search:
         key = tuple(np.round(z, 12))
         if key not in self._cache:
             point = self.solve(z)
-            verdicts = None if not np.isfinite(point.cost) else _machine_yield(
-                self.experiment, point.t, self.machines, self.design_seed)
+            verdicts = None if not np.isfinite(point.cost) else self.verdicts(
+                point.t, "design")
             self.evaluations += 1
             self._cache[key] = replace(point, verdicts=verdicts)
         return self._cache[key]
 
+    def draws(self, sample: str) -> np.ndarray:
+        """The standard normal draws ``(machines, dimension)`` of ``sample``
+        (``'design'``, ``'verification'`` or ``'shape'``): one draw from its stream, the
+        same array for every allocation (common random numbers)."""
+        if sample not in self._draws:
+            stream = self.streams[SAMPLES.index(sample)]
+            self._draws[sample] = self.model.draws(self.machines, stream)
+        return self._draws[sample]
+
+    def verdicts(self, t, sample: str) -> np.ndarray:
+        """Per-machine, per-output verdicts ``(machines, 6)`` of allocation ``t`` on
+        ``sample``: the output holds its limit at every grid pose (its worst ratio
+        ``|y_o|/I_o`` below 1, Eq. 19); the machine passes when all six do."""
+        return self.model.output_ratios(self.draws(sample), t) < 1.0
+
     def verification_sample(self):
         """Per-machine verdicts of an allocation on the fresh sample (same draws for all)."""
-        return lambda t: _machine_yield(self.experiment, t, self.machines,
-                                        self.verification_seed).all(axis=1)
+        return lambda t: self.verdicts(t, "verification").all(axis=1)
 
     def naive(self, steps) -> _Point:
         """One common required index, bisected to the smallest meeting the design yield."""
@@ -581,18 +611,14 @@ class _Search:
         cannot hold it."""
         if steps == 0:
             return None
-        model = YieldModel(self.problem.machine, points_per_axis=self.points)
-        u = np.random.default_rng(self.shape_seed).standard_normal(
-            (self.machines, model.dimension))
-        found = shape_search(model, self.problem.cost, np.asarray(self.problem.lower),
+        found = shape_search(self.model, self.problem.cost, np.asarray(self.problem.lower),
                              np.asarray(self.problem.upper), start.t,
-                             self.design_target, u, iterations=steps)
+                             self.design_target, self.draws("shape"), iterations=steps)
         if found is None:
             return None
         self.evaluations += found.evaluations
-        passes = model.worst_ratios(u, found.tolerances)[0] < 1.0
         return _Point(z=start.z, t=found.tolerances, cost=found.cost,
-                      verdicts=passes[:, None])
+                      verdicts=self.verdicts(found.tolerances, "shape"))
 
     def _direction(self, current) -> np.ndarray:
         """Per output: −1 (lower its target) … +1 (raise it), from its price of yield.
@@ -660,13 +686,3 @@ class _Search:
             if best is None:
                 return None
         return self._smallest_shift(z, low, high, best, steps)
-
-
-def _machine_yield(experiment, tolerances, machines, seed) -> np.ndarray:
-    """Per-machine, per-output verdicts ``(machines, 6)``: the output inside its limit at
-    every grid pose, for ``machines`` built machines with tolerances ``tolerances`` (the
-    machine passes when all six are); the same ``seed`` gives the same draws for every
-    allocation (common random numbers)."""
-    result = experiment.run(tolerances, repeats=machines, rng=seed, keep_values="none",
-                            distribution=experiment.machine.distribution)
-    return result.inside == result.n_poses

@@ -93,6 +93,61 @@ def test_row_vectors_are_the_linearised_chain_and_have_fosm_sigma(mill, profile)
                                atol=1e-6 * np.abs(exact).max())
 
 
+def chain_ratios(model, u, t):
+    """Per machine and output, max over the grid poses of |y_o|/I_o straight from the exact
+    chain: each machine's errors (:meth:`YieldModel.errors`) put together per pose and
+    ``machine.comprehensive_error`` called on the grid poses, one machine at a time."""
+    machine, poses = model.machine, model.experiment.poses
+    motion, assembly = model.errors(u, t)
+    n, points = len(machine.axes), model.experiment.points_per_axis
+    index = np.stack(np.unravel_index(np.arange(len(poses)), (points,) * n), axis=-1)
+    out = np.empty((len(u), 6))
+    for m in range(len(u)):
+        x = np.concatenate([motion[m][np.arange(n), index].reshape(len(poses), -1),
+                            np.broadcast_to(assembly[m].ravel(),
+                                            (len(poses), assembly[m].size))], axis=1)
+        y = machine.comprehensive_error(poses, x)
+        out[m] = np.max(np.abs(y) / machine.limits, axis=0)
+    return out
+
+
+@pytest.mark.parametrize("machine_name, profile, distribution", [
+    ("mill3", "constant", "normal"), ("trunnion5", "gp:300", "truncated"),
+    ("trunnion5", "independent", "normal")])
+def test_output_ratios_are_the_exact_chain_per_machine(machine_name, profile, distribution,
+                                                       request):
+    """The engine's per-output worst ratios (batched, here in batches of 2 machines) are
+    those of the exact chain evaluated pose by pose, and worst_ratios is their largest,
+    with a row at which the chain reaches it."""
+    machine = request.getfixturevalue(machine_name)
+    model = YieldModel(machine, profile=profile, distribution=distribution,
+                       points_per_axis=3, memory=2 * 4 * 6 * 8 * 3 ** len(machine.axes))
+    assert model.batch == 2
+    t = 1.3 * machine.initial_allocation
+    u = model.draws(5, rng=11)
+    ratios, poses = model.output_ratios(u, t, with_poses=True)
+    assert ratios.shape == poses.shape == (5, 6)
+    np.testing.assert_allclose(ratios, chain_ratios(model, u, t), rtol=1e-9)
+    np.testing.assert_array_equal(model.output_ratios(u, t), ratios)
+    ratio, worst = model.worst_ratios(u, t)
+    np.testing.assert_array_equal(ratio, ratios.max(axis=1))
+    pose, output = np.divmod(worst, 6)
+    np.testing.assert_array_equal(ratios[np.arange(5), output], ratio)
+    np.testing.assert_array_equal(poses[np.arange(5), output], pose)
+    failed, rows = model.worst_rows(u, t)
+    np.testing.assert_array_equal(failed, ~(ratios < 1.0).all(axis=1))
+    np.testing.assert_array_equal(rows, worst)
+
+
+def test_draws_come_from_the_seed_through_the_stream_door(mill):
+    model = YieldModel(mill, points_per_axis=3)
+    u = model.draws(7, rng=3)
+    assert u.shape == (7, model.dimension)
+    np.testing.assert_array_equal(u, model.draws(7, rng=np.random.default_rng(3)))
+    with pytest.raises(InputError, match="machines"):
+        model.draws(0, rng=3)
+
+
 def test_proposal_weights_are_the_exact_density_ratio(mill):
     """Under the proposal, E_q[w] = 1 and E_q[w 1(F_r)] = p_r for every row (because
     w = φ/q exactly), checked at z = 4."""

@@ -71,14 +71,14 @@ def test_table9_rows_and_summary(result):
     assert table.loc["Min", "dx"] == 0.90 and table.loc["Min", "ey"] == 0.96
 
 
-def test_machine_yield_is_clopper_pearson_over_experiments(result):
-    estimate = result.machine_yield()
+def test_all_inside_share_is_clopper_pearson_over_experiments(result):
+    estimate = result.all_inside_share()
     exact = stats.binomtest(1, 4).proportion_ci(confidence_level=0.95, method="exact")
     assert estimate.estimate == 0.25 and estimate.n == 4
     assert estimate.method == "clopper-pearson"
     assert estimate.lower == pytest.approx(exact.low, rel=1e-10)
     assert estimate.upper == pytest.approx(exact.high, rel=1e-10)
-    narrower = result.machine_yield(0.8)
+    narrower = result.all_inside_share(0.8)
     assert narrower.lower > estimate.lower and narrower.upper < estimate.upper
 
 

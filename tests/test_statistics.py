@@ -5,8 +5,9 @@ import pandas as pd
 import pytest
 from scipy import integrate, special, stats
 
-from reliability.basics.statistics import (ProportionEstimate, between_experiment_interval,
-                                           binomial_interval, machine_yield, proportion)
+from reliability.basics.statistics import (ProportionEstimate, all_within_share,
+                                           between_experiment_interval, binomial_interval,
+                                           proportion)
 
 # Statistical checks allow Z standard errors of the Monte-Carlo estimate (two-sided
 # false-alarm rate 0.27 % per check for a correct implementation; seeds are fixed).
@@ -166,20 +167,20 @@ def test_pooling_correlated_poses_undercovers_but_experiments_do_not():
     assert replicated > 0.8
 
 
-# --------------------------------------------------------------------------- machine yield
-def test_machine_yield_reduces_trailing_axes():
+# --------------------------------------------------------------------------- all-within share
+def test_all_within_share_reduces_trailing_axes():
     ok = np.ones((20, 15, 6), dtype=bool)
     ok[3, 7, 5] = False
     ok[8, 0, 0] = False
-    est = machine_yield(ok)
+    est = all_within_share(ok)
     assert est.estimate == 18 / 20 and est.n == 20 and est.method == "clopper-pearson"
     ref = stats.binomtest(18, 20).proportion_ci(0.95, "exact")
     assert (est.lower, est.upper) == pytest.approx((ref.low, ref.high), abs=1e-10)
 
 
-def test_machine_yield_from_counts_equals_boolean_input():
-    by_count = machine_yield(17, trials=20)
-    by_bool = machine_yield(np.arange(20) < 17)
+def test_all_within_share_from_counts_equals_boolean_input():
+    by_count = all_within_share(17, trials=20)
+    by_bool = all_within_share(np.arange(20) < 17)
     pd.testing.assert_frame_equal(by_count.to_frame(), by_bool.to_frame())
 
 
@@ -231,16 +232,16 @@ def test_to_frame_refuses_multidimensional_estimates():
         est.to_frame()
 
 
-def test_machine_yield_refusals():
+def test_all_within_share_refusals():
     with pytest.raises(TypeError, match="boolean array.*trials="):
-        machine_yield(np.array([1, 0, 1]))
+        all_within_share(np.array([1, 0, 1]))
     with pytest.raises(ValueError, match="trials must be positive"):
-        machine_yield(np.zeros((0, 5), dtype=bool))
+        all_within_share(np.zeros((0, 5), dtype=bool))
     with pytest.raises(ValueError, match="unknown interval method 'exact'"):
-        machine_yield(np.ones(5, dtype=bool), method="exact")
+        all_within_share(np.ones(5, dtype=bool), method="exact")
 
 
 def test_scalar_frame_has_one_row():
-    frame = machine_yield(np.ones(20, dtype=bool)).to_frame()
+    frame = all_within_share(np.ones(20, dtype=bool)).to_frame()
     assert isinstance(frame, pd.DataFrame) and len(frame) == 1
     assert frame["upper"].iloc[0] == 1.0

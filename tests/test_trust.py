@@ -201,9 +201,9 @@ def test_poses_are_printed_in_degrees_with_units():
 
 
 def test_result_objects_print_readable_summaries(mill3):
-    from reliability.basics.statistics import machine_yield
+    from reliability.basics.statistics import all_within_share
 
-    estimate = machine_yield(np.r_[np.ones(1987, bool), np.zeros(13, bool)])
+    estimate = all_within_share(np.r_[np.ones(1987, bool), np.zeros(13, bool)])
     text = repr(estimate)
     assert "ProportionEstimate(" not in text
     assert "0.9935" in text and "clopper-pearson" in text and "2000 trials" in text

@@ -10,8 +10,10 @@ independent sample:
 * :func:`between_experiment_interval` -- for per-experiment fractions whose poses share
   their random errors; the spread between experiments gives the design effect, and a
   Wilson score interval on Kish's effective sample size keeps the bounds inside [0, 1].
-* :func:`machine_yield` -- the share of simulated machines (experiments) in which every pose
-  meets every limit; experiments are independent, so a binomial interval applies.
+* :func:`all_within_share` -- the share of experiments (simulated machines) in which every
+  entry (pose, output) meets its limit; experiments are independent, so a binomial interval
+  applies. (The machine yield of an allocation, with its choice of estimator, is
+  :func:`reliability.sampling.machine_yield.machine_yield`; this is the interval of a count.)
 
 Every function is vectorised over trailing "output" axes (e.g. the six comprehensive
 errors ``dx dy dz ex ey ez``) and returns a frozen result that carries its own standard
@@ -34,9 +36,9 @@ __all__ = [
     "METHODS",
     "ProportionEstimate",
     "ReplicateEstimate",
+    "all_within_share",
     "between_experiment_interval",
     "binomial_interval",
-    "machine_yield",
     "proportion",
 ]
 
@@ -446,7 +448,7 @@ def between_experiment_interval(fractions, confidence=0.95, *, names=None, poses
     The interval is approximate: the effective sample size is itself estimated from the
     experiments, and fractions near 1 are skewed (many experiments at exactly 1, a few
     well below), so with 20 experiments the coverage is only near nominal.
-    :func:`machine_yield` answers the complementary question "how often is a
+    :func:`all_within_share` answers the complementary question "how often is a
     machine entirely within its limits" with an exact binomial interval.
 
     Examples
@@ -495,11 +497,15 @@ def _kish_effective_size(mean, se, n, poses):
     return n_eff if poses is None else np.minimum(n_eff, cap)
 
 
-def machine_yield(all_within, confidence=0.95, method="clopper-pearson", *, trials=None):
-    """Share of simulated machines whose every pose meets every limit.
+def all_within_share(all_within, confidence=0.95, method="clopper-pearson", *, trials=None):
+    """Share of experiments entirely within their limits, with a binomial interval.
 
-    Each grid experiment is one simulated machine (one draw of all its errors);
-    experiments are independent, so the share is a binomial proportion over experiments.
+    Each experiment (a grid experiment, one simulated machine: one draw of all its errors)
+    counts when every entry of it (every pose, every output) is within its limit;
+    experiments are independent, so the share is a binomial proportion over experiments,
+    with a Clopper–Pearson interval by default. Given the verdicts of crude samples of built
+    machines it is the crude machine yield's interval; the machine yield itself, with its
+    estimator, is :func:`reliability.sampling.machine_yield.machine_yield`.
 
     Parameters
     ----------

@@ -8,7 +8,8 @@ the call which draws a number depends on:
 - :func:`spawn` — ``n`` children of a seed or generator, for the steps of one computation
   (:func:`verification_streams`, ``spawn(seed, 4)``, gives the grid, random-pose,
   worst-pose and machine-yield streams of a verification; the first three are those of
-  ``spawn(seed, 3)``);
+  ``spawn(seed, 3)``; :func:`yield_allocation_streams`, ``spawn(seed, 4)``, the samples of
+  an allocation for a machine-yield target);
 - :func:`extra_stream` — stream ``index`` of the family ``[seed, 1]``, for work added on top
   of a computation that already consumes ``spawn(seed, ...)``, so that adding it changes none
   of the earlier numbers (the optional report sections, ``precrel verify --precision`` and
@@ -85,6 +86,19 @@ def verification_streams(rng) -> list[np.random.Generator]:
     command runs it (the first three are ``spawn(rng, 3)``, as before the yield was
     added)."""
     return spawn(rng, 4)
+
+
+def yield_allocation_streams(seed) -> list[np.random.Generator]:
+    """The design, verification, shape-design and bootstrap streams of an allocation for a
+    machine-yield target with seed ``seed``: ``spawn(seed, 4)``.
+
+    :func:`allocation.allocate_for_yield` draws the standard normal draws of its three
+    samples of built machines, once each, from the first three
+    (:meth:`reliability.sampling.machine_yield.YieldModel.draws`); the paired comparison
+    :func:`allocation.yield_target.equal_yield_margin` with seed ``S`` uses the second of
+    ``S`` (its shared sample) and the fourth (the bootstrap's Poisson weights).
+    """
+    return spawn(seed, 4, "seed")
 
 
 def _seed(seed) -> int:

@@ -13,7 +13,7 @@ from ..basics.display import output_limits_text
 from ..basics.errors import InputError, InputTypeError, SavedResultError
 from ..basics.files import write_csv
 from ..model.machine import OUTPUTS
-from ..basics.statistics import between_experiment_interval, machine_yield, proportion
+from ..basics.statistics import all_within_share, between_experiment_interval, proportion
 
 FRAME_COLUMNS = ("repeat", "output", "limit", "inside", "outside", "fraction")
 METADATA_COLUMNS = ("distribution", "k", "points_per_axis")
@@ -102,16 +102,22 @@ class GridExperimentResult:
         return between_experiment_interval(self.fractions, confidence, names=OUTPUTS,
                                            poses=self.n_poses)
 
-    def machine_yield(self, confidence: float = 0.95):
-        """Share of experiments (simulated machines) entirely within every limit."""
-        return machine_yield(self.all_inside, confidence)
+    def all_inside_share(self, confidence: float = 0.95):
+        """Share of experiments (simulated machines) entirely within every limit, with a
+        Clopper–Pearson interval (:func:`reliability.basics.statistics.all_within_share` of
+        :attr:`all_inside`; Table 9's "all inside" row).
+
+        Under the experiment's error profile, this is the crude estimate of the machine
+        yield on the grid; :func:`reliability.sampling.machine_yield.machine_yield` is the
+        machine yield with its estimator and bounds."""
+        return all_within_share(self.all_inside, confidence)
 
     def summary(self, confidence: float = 0.95) -> str:
         """A short readable account: the set-up, the machine-level yield and, per output,
         the limit (with its unit), the mean share in tolerance with its interval, and the
         least and most of any experiment."""
         estimate = self.reliability(confidence)
-        machines = self.machine_yield(confidence)
+        machines = self.all_inside_share(confidence)
         table = pd.DataFrame({
             "limit": output_limits_text(self.limits, digits=6),
             "mean [%]": _percent(estimate.estimate),

@@ -17,6 +17,9 @@ The API (stable)::
     model.estimate(tolerances, machines=..., rng=..., method=..., ...) -> YieldEstimate
     model.first_order_bounds(tolerances) -> (lower, upper)
     model.linear_failure(tolerances, rng=None) -> float   # the linearised model's, no chain
+    model.draws(machines, rng=None) -> u                   # (machines, model.dimension)
+    model.output_ratios(u, tolerances) -> (R, 6)           # max over poses of |y_o|/I_o
+    model.worst_ratios(u, tolerances) -> (ratio, row)      # max over outputs, and its row
 
 :class:`YieldModel` holds what does not depend on the tolerances (the grid, the profile's
 factors, the chain's transports), so a caller that estimates many allocations of one
@@ -24,6 +27,17 @@ machine (an allocation for a yield target) builds it once. :func:`machine_yield`
 one-call form. The result, :class:`YieldEstimate`, carries the estimate, its interval and
 coefficient of variation, the machines simulated, the method, the profile, the reading,
 the workspace, the first-order bounds and the failure shares.
+
+One engine
+----------
+Every verdict on a built machine comes from :meth:`YieldModel.output_ratios`: for given
+standard normal draws ``u`` it evaluates the exact chain at every grid pose and keeps, per
+machine and output, the largest ``|y_o|/I_o``; the machine passes when all six are below 1
+(Eq. 19 at every pose). :meth:`YieldModel.estimate` (``precrel verify``, both allocations
+of ``precrel report``, :func:`reliability.sampling.verification.verify`), both stages of
+:func:`allocation.allocate_for_yield` (per-output targets and error shape, on fixed draws:
+common random numbers), its naive method and its verification sample all use it, so the
+same draws give the same verdicts wherever they are judged.
 
 Estimators
 ----------
@@ -104,7 +118,7 @@ from ..model.machine import OUTPUTS
 from ..model.profiles import axis_profiles, travel_factors
 from ..model.error_draws import DISTRIBUTIONS
 from .grid_experiment import GridExperiment
-from ..basics.statistics import machine_yield as binomial_yield, share_interval
+from ..basics.statistics import all_within_share, share_interval
 
 #: Built machines simulated when not told otherwise (the command line's ``--machines``).
 DEFAULT_MACHINES = 4000
@@ -350,6 +364,60 @@ class YieldModel:
         assembly = normal_to_marginal(z_assembly, self.k, self.distribution) * scale[6 * n:]
         return motion, assembly.reshape(-1, n - 1, 6)
 
+    def draws(self, machines: int, rng=None) -> np.ndarray:
+        """The standard normal draws ``u`` of ``machines`` built machines,
+        ``(machines, dimension)``, from ``rng`` (through
+        :func:`reliability.basics.streams.generator`).
+
+        Evaluating several allocations on the same draws gives common random numbers: two
+        allocations then differ only through their tolerances (every error is ``(t_i/k)``
+        times a function of ``u``, :meth:`errors`).
+        """
+        machines = checks.positive_int(machines, "machines")
+        return streams.generator(rng).standard_normal((machines, self.dimension))
+
+    def output_ratios(self, u, tolerances, *, with_poses: bool = False):
+        """Each built machine's worst ratio per output: ``max over grid poses |y_o|/I_o``
+        of the exact chain (Eq. 18) for draws ``u (R, dimension)``.
+
+        Output ``o`` of a machine holds its limit at every pose (Eq. 19 everywhere) when its
+        ratio is below 1, and the machine passes when all six are. This is the one
+        evaluation of built machines behind the yield: :meth:`worst_ratios`,
+        :meth:`worst_rows` and :meth:`estimate` derive from it, and so do both stages of
+        :func:`allocation.allocate_for_yield`.
+
+        Parameters
+        ----------
+        u : ndarray (R, dimension)
+            Standard normal draws (:meth:`draws`, or importance-sampling draws).
+        tolerances : ndarray (n_errors,)
+            The allocation, read as ±kσ under the model's reading.
+        with_poses : bool
+            Also return, per machine and output, the grid pose (index into
+            ``experiment.poses``) where the ratio is reached (the first such pose).
+
+        Returns
+        -------
+        ratios : ndarray (R, 6)
+        poses : ndarray (R, 6) of int
+            Only with ``with_poses``.
+
+        Notes
+        -----
+        Machines are evaluated in batches of :attr:`batch` (temporary arrays within the
+        model's memory budget); nothing loops over machines or poses in Python.
+        """
+        u = np.asarray(u, dtype=float)
+        ratios = np.empty((len(u), len(OUTPUTS)))
+        where = np.empty((len(u), len(OUTPUTS)), dtype=np.intp)
+        for start in range(0, len(u), self.batch):
+            part = slice(start, start + self.batch)
+            values = self.experiment.evaluate(*self.errors(u[part], tolerances))
+            rows = np.abs(values) / self.machine.limits  # (batch, n_poses, 6)
+            where[part] = np.argmax(rows, axis=1)
+            ratios[part] = np.take_along_axis(rows, where[part][:, None, :], axis=1)[:, 0]
+        return (ratios, where) if with_poses else ratios
+
     def worst_rows(self, u, tolerances):
         """For each draw: whether the machine fails (``|y| ≥ I`` at some pose and output,
         the complement of Eq. 19 everywhere) and its worst row ``pose · 6 + output``
@@ -360,14 +428,12 @@ class YieldModel:
     def worst_ratios(self, u, tolerances):
         """For each draw ``u (R, dimension)``: the largest ``|y|/I`` over every pose and
         output of the exact chain (the machine passes when it is below 1) and its row
-        ``pose · 6 + output``; the draws are evaluated in batches of :attr:`batch`."""
-        ratio, worst = np.empty(len(u)), np.empty(len(u), dtype=int)
-        for start in range(0, len(u), self.batch):
-            part = slice(start, start + self.batch)
-            values = self.experiment.evaluate(*self.errors(u[part], tolerances))
-            rows = (np.abs(values) / self.machine.limits).reshape(len(values), -1)
-            worst[part] = np.argmax(rows, axis=1)
-            ratio[part] = rows[np.arange(len(values)), worst[part]]
+        ``pose · 6 + output``; the largest of :meth:`output_ratios` (on a tie, the row
+        that comes first)."""
+        ratios, poses = self.output_ratios(u, tolerances, with_poses=True)
+        ratio = ratios.max(axis=1)
+        rows = poses * len(OUTPUTS) + np.arange(len(OUTPUTS))
+        worst = np.where(ratios == ratio[:, None], rows, np.iinfo(np.intp).max).min(axis=1)
         return ratio, worst
 
     def row_contributions(self, u, tolerances, rows) -> np.ndarray:
@@ -718,7 +784,7 @@ class _Samples:
         rows, weights = np.concatenate(self.rows), np.concatenate(self.weights)
         if method == "crude":
             passed = self.n - len(rows)
-            interval = binomial_yield(passed, confidence, trials=self.n)
+            interval = all_within_share(passed, confidence, trials=self.n)
             estimate, low, high = float(interval.estimate), float(interval.lower), \
                 float(interval.upper)
             p = 1.0 - estimate

@@ -90,7 +90,7 @@ def crude_timing(machine, t, profile, machines: int, seed: int) -> dict:
     experiment = GridExperiment(machine, 5, profile)
     start = time.perf_counter()
     reference = experiment.run(t, repeats=machines, rng=seed + 1, keep_values="none",
-                               distribution=machine.distribution).machine_yield()
+                               distribution=machine.distribution).all_inside_share()
     theirs = (time.perf_counter() - start) / machines
     return {"profile": profile, "machines": machines,
             "ours yield": yield_text(ours.estimate),

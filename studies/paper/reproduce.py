@@ -33,7 +33,7 @@ from reliability.basics.files import as_written, atomic_write_bytes, write_csv
 from reliability.first_order.fosm import fosm
 from reliability.sampling.grid_experiment import GridExperiment
 from reliability.sampling.pose_sampling import sample_random_poses
-from reliability.basics.statistics import machine_yield
+from reliability.basics.statistics import all_within_share
 from reliability.basics.streams import spawn
 from reliability.first_order.workspace_search import continuous_worst
 from studies.cli import options, program
@@ -252,12 +252,12 @@ def _costs(study: Study, costs) -> pd.DataFrame:
 
 
 def _yields(study: Study) -> pd.DataFrame:
-    rows = {name: result.machine_yield().to_frame().iloc[0]
+    rows = {name: result.all_inside_share().to_frame().iloc[0]
             for name, result in study.grid.items()}
     frame = pd.DataFrame(rows).T
     frame.index.name = "allocation"
     frame["all_inside"] = [int(result.all_inside.sum()) for result in study.grid.values()]
-    published = machine_yield(TABLE9_ALL_INSIDE, trials=len(TABLE9)).to_frame().iloc[0]
+    published = all_within_share(TABLE9_ALL_INSIDE, trials=len(TABLE9)).to_frame().iloc[0]
     frame.loc["paper (published)"] = published
     frame.loc["paper (published)", "all_inside"] = TABLE9_ALL_INSIDE
     return frame

@@ -86,7 +86,7 @@ def profile_comparison(machine, allocations: dict, profiles=PROFILES, repeats=(2
 
 
 def _row(label, spec, result, seconds) -> dict:
-    fit = result.machine_yield()
+    fit = result.all_inside_share()
     spread = result.reliability()
     row = {"allocation": label, "profile": str(spec), "length_mm": profile_length(spec),
            "repeats": result.repeats, "yield": fit.estimate, "yield_lower": fit.lower,
