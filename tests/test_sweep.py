@@ -281,3 +281,18 @@ def test_profiles_reach_the_grid_experiment(mill, tmp_path):
     assert frame.loc["constant", "yield"] == alone["yield"]
     # one value per machine along travel: whole machines pass or fail together more often
     assert frame.loc["constant", "yield"] != frame.loc["independent", "yield"]
+
+
+def test_a_task_yield_is_the_machine_yield_verify_prints(mill, tmp_path):
+    """One engine, one stream: a task's yield is the machine yield that ``verify`` computes
+    for the same allocation, seed, machine count (the task's repeats) and profile."""
+    spec = small_spec(mill, sides=("two_sided",), targets=(0.99,), seeds=(3,),
+                      profiles=("gp:300",), repeats=(40,))
+    task = spec.tasks()[0]
+    row = run_task(task)
+    machine = dataclasses.replace(load_machine(mill), targets=np.full(6, task.target))
+    problem = AllocationProblem.build(machine, workspace_grid(machine, 3), side="two_sided")
+    checked = verify(machine, problem.solve_exact().tolerances, repeats=2, samples=10,
+                     points=3, rng=3, profile="gp:300", machines=40,
+                     distribution=machine.distribution)
+    assert row["yield"] == checked.machine_yield.estimate

@@ -50,6 +50,7 @@ from reliability.model.machine import OUTPUTS, hobbing_machine, load_machine
 from reliability.model.poses import workspace_grid
 from reliability.model.profiles import profile_model
 from reliability.sampling.grid_experiment import GridExperiment
+from reliability.sampling.machine_yield import machine_yield
 from reliability.basics.streams import verification_streams
 from reliability.model.error_draws import DISTRIBUTIONS
 
@@ -268,9 +269,11 @@ def run_task(task: SweepTask, allocated: dict | None = None) -> dict:
         meets the target: ``reason`` then says what blocks, and the other entries are
         empty), ``relative_cost`` (optimum
         over the cost of the reference allocation), ``certified``, ``fraction`` (mean share
-        of poses in tolerance per output over the experiments), ``yield`` (share of
-        experiments entirely in tolerance); with a catalogue also ``price`` and ``choice``
-        (``"component=class; …"``).
+        of poses in tolerance per output over the experiments), ``yield`` (the machine yield of
+        :func:`reliability.sampling.machine_yield.machine_yield` from ``repeats`` built
+        machines under the task's profile, on the verification's yield stream, so
+        ``precrel verify --seed S --machines R --profile P`` prints the same number); with a
+        catalogue also ``price`` and ``choice`` (``"component=class; …"``).
     """
     with threadpool_limits(limits=1):
         machine = (task.machine, task.parameters()["machine_fingerprint"])
@@ -285,16 +288,19 @@ def run_task(task: SweepTask, allocated: dict | None = None) -> dict:
                     "fraction": [None] * len(OUTPUTS), "yield": None, **chosen}
         experiment = _experiment(machine, task.target, task.points_per_axis, task.profile,
                                  task.distribution)
-        rng = verification_streams(task.seed)[0]
-        verified = experiment.run(allocated["tolerances"], repeats=task.repeats, rng=rng,
+        grid_rng, _, _, yield_rng = verification_streams(task.seed)
+        verified = experiment.run(allocated["tolerances"], repeats=task.repeats, rng=grid_rng,
                                   keep_values="none",
                                   distribution=experiment.machine.distribution)
+        built = machine_yield(experiment.machine, allocated["tolerances"],
+                              profile=task.profile, points_per_axis=task.points_per_axis,
+                              machines=task.repeats, rng=yield_rng)
     return {"status": "ok", "reason": "", "bounds_source": allocated["bounds_source"],
             "distribution": experiment.machine.distribution,
             "relative_cost": allocated["relative_cost"],
             "certified": allocated["certified"],
             "fraction": verified.fractions.mean(axis=0).tolist(),
-            "yield": float(np.mean(verified.all_inside)), **chosen}
+            "yield": built.estimate, **chosen}
 
 
 def run_sweep(spec: SweepSpec, store, *, executor=None, progress=None, log=None,
