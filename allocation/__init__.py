@@ -14,8 +14,8 @@ from .convex import ConvexSolution, InfeasibleAllocationError, solve_convex_allo
 from .cost import CostModel, cost_weights
 from .discrete import CatalogueInfeasibleError, CatalogueResult, solve_catalogue
 from .elasticity import requirement_table
-from .fuzzy_evaluation import FcemResult, fcem_coefficient
 from .front import allocation_point, cost_reliability_front
+from .fuzzy_evaluation import FcemResult, fcem_coefficient
 from .gwo import GwoResult, grey_wolf, grey_wolf_reference
 from .problem import AllocationProblem, ScreenedRows, screen_rows
 from .result_files import read_allocation_csv

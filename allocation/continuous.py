@@ -47,9 +47,9 @@ import numpy as np
 import pandas as pd
 
 from reliability.basics import checks
-from reliability.first_order.certificate import MAX_BOX_CALLS
 from reliability.basics.display import OUTPUT_UNITS, axis_units, pose_frame, pose_text
 from reliability.basics.errors import InputError
+from reliability.first_order.certificate import MAX_BOX_CALLS
 from reliability.first_order.workspace_search import certified_worst, searched_worst
 
 from .result_files import gap_text

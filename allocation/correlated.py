@@ -48,8 +48,8 @@ from scipy import sparse
 from scipy.optimize import minimize, nnls
 from threadpoolctl import threadpool_limits
 
-from reliability.model.correlation import check_correlation_matrix
 from reliability.basics.errors import InputError
+from reliability.model.correlation import check_correlation_matrix
 from reliability.model.iso_names import iso_names
 from reliability.model.machine import OUTPUTS
 

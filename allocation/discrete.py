@@ -46,8 +46,8 @@ from scipy.optimize import Bounds, LinearConstraint, milp
 
 from reliability.basics.errors import InputError, InputTypeError
 from reliability.basics.files import write_csv
-from reliability.model.machine import OUTPUTS
 from reliability.basics.saved_results import check_count
+from reliability.model.machine import OUTPUTS
 
 from .catalogue import Catalogue
 from .convex import InfeasibleAllocationError

@@ -22,8 +22,8 @@ import pandas as pd
 from reliability.basics.display import axis_units, pose_columns
 from reliability.basics.errors import InputError, InputTypeError
 from reliability.basics.files import write_csv
-from reliability.model.machine import OUTPUTS
 from reliability.basics.saved_results import check_count, encode_frame, load_payload, save_payload
+from reliability.model.machine import OUTPUTS
 
 from .cost import GROUPS, CostModel
 

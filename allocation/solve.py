@@ -23,9 +23,9 @@ from scipy.stats import norm
 from reliability.basics import checks, streams
 from reliability.basics.display import OUTPUT_UNITS, axis_units, pose_text
 from reliability.basics.errors import InputError
+from reliability.basics.ties import worst_rows
 from reliability.first_order.fosm import probability
 from reliability.model.machine import OUTPUTS
-from reliability.basics.ties import worst_rows
 
 from .convex import InfeasibleAllocationError, largest_fraction, solve_convex_allocation
 from .gwo import grey_wolf

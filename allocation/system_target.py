@@ -29,8 +29,8 @@ import pandas as pd
 from reliability.basics import streams
 from reliability.basics.errors import InputError
 from reliability.first_order.fosm import required_index
-from reliability.model.machine import OUTPUTS
 from reliability.first_order.system_reliability import worst_system_reliability
+from reliability.model.machine import OUTPUTS
 
 from .convex import InfeasibleAllocationError
 from .front import CommonTargetSolver

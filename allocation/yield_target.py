@@ -61,11 +61,11 @@ import numpy as np
 from scipy.stats import norm
 
 from reliability.basics import checks, streams
+from reliability.basics.statistics import all_within_share
 from reliability.first_order.fosm import required_index
-from reliability.sampling.machine_yield import YieldModel
 from reliability.model.machine import OUTPUTS
 from reliability.model.poses import workspace_grid
-from reliability.basics.statistics import all_within_share
+from reliability.sampling.machine_yield import YieldModel
 
 from .convex import InfeasibleAllocationError, solve_convex_allocation
 from .front import CommonTargetSolver

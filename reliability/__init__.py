@@ -17,16 +17,16 @@ The names most users need are exported here.
 
 from .basics.errors import MachineDescriptionError
 from .first_order.fosm import FosmResult, fosm
-from .model.machine import (COMPONENTS, OUTPUTS, Axis, CostCoefficients, Machine, hobbing_machine,
-                            load_machine, machine_from_dict, machine_from_toml)
-from .sampling import rare_events as rare
-from .sampling.pose_sampling import PoseSamplingResult, sample_at_poses
-from .model.poses import random_poses, workspace_grid
-from .sampling.experiment_results import GridExperimentResult, RandomPoseResult
-from .sampling.grid_experiment import GridExperiment
-from .sampling.pose_sampling import sample_random_poses
 from .first_order.system_reliability import (SystemReliability, system_reliability,
                                              worst_system_reliability)
+from .model.machine import (COMPONENTS, OUTPUTS, Axis, CostCoefficients, Machine, hobbing_machine,
+                            load_machine, machine_from_dict, machine_from_toml)
+from .model.poses import random_poses, workspace_grid
+from .sampling import rare_events as rare
+from .sampling.experiment_results import GridExperimentResult, RandomPoseResult
+from .sampling.grid_experiment import GridExperiment
+from .sampling.pose_sampling import PoseSamplingResult, sample_at_poses
+from .sampling.pose_sampling import sample_random_poses
 
 __all__ = ["COMPONENTS", "OUTPUTS", "Axis", "CostCoefficients", "FosmResult",
            "GridExperiment", "GridExperimentResult", "Machine", "MachineDescriptionError",

@@ -17,11 +17,11 @@ import pytest
 from scipy.stats import norm
 
 from reliability import load_machine, machine_from_dict
+from reliability.acceptance.definitions import read_tests, parse_tests
 from reliability.acceptance.prediction import (CircularTest, PositioningTest, RotaryTest,
                                                acceptance, build_path, circular_deviation,
                                                default_targets, deviation_weights, ideal_chain,
                                                positioning_statistics)
-from reliability.acceptance.definitions import read_tests, parse_tests
 from reliability.basics.errors import InputError, MachineDescriptionError
 from reliability.model.measured_profiles import SystematicErrors, measured_profile
 from studies import cli

@@ -32,12 +32,12 @@ from reliability import (GridExperiment, GridExperimentResult, MachineDescriptio
                          sample_random_poses, workspace_grid)
 from reliability.basics.checks import require_size
 from reliability.basics.errors import InputError, InputTypeError, SavedResultError, SizeBudgetError
-from reliability.sampling.fosm_comparison import fosm_versus_monte_carlo
-from reliability.first_order.fosm import error_sigma
-from studies.report.plots import plot_comprehensive_error_scatter
-from reliability.model.error_draws import draw_errors
 from reliability.basics.statistics import binomial_interval, proportion
+from reliability.first_order.fosm import error_sigma
 from reliability.first_order.workspace_search import continuous_worst, searched_worst
+from reliability.model.error_draws import draw_errors
+from reliability.sampling.fosm_comparison import fosm_versus_monte_carlo
+from studies.report.plots import plot_comprehensive_error_scatter
 
 ROOT = Path(__file__).resolve().parent.parent
 HOB = reliability.hobbing_machine()

@@ -11,14 +11,14 @@ import numpy as np
 import pytest
 
 from reliability import OUTPUTS
-from reliability.first_order.certificate import _SigmaModel, _StackModel, certified_worst
 from reliability.basics.errors import InputError
-from reliability.model.kinematics import jacobian, jacobian_and_derivative, output_variance
+from reliability.first_order.certificate import _SigmaModel, _StackModel, certified_worst
 from reliability.first_order.pose_expansion import (CHECK_RTOL, basis_ranges, fit_expansion,
                                                     interval_tree, jacobian_expansion, point_tree,
                                                     variance_expansion)
-from reliability.model.poses import workspace_grid
 from reliability.first_order.workspace_search import continuous_worst
+from reliability.model.kinematics import jacobian, jacobian_and_derivative, output_variance
+from reliability.model.poses import workspace_grid
 
 RTOL = 1e-3
 

@@ -18,10 +18,10 @@ from allocation import AllocationProblem, screen_rows, solve_convex_allocation
 from reliability.basics.chunks import chunks
 from reliability.basics.errors import InputError, SavedResultError
 from reliability.first_order.fosm import error_sigma, fosm
+from reliability.first_order.workspace_search import _negative_sigma_and_gradient, continuous_worst
 from reliability.model.kinematics import jacobian_and_derivative
 from reliability.model.poses import grid_axis_points, random_poses, workspace_grid
 from reliability.sampling.grid_experiment import GridExperiment
-from reliability.first_order.workspace_search import _negative_sigma_and_gradient, continuous_worst
 
 TINY = 40_000  # bytes: about 25 hobbing poses per chunk
 

@@ -7,9 +7,9 @@ import pytest
 
 import reliability
 from reliability import OUTPUTS
-from reliability.sampling.fosm_comparison import fosm_versus_monte_carlo
 from reliability.first_order.fosm import fosm
 from reliability.sampling.experiment_results import GridExperimentResult
+from reliability.sampling.fosm_comparison import fosm_versus_monte_carlo
 from reliability.sampling.grid_experiment import GridExperiment
 
 COLUMNS = ["output", "limit", "fosm_worst_one_sided", "fosm_worst_two_sided",

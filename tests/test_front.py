@@ -14,11 +14,11 @@ import pandas as pd  # noqa: E402
 import pytest  # noqa: E402
 
 from allocation import AllocationProblem, allocation_point, cost_reliability_front  # noqa: E402
-from studies.report.plots import plot_front  # noqa: E402
 from reliability.basics.errors import InputError
 from reliability.first_order.fosm import required_index
-from studies.paper.tables import TABLE6  # noqa: E402
 from reliability.model.poses import workspace_grid
+from studies.paper.tables import TABLE6  # noqa: E402
+from studies.report.plots import plot_front  # noqa: E402
 
 TARGETS = np.array([0.999, 0.9, 0.99, 1 - 1e-6, 0.95])  # deliberately unsorted
 

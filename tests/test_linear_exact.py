@@ -10,14 +10,14 @@ from scipy.stats import norm, truncnorm
 
 from reliability import OUTPUTS
 from reliability.basics.errors import InputError
+from reliability.basics.streams import spawn
 from reliability.first_order.fosm import fosm
 from reliability.first_order.linear_exact import (TAIL_TOLERANCE, _series_sum,
                                                   fast_truncated_normal_cf, linear_two_sided,
                                                   series_terms, truncated_normal_cf,
                                                   truncated_normal_cf_derivative)
-from reliability.model.poses import workspace_grid
 from reliability.model.error_draws import draw_errors
-from reliability.basics.streams import spawn
+from reliability.model.poses import workspace_grid
 
 K = 3.0
 

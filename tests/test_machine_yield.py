@@ -18,9 +18,9 @@ from scipy.stats import norm
 from reliability import load_machine
 from reliability.basics.errors import InputError
 from reliability.first_order.fosm import fosm
-from reliability.sampling.machine_yield import RowEvents, YieldModel, machine_yield
 from reliability.model.error_draws import draw_errors
 from reliability.sampling.grid_experiment import GridExperiment
+from reliability.sampling.machine_yield import RowEvents, YieldModel, machine_yield
 from studies import cli
 from studies.workflows import machine_study
 

@@ -17,8 +17,8 @@ from scipy.stats import norm
 
 from allocation import AllocationProblem, screen_rows
 from reliability.first_order.fosm import fosm
-from studies.paper.tables import TABLE6
 from reliability.model.poses import workspace_grid
+from studies.paper.tables import TABLE6
 
 SIDES = ("one_sided", "two_sided")
 #: Rows equal to DUPLICATE_DIGITS = 10 significant digits are merged, so a removed

@@ -11,11 +11,11 @@ from scipy.stats import truncnorm
 
 from reliability.basics.errors import InputError, InputTypeError
 from reliability.first_order.fosm import error_sigma, output_sigma
+from reliability.model.error_draws import draw_errors
 from reliability.model.profiles import (ConstantProfile, GaussianProfile, IndependentProfile,
                                         axis_profiles, cholesky_factor, correlate_along_travel,
                                         profile_model, standard_normals, to_marginal,
                                         travel_factors)
-from reliability.model.error_draws import draw_errors
 from reliability.sampling.grid_experiment import GridExperiment
 
 #: Inside counts of the grid experiment before profiles existed (hobbing machine, initial

@@ -11,10 +11,10 @@ import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
 from reliability.model.measured_profiles import SystematicErrors, measured_profile
+from studies.paper.profiles_study import main, paper_spread_check  # noqa: E402
 from studies.paper.tables import TABLE6  # noqa: E402
 from studies.report.profiles_section import (consistent_profiles, plot_yield_against_length,  # noqa: E402
                                       profiles_section)
-from studies.paper.profiles_study import main, paper_spread_check  # noqa: E402
 from studies.workflows.profile_comparison import (ProfilesStudy, profile_comparison,  # noqa: E402
                                         profile_length, systematic_effect)
 

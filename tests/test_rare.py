@@ -12,9 +12,9 @@ import pytest
 from scipy.stats import multivariate_normal, norm
 
 from reliability.basics.errors import InputError
+from reliability.model.error_draws import draw_errors
 from reliability.sampling.rare_events import (_gamma, failure_probability, linear_model,
                                               worst_case_bound, worst_grid_pose)
-from reliability.model.error_draws import draw_errors
 
 Z = 3.0  # z of every statistical tolerance in this file
 

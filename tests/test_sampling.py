@@ -35,11 +35,11 @@ from scipy import stats
 import reliability
 from reliability import OUTPUTS, machine_from_dict
 from reliability.first_order.fosm import fosm
-from studies.paper.tables import TABLE6, TABLE9
-from reliability.model.poses import random_poses, workspace_grid
 from reliability.model.error_draws import draw_errors
+from reliability.model.poses import random_poses, workspace_grid
 from reliability.sampling.grid_experiment import GridExperiment
 from reliability.sampling.pose_sampling import sample_random_poses
+from studies.paper.tables import TABLE6, TABLE9
 
 Z = 4.0                    # tolerance of every statistical check, in standard errors
 EPS = np.finfo(float).eps

@@ -23,8 +23,8 @@ from allocation import AllocationProblem
 from reliability.basics.errors import InputError, InputTypeError, SavedResultError
 from reliability.model.machine import load_machine
 from reliability.model.poses import workspace_grid
-from studies.cli import sweep as command
 from reliability.sampling.verification import verify
+from studies.cli import sweep as command
 from studies.workflows.sweep import SweepSpec, SweepTask, run_sweep, run_task
 
 MACHINES = Path(__file__).parent / "machines"

@@ -9,8 +9,8 @@ from scipy.stats import multivariate_normal, norm
 from allocation import AllocationProblem, system_allocation
 from reliability import system_reliability, worst_system_reliability
 from reliability.basics.errors import InputError
-from reliability.model.poses import workspace_grid
 from reliability.first_order.system_reliability import rectangle_probability
+from reliability.model.poses import workspace_grid
 
 Z = 4.0  # standard errors allowed in every statistical comparison below
 

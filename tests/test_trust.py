@@ -15,9 +15,9 @@ from allocation.result_files import (GAP_SHOWN, allocation_to_csv, gap_bound, ga
                                      read_allocation_csv)
 from reliability.basics.display import bound_text, pose_text, target_text
 from reliability.basics.files import as_written, atomic_write_text
+from reliability.basics.ties import lexicographic_rank, worst_rows
 from reliability.first_order.fosm import fosm
 from reliability.model.poses import workspace_grid
-from reliability.basics.ties import lexicographic_rank, worst_rows
 from reliability.sampling.verification import verify
 from studies import cli
 from studies.cli.options import percent

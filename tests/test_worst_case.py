@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 from reliability.first_order.fosm import error_sigma, output_sigma
-from reliability.model.poses import workspace_grid
 from reliability.first_order.workspace_search import continuous_worst
+from reliability.model.poses import workspace_grid
 
 
 @pytest.fixture(scope="module")

@@ -23,8 +23,8 @@ import tomllib
 from pathlib import Path
 from typing import Mapping
 
-from .prediction import KINDS, CircularTest, PositioningTest, RotaryTest, build_path
 from ..basics.errors import InputError
+from .prediction import KINDS, CircularTest, PositioningTest, RotaryTest, build_path
 
 COMMON_KEYS = ("name", "kind", "limit")
 #: Keys of each kind: required, then optional.

@@ -52,13 +52,13 @@ import numpy as np
 import pandas as pd
 
 from ..basics.chunks import chunks
-from ..model.error_draws import normal_to_marginal
 from ..basics.errors import InputError, InputTypeError
+from ..basics.statistics import binomial_interval
+from ..basics.streams import generator
+from ..model.error_draws import normal_to_marginal
 from ..model.kinematics import chain_factors
 from ..model.measured_profiles import SystematicErrors
 from ..model.profiles import ConstantProfile, GaussianProfile, profile_model
-from ..basics.statistics import binomial_interval
-from ..basics.streams import generator
 
 #: Profile used when none is given: a Gaussian process with a 300 mm correlation length.
 DEFAULT_PROFILE = "gp:300"

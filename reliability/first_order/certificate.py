@@ -44,12 +44,12 @@ from scipy.optimize import minimize
 from ..basics import checks
 from ..basics.chunks import chunks
 from ..basics.errors import InputError
+from ..basics.ties import TIE_RTOL, worst_rows
 from ..model.error_draws import DISTRIBUTIONS
-from .fosm import error_sigma
 from ..model.kinematics import jacobian, output_variance
 from ..model.machine import OUTPUTS
+from .fosm import error_sigma
 from .pose_expansion import interval_tree, jacobian_expansion, point_tree, variance_expansion
-from ..basics.ties import TIE_RTOL, worst_rows
 
 #: The spreads the certificate can bound: σ (Eq. 20) or the first-order worst-case stack.
 READINGS = ("sigma", "stack")

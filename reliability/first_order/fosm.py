@@ -33,15 +33,15 @@ from scipy.stats import norm
 
 from ..basics import checks
 from ..basics.chunks import chunks, jacobian_bytes
-from .output_covariance import correlated_sigma, euler_terms
 from ..basics.display import OUTPUT_UNITS, axis_units, output_limits_text, pose_columns
 from ..basics.errors import InputError
 from ..basics.saved_results import check_count, encode_frame, load_payload, save_payload
-from ..model.kinematics import check_frame, output_variance
-from .linear_exact import linear_two_sided
-from ..model.machine import OUTPUTS
 from ..basics.ties import worst_rows
 from ..model.error_draws import DISTRIBUTIONS
+from ..model.kinematics import check_frame, output_variance
+from ..model.machine import OUTPUTS
+from .linear_exact import linear_two_sided
+from .output_covariance import correlated_sigma, euler_terms
 
 SIDES = ("one_sided", "two_sided")
 #: The format tag of a saved FOSM result (:mod:`reliability.basics.saved_results`).

@@ -37,10 +37,10 @@ from scipy.stats import qmc
 from ..basics import streams
 from ..basics.display import axis_units, bound_text, pose_text
 from ..basics.errors import InputError
-from .output_covariance import output_covariance
-from .fosm import two_sided_probability
-from ..model.machine import OUTPUTS
 from ..basics.ties import worst_rows
+from ..model.machine import OUTPUTS
+from .fosm import two_sided_probability
+from .output_covariance import output_covariance
 
 #: Poses × points evaluated at once (bounds memory to a few arrays of this many floats).
 CHUNK_SIZE = 2 ** 21

@@ -21,12 +21,12 @@ import pandas as pd
 from scipy.optimize import minimize
 
 from ..basics import checks
-from .certificate import certified_worst
 from ..basics.errors import InputError
-from .fosm import error_sigma, one_sided_probability, pose_sigma, two_sided_probability
+from ..basics.ties import SEARCH_RTOL, worst_rows
 from ..model.kinematics import jacobian_and_derivative
 from ..model.machine import OUTPUTS
-from ..basics.ties import SEARCH_RTOL, worst_rows
+from .certificate import certified_worst
+from .fosm import error_sigma, one_sided_probability, pose_sigma, two_sided_probability
 
 __all__ = ["certified_worst", "continuous_worst", "searched_worst", "snap_to_resolution",
            "worst_first"]

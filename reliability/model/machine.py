@@ -28,12 +28,12 @@ import numpy as np
 import pandas as pd
 
 from ..basics import checks
+from ..basics.errors import InputError, InputTypeError, MachineDescriptionError
 from . import kinematics
 from .correlation import (check_correlation_matrix, correlation_to_toml, parse_correlation,
                           with_correlation)
-from ..basics.errors import InputError, InputTypeError, MachineDescriptionError
-from .iso_names import iso_names
 from .error_draws import DISTRIBUTIONS
+from .iso_names import iso_names
 from .profiles import profile_model
 
 COMPONENTS = ("dx", "dy", "dz", "ex", "ey", "ez")

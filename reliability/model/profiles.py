@@ -39,8 +39,8 @@ from typing import Mapping
 
 import numpy as np
 
-from .error_draws import normal_to_marginal
 from ..basics.errors import InputError, InputTypeError
+from .error_draws import normal_to_marginal
 
 #: Jitter added to a correlation matrix's diagonal, in turn, until its Cholesky factor exists.
 JITTERS = (0.0, 1e-12, 1e-10, 1e-8, 1e-6)

@@ -12,8 +12,8 @@ from ..basics import checks
 from ..basics.display import output_limits_text
 from ..basics.errors import InputError, InputTypeError, SavedResultError
 from ..basics.files import write_csv
-from ..model.machine import OUTPUTS
 from ..basics.statistics import all_within_share, between_experiment_interval, proportion
+from ..model.machine import OUTPUTS
 
 FRAME_COLUMNS = ("repeat", "output", "limit", "inside", "outside", "fraction")
 METADATA_COLUMNS = ("distribution", "k", "points_per_axis")

@@ -22,17 +22,17 @@ from __future__ import annotations
 import numpy as np
 
 from ..basics import checks, streams
-from ..basics.result_store import ResultStore, machine_fingerprint
 from ..basics.chunks import chunk_size
-from ..model.error_draws import DISTRIBUTIONS, draw_errors, draw_grid_errors
 from ..basics.errors import InputError
+from ..basics.result_store import ResultStore, machine_fingerprint
+from ..model.error_draws import DISTRIBUTIONS, draw_errors, draw_grid_errors
 from ..model.kinematics import (deviation_from_transports, ideal_motion, ideal_rotation,
                                 offset_transform, transports, vectors_in_frame)
-from ..model.poses import grid_axis_points
 from ..model.measured_profiles import grid_means
+from ..model.poses import grid_axis_points
 from ..model.profiles import IndependentProfile, axis_profiles, draw_motion_errors, travel_factors
-from .experiment_results import GridExperimentResult
 from ..model.transforms import read_pose_error, rigid_inverse
+from .experiment_results import GridExperimentResult
 
 # READ[o, r, s]: output o of a deviation matrix X is Σ READ[o, r, s] X[r, s]
 # (translation column for δ, skew part of the rotation block for ε; see read_pose_error).

@@ -112,13 +112,13 @@ from scipy.stats import norm
 
 from ..basics import checks, streams
 from ..basics.chunks import chunk_size, chunks, jacobian_bytes
-from ..model.error_draws import grid_factors, normal_to_marginal
+from ..basics.statistics import all_within_share, share_interval
 from ..first_order.fosm import error_sigma, pose_sigma, two_sided_failure
+from ..model.error_draws import grid_factors, normal_to_marginal
+from ..model.error_draws import DISTRIBUTIONS
 from ..model.machine import OUTPUTS
 from ..model.profiles import axis_profiles, travel_factors
-from ..model.error_draws import DISTRIBUTIONS
 from .grid_experiment import GridExperiment
-from ..basics.statistics import all_within_share, share_interval
 
 #: Built machines simulated when not told otherwise (the command line's ``--machines``).
 DEFAULT_MACHINES = 4000

@@ -33,14 +33,14 @@ from scipy.stats import multivariate_normal
 from ..basics import checks, streams
 from ..basics.display import shown_positions
 from ..basics.errors import InputError, InputTypeError
-from ..model.error_draws import DISTRIBUTIONS, correlation_factor, draw_correlated, draw_errors
+from ..basics.statistics import proportion
 from ..first_order.fosm import (error_sigma, one_sided_probability, output_sigma,
                                 two_sided_probability)
+from ..model.error_draws import DISTRIBUTIONS, correlation_factor, draw_correlated, draw_errors
 from ..model.machine import OUTPUTS
 from ..model.poses import random_poses
-from .rare_events import worst_grid_poses
 from .experiment_results import RandomPoseResult
-from ..basics.statistics import proportion
+from .rare_events import worst_grid_poses
 
 EVENTS = OUTPUTS + ("system",)
 _INTERVAL_NAMES = {"wilson": "Wilson", "clopper-pearson": "Clopper–Pearson"}

@@ -47,12 +47,12 @@ from scipy.stats import norm
 from ..basics import checks, streams
 from ..basics.display import pose_text, shown_positions
 from ..basics.errors import InputError, InputTypeError
+from ..basics.ties import worst_rows
 from ..first_order.fosm import two_sided_failure, two_sided_probability
+from ..model.error_draws import DISTRIBUTIONS
 from ..model.kinematics import chain_factors, transports
 from ..model.machine import OUTPUTS
 from ..model.poses import workspace_grid
-from ..basics.ties import worst_rows
-from ..model.error_draws import DISTRIBUTIONS
 
 EVENTS = OUTPUTS + ("system",)
 METHODS = ("importance", "subset")

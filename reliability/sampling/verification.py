@@ -36,17 +36,17 @@ import pandas as pd
 from scipy.stats import norm
 
 from ..basics import checks
-from .fosm_comparison import fosm_versus_monte_carlo
 from ..basics.errors import InputError
+from ..basics.streams import spawn, verification_streams
 from ..first_order.fosm import fosm
 from ..model.machine import OUTPUTS
+from ..model.poses import workspace_grid
+from .fosm_comparison import fosm_versus_monte_carlo
+from .grid_experiment import GridExperiment
 from .machine_yield import DEFAULT_MACHINES, YieldModel
 from .pose_sampling import EVENTS, sample_at_poses
-from ..model.poses import workspace_grid
-from .rare_events import failure_probability, worst_grid_poses
-from .grid_experiment import GridExperiment
 from .pose_sampling import sample_random_poses
-from ..basics.streams import spawn, verification_streams
+from .rare_events import failure_probability, worst_grid_poses
 
 
 @dataclass(frozen=True, repr=False)

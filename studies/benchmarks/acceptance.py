@@ -25,13 +25,13 @@ from pathlib import Path
 import numpy as np
 
 import reliability
+from reliability.acceptance.definitions import read_tests
 from reliability.acceptance.prediction import (CircularTest, PositioningTest, acceptance,
                                                build_path, deviation_weights, ideal_chain,
                                                positioning_statistics)
-from reliability.acceptance.definitions import read_tests
 from reliability.basics.chunks import chunks
-from reliability.model.profiles import GaussianProfile
 from reliability.basics.streams import generator
+from reliability.model.profiles import GaussianProfile
 from studies.workflows.timing import best_time, one_blas_thread
 
 TESTS = Path(__file__).resolve().parents[2] / "docs" / "examples" / "paper_tests.toml"

@@ -31,8 +31,8 @@ import reliability
 from allocation import AllocationProblem
 from reliability.basics.chunks import chunks, jacobian_bytes
 from reliability.first_order.fosm import error_sigma, pose_sigma
-from reliability.model.poses import grid_axis_points, workspace_grid
 from reliability.first_order.workspace_search import certified_worst
+from reliability.model.poses import grid_axis_points, workspace_grid
 from studies.paper.tables import TABLE6
 from studies.workflows.timing import one_blas_thread
 

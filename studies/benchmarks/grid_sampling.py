@@ -35,8 +35,8 @@ import numpy as np
 
 import reliability
 from reliability import OUTPUTS
-from reliability.sampling.grid_experiment import GridExperiment
 from reliability.basics.streams import spawn
+from reliability.sampling.grid_experiment import GridExperiment
 from studies.paper.tables import TABLE6
 from studies.workflows.timing import best_time, limit_blas_threads
 

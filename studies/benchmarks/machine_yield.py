@@ -33,9 +33,9 @@ import pandas as pd
 
 import reliability
 from allocation import AllocationProblem
-from reliability.sampling.machine_yield import DEFAULT_MACHINES, YieldModel, yield_text
 from reliability.model.poses import workspace_grid
 from reliability.sampling.grid_experiment import GridExperiment
+from reliability.sampling.machine_yield import DEFAULT_MACHINES, YieldModel, yield_text
 from studies.paper.tables import TABLE6
 from studies.workflows.timing import one_blas_thread
 

@@ -22,9 +22,9 @@ import numpy as np
 from scipy.special import ndtr
 
 import reliability
+from reliability.basics.streams import generator
 from reliability.first_order.fosm import fosm
 from reliability.model.poses import workspace_grid
-from reliability.basics.streams import generator
 from studies.paper.tables import TABLE6
 from studies.workflows.timing import best_time, one_blas_thread
 

@@ -23,8 +23,8 @@ import pandas as pd
 from scipy.stats import norm
 
 import reliability
-from reliability.sampling.rare_events import failure_probability, worst_grid_pose
 from reliability.basics.streams import generator, spawn
+from reliability.sampling.rare_events import failure_probability, worst_grid_pose
 from studies.workflows.timing import best_time, one_blas_thread
 
 LEVELS = (1e-4, 1e-6, 1e-9)

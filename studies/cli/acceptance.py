@@ -3,9 +3,9 @@ ISO 230 acceptance tests?"""
 
 from __future__ import annotations
 
+from reliability.acceptance.definitions import read_tests
 from reliability.acceptance.prediction import (DEFAULT_PROFILE, acceptance, path_profile,
                                                profile_note)
-from reliability.acceptance.definitions import read_tests
 from reliability.basics.files import SIGNIFICANT, write_csv
 
 from . import options

@@ -7,9 +7,9 @@ import pandas as pd
 
 from reliability.basics.display import OUTPUT_UNITS, target_text, top_contributors, with_unit
 from reliability.first_order.fosm import fosm, two_sided_probability
+from reliability.first_order.workspace_search import certified_worst
 from reliability.model.machine import OUTPUTS
 from reliability.model.poses import workspace_grid
-from reliability.first_order.workspace_search import certified_worst
 
 from . import options
 

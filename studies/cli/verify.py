@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import pandas as pd
 
-from reliability.sampling.pose_sampling import EVENTS, sample_at_poses
 from reliability.basics.streams import extra_stream
-from reliability.sampling.verification import rare_event_table, reachable_events, verify
 from reliability.first_order.workspace_search import certified_worst
+from reliability.sampling.pose_sampling import EVENTS, sample_at_poses
+from reliability.sampling.verification import rare_event_table, reachable_events, verify
 
 from . import options
 

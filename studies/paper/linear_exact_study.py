@@ -20,11 +20,11 @@ import pandas as pd
 import reliability
 from allocation import AllocationProblem
 from reliability.basics.display import axis_units, pose_text
+from reliability.basics.streams import generator, spawn
 from reliability.first_order.fosm import fosm
 from reliability.first_order.linear_exact import linear_two_sided
-from reliability.model.poses import workspace_grid
 from reliability.model.error_draws import draw_errors
-from reliability.basics.streams import generator, spawn
+from reliability.model.poses import workspace_grid
 from studies.workflows.timing import one_blas_thread
 
 CHUNK = 500_000

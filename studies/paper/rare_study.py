@@ -22,8 +22,8 @@ import numpy as np
 
 import allocation
 import reliability
-from reliability.sampling.pose_sampling import EVENTS, linear_failure, sample_at_poses
 from reliability.basics.streams import spawn
+from reliability.sampling.pose_sampling import EVENTS, linear_failure, sample_at_poses
 from reliability.sampling.verification import rare_event_table
 from studies.workflows.timing import one_blas_thread
 

@@ -27,15 +27,15 @@ import pandas as pd
 import allocation
 from allocation.result_files import MULTIPLIER_DIGITS, gap_text
 import reliability
-from reliability.sampling.fosm_comparison import fosm_versus_monte_carlo
 from reliability.basics.display import axis_units, pose_frame
 from reliability.basics.files import as_written, atomic_write_bytes, write_csv
-from reliability.first_order.fosm import fosm
-from reliability.sampling.grid_experiment import GridExperiment
-from reliability.sampling.pose_sampling import sample_random_poses
 from reliability.basics.statistics import all_within_share
 from reliability.basics.streams import spawn
+from reliability.first_order.fosm import fosm
 from reliability.first_order.workspace_search import continuous_worst
+from reliability.sampling.fosm_comparison import fosm_versus_monte_carlo
+from reliability.sampling.grid_experiment import GridExperiment
+from reliability.sampling.pose_sampling import sample_random_poses
 from studies.cli import options, program
 from studies.report import machine_sections, plots
 from studies.report.section import Section

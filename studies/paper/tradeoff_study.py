@@ -31,11 +31,11 @@ import reliability
 from allocation.convex import solve_convex_allocation
 from allocation.result_files import gap_text
 from reliability.basics.display import bound_text
+from reliability.basics.streams import spawn
 from reliability.first_order.fosm import required_index
+from reliability.first_order.system_reliability import worst_system_reliability
 from reliability.model.machine import OUTPUTS
 from reliability.model.poses import workspace_grid
-from reliability.basics.streams import spawn
-from reliability.first_order.system_reliability import worst_system_reliability
 from studies.workflows.timing import best_time, one_blas_thread
 
 from .tables import TABLE6

@@ -25,9 +25,9 @@ from reliability.model.machine import OUTPUTS
 from studies.workflows.machine_study import MachineStudy, summary, tolerance_changes
 
 from . import plots
-from .yield_section import yield_section, yield_sentence
 from .markdown import markdown_table
 from .section import Section
+from .yield_section import yield_section, yield_sentence
 
 PERCENT = "{:.3%}".format
 

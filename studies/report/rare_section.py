@@ -8,8 +8,8 @@ adaptive, Wilson intervals) and :func:`reliability.sampling.verification.rare_ev
 
 from __future__ import annotations
 
-from reliability.sampling.pose_sampling import sample_at_poses
 from reliability.basics.streams import spawn
+from reliability.sampling.pose_sampling import sample_at_poses
 from reliability.sampling.verification import rare_event_table
 
 from .markdown import markdown_table

@@ -14,9 +14,9 @@ import pandas as pd
 from allocation.front import allocation_point, cost_reliability_front
 from allocation.result_files import gap_bound, gap_text
 from reliability.basics.display import axis_units, bound_text, pose_frame
-from reliability.model.poses import workspace_grid
 from reliability.basics.streams import spawn
 from reliability.first_order.system_reliability import worst_system_reliability
+from reliability.model.poses import workspace_grid
 
 from .plots import plot_front
 from .section import Section

@@ -25,10 +25,10 @@ from allocation.continuous import DEFAULT_RTOL, WORKSPACE_CHOICES, check_continu
     solve_continuous
 from allocation.result_files import gap_bound
 from reliability.basics import checks as input_checks
-from reliability.first_order.fosm import fosm
-from reliability.sampling.machine_yield import DEFAULT_MACHINES
-from reliability.model.poses import workspace_grid
 from reliability.basics.files import as_written
+from reliability.first_order.fosm import fosm
+from reliability.model.poses import workspace_grid
+from reliability.sampling.machine_yield import DEFAULT_MACHINES
 from reliability.sampling.verification import verify
 
 #: Relative change of a tolerance below which it counts as unchanged.

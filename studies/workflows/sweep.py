@@ -43,16 +43,16 @@ from allocation.continuous import WORKSPACE_CHOICES, check_continuous, solve_con
 from allocation.discrete import CatalogueInfeasibleError, solve_catalogue
 from allocation.problem import AllocationProblem
 from allocation.solve import TargetUnreachableError
-from reliability.basics.result_store import ResultStore, canonical_json, machine_fingerprint
 from reliability.basics.errors import InputError, InputTypeError
 from reliability.basics.files import SIGNIFICANT, write_csv
+from reliability.basics.result_store import ResultStore, canonical_json, machine_fingerprint
+from reliability.basics.streams import verification_streams
+from reliability.model.error_draws import DISTRIBUTIONS
 from reliability.model.machine import OUTPUTS, hobbing_machine, load_machine
 from reliability.model.poses import workspace_grid
 from reliability.model.profiles import profile_model
 from reliability.sampling.grid_experiment import GridExperiment
 from reliability.sampling.machine_yield import machine_yield
-from reliability.basics.streams import verification_streams
-from reliability.model.error_draws import DISTRIBUTIONS
 
 PAPER_MACHINE = "hobbing"
 INDEPENDENT = "independent"
