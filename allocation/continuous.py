@@ -276,7 +276,7 @@ def solve_continuous(problem, *, rtol: float = DEFAULT_RTOL, max_solves: int = M
                      f"short by more than {threshold:g}")
         if certify and (cut is None or not len(cut)):
             calls += 1
-            table = _certify(current, result.tolerances, rtol, max_calls)
+            table = certificate_table(current, result.tolerances, rtol, max_calls)
             cut = _certified_cuts(current, table, rtol)
             progress(f"solve {solves}: cost {result.cost:.6g}; certificate: largest excess "
                      f"{table['excess'].max():+.3g} over what the targets allow; "
@@ -355,8 +355,8 @@ def solve_over_workspace(problem, *, max_rounds: int = 20, tolerance: float = 1e
     return loop.result, loop.result.problem.poses[len(problem.poses):]
 
 
-def certify(problem, tolerances, rtol: float = DEFAULT_RTOL,
-            max_calls: int = MAX_BOX_CALLS) -> pd.DataFrame:
+def certificate_table(problem, tolerances, rtol: float = DEFAULT_RTOL,
+                      max_calls: int = MAX_BOX_CALLS) -> pd.DataFrame:
     """The certificate of ``tolerances`` under the problem's reading, asked for
     ``CERTIFICATE_SHARE × rtol``, with what each output's target allows (``allowed``: σ
     ``I/z``, or the limit ``I`` for the stack), ``excess`` = bound / allowed − 1 and
@@ -378,11 +378,6 @@ def certify(problem, tolerances, rtol: float = DEFAULT_RTOL,
     table["excess"] = table[bound] / allowed - 1.0
     table["meets"] = table["excess"] <= rtol
     return table
-
-
-#: :func:`certify` under the name the loop uses: :func:`solve_continuous`'s own ``certify``
-#: argument hides the function inside it.
-_certify = certify
 
 
 def certificate_text(problem, table) -> str:

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from allocation import AllocationProblem, solve_over_workspace
-from allocation.continuous import certify, check_continuous, solve_continuous
+from allocation.continuous import certificate_table, check_continuous, solve_continuous
 from reliability import OUTPUTS, workspace_grid
 from reliability.basics.errors import InputError
 from reliability.first_order.fosm import error_sigma
@@ -107,12 +107,12 @@ def test_rescaled_grid_optimum_costs_more(mill_interior, mill_continuous):
     meets every target is feasible over the continuous workspace, so it costs at least the
     continuous optimum (σ is proportional to a common factor on the tolerances)."""
     grid = mill_continuous.grid
-    bound = certify(mill_interior, grid.tolerances)
+    bound = certificate_table(mill_interior, grid.tolerances)
     factor = float((bound["allowed"] / bound["sigma_bound"]).min())
     assert factor < 1
     rescaled = factor * grid.tolerances
     assert np.all(rescaled >= mill_interior.lower) and np.all(rescaled <= mill_interior.upper)
-    assert np.all(certify(mill_interior, rescaled)["excess"] <= 1e-9)
+    assert np.all(certificate_table(mill_interior, rescaled)["excess"] <= 1e-9)
     cost = float(mill_interior.cost.total(rescaled))
     assert cost >= mill_continuous.cost * (1 - 1e-9)
 
