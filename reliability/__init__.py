@@ -25,8 +25,7 @@ from .model.poses import random_poses, workspace_grid
 from .sampling import rare_events as rare
 from .sampling.experiment_results import GridExperimentResult, RandomPoseResult
 from .sampling.grid_experiment import GridExperiment
-from .sampling.pose_sampling import PoseSamplingResult, sample_at_poses
-from .sampling.pose_sampling import sample_random_poses
+from .sampling.pose_sampling import PoseSamplingResult, sample_at_poses, sample_random_poses
 
 __all__ = ["COMPONENTS", "OUTPUTS", "Axis", "CostCoefficients", "FosmResult",
            "GridExperiment", "GridExperimentResult", "Machine", "MachineDescriptionError",

@@ -13,10 +13,10 @@ import pytest  # noqa: E402
 from reliability.model.measured_profiles import SystematicErrors, measured_profile
 from studies.paper.profiles_study import main, paper_spread_check  # noqa: E402
 from studies.paper.tables import TABLE6  # noqa: E402
-from studies.report.profiles_section import (consistent_profiles, plot_yield_against_length,  # noqa: E402
-                                      profiles_section)
-from studies.workflows.profile_comparison import (ProfilesStudy, profile_comparison,  # noqa: E402
-                                        profile_length, systematic_effect)
+from studies.report.profiles_section import (  # noqa: E402
+    consistent_profiles, plot_yield_against_length, profiles_section)
+from studies.workflows.profile_comparison import (  # noqa: E402
+    ProfilesStudy, profile_comparison, profile_length, systematic_effect)
 
 
 @pytest.fixture(scope="module")

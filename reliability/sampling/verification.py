@@ -44,8 +44,7 @@ from ..model.poses import workspace_grid
 from .fosm_comparison import fosm_versus_monte_carlo
 from .grid_experiment import GridExperiment
 from .machine_yield import DEFAULT_MACHINES, YieldModel
-from .pose_sampling import EVENTS, sample_at_poses
-from .pose_sampling import sample_random_poses
+from .pose_sampling import EVENTS, sample_at_poses, sample_random_poses
 from .rare_events import failure_probability, worst_grid_poses
 
 

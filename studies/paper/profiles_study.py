@@ -30,7 +30,7 @@ from reliability.model.measured_profiles import SystematicErrors, read_profile_c
 from studies.report.profiles_section import profiles_section
 from studies.report.writer import check_output_folder, write_section
 from studies.workflows.profile_comparison import (PROFILES, SPREAD_OUTPUTS, ProfilesStudy,
-                                        profile_comparison, systematic_effect)
+                                                  profile_comparison, systematic_effect)
 from studies.workflows.timing import one_blas_thread
 
 from .tables import TABLE6, TABLE9, TABLE9_ALL_INSIDE
