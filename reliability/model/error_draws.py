@@ -31,6 +31,13 @@ from ..basics.errors import InputError
 DISTRIBUTIONS = ("normal", "truncated")
 
 
+def check_reading(distribution, k) -> float:
+    """Check the reading of a tolerance, ``distribution`` (one of :data:`DISTRIBUTIONS`)
+    and the coverage factor ``k > 0`` (``t = ±kσ``); returns ``k`` as a float."""
+    checks.choice(distribution, "distribution", DISTRIBUTIONS)
+    return checks.finite_float(k, "coverage factor k", 0.0, low_open=True)
+
+
 def draw_errors(tolerances, size, *, k: float = 3.0, distribution: str = "truncated",
                 rng=None) -> np.ndarray:
     """Draw zero-mean errors with σ = t/k, optionally truncated at ±t (Sec. 5.3).
@@ -48,8 +55,7 @@ def draw_errors(tolerances, size, *, k: float = 3.0, distribution: str = "trunca
         (exact; 0.27 % rejected at k = 3). 'normal': untruncated.
     rng : None, int or numpy.random.Generator
     """
-    checks.choice(distribution, "distribution", DISTRIBUTIONS)
-    k = checks.finite_float(k, "coverage factor k", 0.0, low_open=True)
+    k = check_reading(distribution, k)
     t = checks.numeric_array(tolerances, "tolerances")
     if not np.all(np.isfinite(t) & (t > 0)):
         raise InputError("tolerances must be finite and > 0")

@@ -25,7 +25,7 @@ from ..basics import checks, streams
 from ..basics.chunks import chunk_size
 from ..basics.errors import InputError
 from ..basics.result_store import ResultStore, machine_fingerprint
-from ..model.error_draws import DISTRIBUTIONS, draw_errors, draw_grid_errors
+from ..model.error_draws import check_reading, draw_errors, draw_grid_errors
 from ..model.kinematics import (deviation_from_transports, ideal_motion, ideal_rotation,
                                 offset_transform, transports, vectors_in_frame)
 from ..model.measured_profiles import grid_means
@@ -330,11 +330,8 @@ class GridExperiment:
         return draw_motion_errors(self._travel, motion_t, rng, k, distribution)
 
 
-def _check_run_options(repeats, keep_values, batch, distribution, k,
-                       names=("repeats", "batch")) -> tuple[int, int]:
-    counts = tuple(checks.positive_int(value, name)
-                   for value, name in zip((repeats, batch), names))
+def _check_run_options(repeats, keep_values, batch, distribution, k) -> tuple[int, int]:
+    counts = checks.positive_int(repeats, "repeats"), checks.positive_int(batch, "batch")
     checks.choice(keep_values, "keep_values", ("first", "all", "none"))
-    checks.choice(distribution, "distribution", DISTRIBUTIONS)
-    checks.finite_float(k, "coverage factor k", 0.0, low_open=True)
+    check_reading(distribution, k)
     return counts

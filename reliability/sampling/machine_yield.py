@@ -114,8 +114,7 @@ from ..basics import checks, streams
 from ..basics.chunks import chunk_size, chunks, jacobian_bytes
 from ..basics.statistics import all_within_share, share_interval
 from ..first_order.fosm import error_sigma, pose_sigma, two_sided_failure
-from ..model.error_draws import grid_factors, normal_to_marginal
-from ..model.error_draws import DISTRIBUTIONS
+from ..model.error_draws import check_reading, grid_factors, normal_to_marginal
 from ..model.machine import OUTPUTS
 from ..model.profiles import axis_profiles, travel_factors
 from .grid_experiment import GridExperiment
@@ -312,8 +311,7 @@ class YieldModel:
     def __init__(self, machine, *, profile=None, distribution=None, points_per_axis: int = 5,
                  k: float = 3.0, memory: int | None = None):
         distribution = machine.distribution if distribution is None else distribution
-        checks.choice(distribution, "distribution", DISTRIBUTIONS)
-        self.k = checks.finite_float(k, "coverage factor k", 0.0, low_open=True)
+        self.k = check_reading(distribution, k)
         profile = machine.profile if profile is None else profile
         self.profiles = axis_profiles(machine, profile)
         self.machine = machine

@@ -36,7 +36,7 @@ from ..basics.errors import InputError, InputTypeError
 from ..basics.statistics import proportion
 from ..first_order.fosm import (error_sigma, one_sided_probability, output_sigma,
                                 two_sided_probability)
-from ..model.error_draws import DISTRIBUTIONS, correlation_factor, draw_correlated, draw_errors
+from ..model.error_draws import check_reading, correlation_factor, draw_correlated, draw_errors
 from ..model.machine import OUTPUTS
 from ..model.poses import random_poses
 from .experiment_results import RandomPoseResult
@@ -358,8 +358,7 @@ def sample_random_poses(machine, tolerances, n_samples: int, *, rng=None, k: flo
     t = checks.one_allocation(machine, tolerances)
     n_samples = checks.positive_int(n_samples, "n_samples")
     chunk = checks.positive_int(chunk, "chunk")
-    checks.choice(distribution, "distribution", DISTRIBUTIONS)
-    checks.finite_float(k, "coverage factor k", 0.0, low_open=True)
+    check_reading(distribution, k)
     checks.callback(progress, "progress")
     rng = streams.generator(rng)
     checks.require_size(min(chunk, n_samples), 8 * (3 * 6 * machine.n_errors + 32), budget,
