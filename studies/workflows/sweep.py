@@ -272,8 +272,9 @@ def run_task(task: SweepTask, allocated: dict | None = None) -> dict:
         of poses in tolerance per output over the experiments), ``yield`` (the machine yield of
         :func:`reliability.sampling.machine_yield.machine_yield` from ``repeats`` built
         machines under the task's profile, on the verification's yield stream, so
-        ``precrel verify --seed S --machines R --profile P`` prints the same number); with a
-        catalogue also ``price`` and ``choice`` (``"component=class; …"``).
+        ``verify(..., rng=S, machines=R, profile=P)`` gives the same number for the same
+        tolerances); with a catalogue also ``price`` and ``choice``
+        (``"component=class; …"``).
     """
     with threadpool_limits(limits=1):
         machine = (task.machine, task.parameters()["machine_fingerprint"])
