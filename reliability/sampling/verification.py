@@ -38,6 +38,7 @@ from scipy.stats import norm
 from ..basics import checks
 from ..basics.errors import InputError
 from ..basics.streams import spawn, verification_streams
+from ..first_order.certificate import certified_worst
 from ..first_order.fosm import fosm
 from ..model.machine import OUTPUTS
 from ..model.poses import workspace_grid
@@ -118,11 +119,18 @@ def reading_text(distribution: str) -> str:
             else "normal, σ = t/3 (not truncated)")
 
 
+#: Where :func:`verify` seeks each output's worst pose (``allocation.continuous``'s names).
+WORKSPACES = ("continuous", "grid")
+#: Relative tolerance in σ of the certified worst poses (as the continuous allocation's).
+WORKSPACE_RTOL = 1e-3
+
+
 def verify(machine, tolerances, *, points: int = 5, repeats: int = 20,
            samples: int = 20_000, rng=None, progress=None, bar=None,
            prediction=None, distribution: str | None = None,
            worst_poses=None, profile=None,
-           machines: int = DEFAULT_MACHINES) -> Verification:
+           machines: int = DEFAULT_MACHINES, workspace: str = "continuous",
+           rtol: float = WORKSPACE_RTOL) -> Verification:
     """The machine yield of ``tolerances``, then the three Monte-Carlo checks.
 
     Parameters
@@ -151,8 +159,20 @@ def verify(machine, tolerances, *, points: int = 5, repeats: int = 20,
         The reading of a tolerance every check draws under; ``machine.distribution`` by
         default.
     worst_poses : array_like (6, n_axes), optional
-        The pose at which to sample each output (e.g. the certified worst poses of the
-        continuous workspace); by default each output's FOSM worst grid pose.
+        The pose at which to sample each output; by default each output's worst pose of
+        ``workspace``.
+    profile : str, optional
+        Error profile of the machine yield; ``machine.profile`` by default.
+    machines : int
+        Built machines simulated for the machine yield.
+    workspace : {'continuous', 'grid'}
+        Where each output's worst pose is sought when ``worst_poses`` is not given: its
+        certified worst pose over the continuous strokes
+        (:func:`reliability.first_order.certificate.certified_worst`, to ``rtol`` in σ;
+        the default, as ``precrel verify`` and ``precrel report``), or its FOSM worst
+        pose of the ``points``-point grid.
+    rtol : float
+        Relative tolerance in σ of the continuous workspace's certificate.
     """
     progress = progress or (lambda step: None)
     bar = bar or _NoBar
@@ -166,6 +186,12 @@ def verify(machine, tolerances, *, points: int = 5, repeats: int = 20,
                              f"{worst_poses.shape}")
         checks.poses_in_strokes(machine, worst_poses, "worst_poses")
     machines = checks.positive_int(machines, "machines")
+    checks.choice(workspace, "workspace", WORKSPACES)
+    if worst_poses is None and workspace == "continuous":
+        progress(f"certified worst poses over the continuous workspace (rtol {rtol:g})")
+        worst_poses = certified_worst(machine, tolerances, rtol=rtol,
+                                      distribution=distribution)[list(machine.axes)]
+        worst_poses = worst_poses.to_numpy(dtype=float)
     grid_rng, random_rng, worst_rng, yield_rng = verification_streams(rng)
     yield_model = YieldModel(machine, profile=profile, distribution=distribution,
                              points_per_axis=points)

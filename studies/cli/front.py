@@ -79,8 +79,8 @@ def run(args) -> int:
     missed = front.loc[~front["feasible"], "target"]
     if len(missed):
         print(f"not reachable in the box: {len(missed)} target(s) from "
-              f"{target_text(missed.min())} (failure {1 - missed.min():.3g}) up; a wider "
-              f"box (--bounds LO HI, e.g. 0.001 1.5) may reach them")
+              f"{target_text(missed.min())} (failure {1 - missed.min():.3g}) up; "
+              f"{options.wider_box_advice(machine, bounds).replace(' it', ' them')}")
     print(_stack_line(front.attrs["stack"]))
     seconds = front.attrs["seconds"]
     options.say(f"time: build and row screening {seconds['build']:.2f} s, "

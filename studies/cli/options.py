@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from allocation.continuous import DEFAULT_RTOL, WORKSPACE_CHOICES
+from allocation.continuous import DEFAULT_RTOL, WORKSPACE_CHOICES, check_continuous
 from allocation.problem import DEFAULT_FACTORS, bounds_source
 from allocation.result_files import read_allocation_csv
 from reliability.basics import display
@@ -32,6 +32,15 @@ def positive_int(text: str) -> int:
     value = _integer(text)
     if value < 1:
         raise argparse.ArgumentTypeError(f"expected an integer >= 1, got {text!r}")
+    return value
+
+
+def experiments(text: str) -> int:
+    """Grid experiments: an integer >= 2 (their spread gives the error bar)."""
+    value = _integer(text)
+    if value < 2:
+        raise argparse.ArgumentTypeError(f"expected at least 2 experiments (their spread "
+                                         f"gives the interval), got {text!r}")
     return value
 
 
@@ -168,7 +177,7 @@ def add_bounds(parser) -> None:
 
 def add_monte_carlo(parser) -> None:
     """``--repeats``, ``--samples`` and ``--seed`` of the Monte-Carlo verification."""
-    parser.add_argument("--repeats", type=positive_int, default=20, metavar="N",
+    parser.add_argument("--repeats", type=experiments, default=20, metavar="N",
                         help="grid experiments per allocation (default 20, as the paper's "
                              "Table 9)")
     parser.add_argument("--samples", type=positive_int, default=20_000, metavar="N",
@@ -188,6 +197,17 @@ def box_words(machine, bounds) -> str:
     return f"box {low:g}–{high:g} × initial allocation ({where})"
 
 
+def wider_box_advice(machine, bounds) -> str:
+    """What to widen when the targets are out of reach in the box: ``--bounds`` when it was
+    given or no ``[bounds]`` table exists; else the file's achievable tolerances, saying that
+    ``--bounds`` would replace them by factors of the initial allocation."""
+    if bounds_source(machine, bounds) != "machine file":
+        return "a wider box (--bounds LO HI, factors of the initial allocation) may reach it"
+    return ("the box is the machine file's [bounds] table (achievable tolerances): widen it "
+            "there if the suppliers can deliver more; --bounds LO HI would replace it by "
+            "factors of the initial allocation")
+
+
 # ----- checks done before any work ----------------------------------------------------
 def check_bounds(bounds) -> tuple[float, float] | None:
     """``--bounds LO HI``: factors of the reference allocation, 0 < LO <= HI (None when not
@@ -199,6 +219,18 @@ def check_bounds(bounds) -> tuple[float, float] | None:
         raise InputError(f"--bounds: LO = {low:g} exceeds HI = {high:g}; expected "
                          f"0 < LO <= HI (factors of the initial allocation)")
     return float(low), float(high)
+
+
+def check_certifiable(machine, option: str, alternative: str) -> None:
+    """Refuse ``option`` (``--certify`` or ``--workspace continuous``) before any work when
+    the continuous certificate cannot cover the study (:func:`allocation.continuous.
+    check_continuous`); ``alternative`` says what to pass instead."""
+    try:
+        check_continuous(machine)
+    except InputError as error:
+        why = str(error).split(": ", 1)[1].split("; use", 1)[0]
+        raise InputError(f"{option}: not available for this study: {why}; {alternative}") \
+            from None
 
 
 def destination(path, overwrite: bool, option: str = "--out", *, folder: bool = False,

@@ -71,22 +71,33 @@ def main(argv=None) -> int:
         with threadpool_limits(limits=1):
             return int(args.run(args))
     except _toolkit_errors() as exc:
-        print(f"{PROG}: error: {_one_line(exc)}", file=sys.stderr)
+        print(f"{PROG}: error: {_one_line(exc, args)}", file=sys.stderr)
         return USAGE_ERROR
     except KeyboardInterrupt:
         print(f"{PROG}: interrupted", file=sys.stderr)
         return 130
 
 
-def _one_line(exc: BaseException) -> str:
+def _one_line(exc: BaseException, args) -> str:
     from allocation import TargetUnreachableError
 
     text = " ".join(str(exc).split()) or type(exc).__name__
     if isinstance(exc, OSError) and exc.filename and str(exc.filename) not in text:
         text = f"{exc.filename}: {text}"
     if isinstance(exc, TargetUnreachableError):
-        text += "; a wider box (--bounds LO HI, e.g. 0.1 1.5) may reach it"
+        text += f"; {_box_advice(args)}"
     return text
+
+
+def _box_advice(args) -> str:
+    """:func:`options.wider_box_advice` for the command's machine and ``--bounds``."""
+    from . import options
+
+    try:
+        machine = options.machine(args)
+    except (AttributeError, *_toolkit_errors()):
+        return "a wider box (--bounds LO HI, factors of the initial allocation) may reach it"
+    return options.wider_box_advice(machine, getattr(args, "bounds", None))
 
 
 if __name__ == "__main__":

@@ -4,8 +4,9 @@ from __future__ import annotations
 
 import pandas as pd
 
+from allocation.continuous import DEFAULT_RTOL, WORKSPACE_CHOICES
+from reliability.basics.errors import InputError
 from reliability.basics.streams import extra_stream
-from reliability.first_order.workspace_search import certified_worst
 from reliability.sampling.pose_sampling import EVENTS, sample_at_poses
 from reliability.sampling.verification import rare_event_table, reachable_events, verify
 
@@ -20,8 +21,10 @@ def add_parser(subparsers):
                     "(Wilson interval on the effective sample size "
                     "from the spread between experiments), "
                     "random poses (Wilson interval) and Monte-Carlo at each output's worst "
-                    "pose (Wilson interval), each beside the FOSM prediction. Errors are "
-                    "drawn under the study's reading of a tolerance (--distribution).")
+                    "pose (Wilson interval; certified over the continuous workspace unless "
+                    "--workspace grid, as the report samples it), each beside the FOSM "
+                    "prediction. Errors are drawn under the study's reading of a tolerance "
+                    "(--distribution).")
     options.add_machine(parser)
     parser.add_argument("--tolerances", required=True, metavar="CSV",
                         help="allocation (columns error, allocated), e.g. from 'allocate'")
@@ -46,31 +49,45 @@ def add_parser(subparsers):
     options.add_points(parser)
     options.add_study_model(parser)
     options.add_yield_model(parser)
-    options.add_certify(parser, "sample each output at its certified worst pose over the "
-                                "continuous workspace (docs/certified-workspace.md) instead "
-                                "of its worst grid pose")
+    parser.add_argument("--workspace", choices=WORKSPACE_CHOICES, default=None,
+                        help="where each output's worst pose is sought before sampling it: "
+                             "continuous = certified over the whole strokes to --rtol in "
+                             "sigma (default, as 'report' and 'allocate'; "
+                             "docs/certified-workspace.md); grid = the worst --points grid "
+                             "pose")
+    parser.add_argument("--certify", action="store_true",
+                        help="the same as --workspace continuous (the default)")
+    parser.add_argument("--rtol", type=options.probability, default=DEFAULT_RTOL,
+                        metavar="R", help=f"relative tolerance in sigma of the continuous "
+                                          f"workspace's certificate (default {DEFAULT_RTOL:g})")
     return parser
+
+
+def workspace(args) -> str:
+    """Where the worst poses are sought: ``--workspace``, ``'continuous'`` by default (and
+    under ``--certify``); ``--certify`` with ``--workspace grid`` is refused."""
+    if args.certify and args.workspace == "grid":
+        raise InputError("--certify asks for the continuous workspace and --workspace grid "
+                         "for the grid; pass one of them")
+    return "continuous" if args.workspace is None else args.workspace
 
 
 def run(args) -> int:
     machine = options.machine(args)
+    continuous = workspace(args) == "continuous"
+    if continuous:
+        options.check_certifiable(machine, "--workspace continuous (the default)",
+                                  "pass --workspace grid to sample at the worst grid poses")
     t = options.read_tolerances(args.tolerances, machine)
-    certificate = None
-    if args.certify:
-        options.say(f"certifying the worst poses over the continuous workspace (rtol "
-                    f"{args.rtol:g})")
-        certificate = certified_worst(machine, t, rtol=args.rtol)
     result = verify(machine, t, points=args.points, repeats=args.repeats,
                     samples=args.samples, rng=args.seed, progress=options.say,
                     bar=options.progress_bar, machines=args.machines,
-                    worst_poses=None if certificate is None else
-                    certificate[list(machine.axes)].to_numpy(dtype=float))
+                    workspace="continuous" if continuous else "grid", rtol=args.rtol)
     print(f"Monte-Carlo verification of {args.tolerances} on {machine.name!r} "
           f"(seed {args.seed}); outputs in the {machine.frame} frame; two-sided "
           f"probabilities in %; Monte-Carlo and FOSM with {options.reading_text(machine)}\n")
     print(result.machine_yield.summary() + "\n")
-    where = "grid" if certificate is None else \
-        f"certified (continuous workspace, rtol {args.rtol:g})"
+    where = f"certified (continuous workspace, rtol {args.rtol:g})" if continuous else "grid"
     print(report_tables(machine, result, where))
     worst = result.worst_poses
     short = worst.loc[~worst["reaches_target"], "output"].tolist()

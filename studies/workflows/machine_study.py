@@ -115,8 +115,9 @@ def run(machine, *, points: int = 5, side: str = "two_sided", bounds=None,
         The optimum is verified (and its FOSM computed) exactly as written to
         ``allocation.csv`` (:func:`reliability.basics.files.as_written`), so ``precrel verify
         --tolerances allocation.csv --seed S`` prints the report's Monte-Carlo numbers
-        (with ``--certify`` under workspace 'continuous', where the optimum is sampled at
-        its certified worst poses).
+        (``--workspace grid`` under workspace 'grid'): each allocation is sampled at the
+        worst poses of the study's workspace, certified over the continuous strokes by
+        default (:func:`reliability.sampling.verification.verify`).
     repeats, samples : int
         Grid experiments, and random-pose / worst-pose samples, per allocation.
     progress : callable, optional
@@ -167,14 +168,12 @@ def run(machine, *, points: int = 5, side: str = "two_sided", bounds=None,
                        distribution=machine.distribution)
         verified.append(("optimum", written, optimal))
     checks = {}
-    certified_poses = None if continuous is None or continuous.certificate is None else \
-        continuous.certificate[list(machine.axes)].to_numpy(dtype=float)
     for name, t, prediction in verified:
         progress(f"Monte-Carlo verification of the {name} allocation")
         checks[name] = verify(machine, t, points=points, repeats=repeats, samples=samples,
                               rng=seed, progress=lambda text: progress(f"  {text}"), bar=bar,
                               prediction=prediction, machines=machines,
-                              worst_poses=certified_poses if name == "optimum" else None)
+                              workspace=workspace, rtol=rtol)
     return MachineStudy(machine=machine, points=points, side=side,
                         bounds=None if bounds is None else tuple(bounds),
                         seed=seed, problem=problem, initial_fosm=initial, optimum=optimum,
