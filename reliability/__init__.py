@@ -10,11 +10,14 @@ The package lives in rooms by idea, each importing only the rooms below it:
   reliability and the worst pose over the workspace (search and certificate);
 - :mod:`reliability.sampling`: the grid experiment (Sec. 5.3), Monte-Carlo at poses, rare
   events, the machine yield and the verification of an allocation;
-- :mod:`reliability.acceptance`: ISO 230 acceptance tests on the model.
+- :mod:`reliability.acceptance`: ISO 230 acceptance tests on the model;
+- :mod:`reliability.interop`: the machine as an OpenTURNS and a SALib model (the optional
+  ``interop`` extra, imported only when used).
 
 The names most users need are exported here.
 """
 
+from . import interop
 from .basics.errors import MachineDescriptionError
 from .first_order.fosm import FosmResult, fosm
 from .first_order.system_reliability import (SystemReliability, system_reliability,
@@ -31,6 +34,6 @@ __all__ = ["COMPONENTS", "OUTPUTS", "Axis", "CostCoefficients", "FosmResult",
            "GridExperiment", "GridExperimentResult", "Machine", "MachineDescriptionError",
            "PoseSamplingResult", "RandomPoseResult", "SystemReliability", "fosm",
            "hobbing_machine", "load_machine", "machine_from_dict", "machine_from_toml",
-           "random_poses", "rare",
+           "interop", "random_poses", "rare",
            "sample_at_poses", "sample_random_poses", "system_reliability", "workspace_grid",
            "worst_system_reliability"]

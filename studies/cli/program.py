@@ -17,6 +17,7 @@ from studies.workflows.timing import limit_blas_threads
 #: Subcommand modules under ``studies.cli``, in the order ``--help`` lists them.
 COMMANDS = ("check", "predict", "allocate", "verify", "report", "front", "sweep",
             "acceptance")
+COMMANDS += ("sensitivity",)
 PROG = "precrel"
 #: Exit code of bad input (argparse's own convention).
 USAGE_ERROR = 2

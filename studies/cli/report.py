@@ -9,6 +9,7 @@ from studies.report import machine_sections
 from studies.report.acceptance_section import acceptance_section
 from studies.report.catalogue_section import catalogue_section
 from studies.report.extras import EXTRAS, allocations, builders
+from studies.report.sensitivity_section import study_sensitivity_section
 from studies.report.writer import REPORT_MARKERS, write_report
 from studies.workflows import machine_study
 
@@ -41,6 +42,9 @@ def add_parser(subparsers):
     parser.add_argument("--catalogue", metavar="CAT.toml",
                         help="add a 'Component choice' section: the certified cheapest "
                              "choice of one class per component of this catalogue")
+    parser.add_argument("--sensitivity", action="store_true",
+                        help="add a 'What each tolerance buys' section: d yield / d ln t of "
+                             "every item at the optimal (else the initial) allocation")
     parser.add_argument("--overwrite", action="store_true",
                         help="replace an earlier report in DIR (other files are left alone)")
     return parser
@@ -68,6 +72,9 @@ def run(args) -> int:
         choice = solve_catalogue(study.problem, catalogue)
         extra.append(lambda _: catalogue_section(choice, samples=args.samples,
                                                  rng=extra_stream(args.seed, 3)))
+    if args.sensitivity:
+        extra.append(lambda study: study_sensitivity_section(
+            study, machines=args.machines, rng=extra_stream(study.seed, 4)))
     sections = machine_sections.sections(study, extra=extra)
     options.say("drawing figures and writing the report")
     written = write_report(out, sections, machine_study.summary(study),
