@@ -79,6 +79,10 @@ BUILD_TARGET = 1.0 - 1e-9
 #: fresh sample of N machines confirms Y (1.96 for the interval, about 2.3 for the
 #: difference of two independent samples at 95 %).
 DESIGN_Z = 4.0
+#: Relative margin of every output's largest required index below the one the box holds
+#: exactly (all items at their lower bounds), so that no solve at a cap is infeasible by
+#: rounding: the loads at the lower bounds stay below 1 by about twice this.
+CAP_MARGIN = 1e-9
 #: Required-index step of the finite differences and the first move of the search.
 FD_STEP = 0.15
 FIRST_STEP = 0.3
@@ -294,11 +298,14 @@ def allocate_for_yield(machine, yield_target: float, *, profile=None, distributi
     built = time.perf_counter()
     try:
         lower = search.solver(yield_target)
-    except InfeasibleAllocationError:
+    except InfeasibleAllocationError as infeasible:
+        blocking = sorted({OUTPUTS[o] for o in search.problem.rows.output[list(infeasible.rows)]})
         raise YieldUnreachableError(
-            f"yield unreachable inside the box: not even every (output, pose) row can reach "
-            f"probability {yield_target:g}; widen the box (bounds)") from None
-    naive = search.naive(naive_steps)
+            f"machine yield {yield_target:g} unreachable inside the box "
+            f"{search.problem.box_text()}: not even every (output, pose) row can reach "
+            f"probability {yield_target:g} (rows of {', '.join(blocking)} miss it with every "
+            f"tolerance at its lower bound); widen the box (bounds)") from None
+    naive = search.naive(naive_steps, yield_target)
     best = search.improve(naive, rounds, restore_steps)
     targets_found = time.perf_counter()
     shaped = search.shape(best, shape_steps)
@@ -480,7 +487,7 @@ class _Point:
         return self.verdicts.all(axis=1)
 
     def meets(self, target) -> bool:
-        return self.verdicts is not None and self.passes.mean() >= target
+        return self.passes.mean() >= target
 
 
 class _Search:
@@ -513,26 +520,24 @@ class _Search:
 
     def _caps(self) -> np.ndarray:
         """Largest required index of each output the box can hold (all items at their
-        lower bounds), at most the build's."""
+        lower bounds), at most the build's, less :data:`CAP_MARGIN`."""
         rows = self.problem.rows
         load = rows.matrix @ np.square(self.problem.lower)
         worst = np.zeros(len(OUTPUTS))
         np.maximum.at(worst, rows.output, load)
         with np.errstate(divide="ignore"):
-            return np.minimum(self.z_build, self.z_build / np.sqrt(worst))
+            held = np.minimum(self.z_build, self.z_build / np.sqrt(worst))
+        return held * (1.0 - CAP_MARGIN)
 
     def solve(self, z) -> _Point:
         """The certified per-pose optimum at required indices ``z`` (no sampling)."""
         z = np.clip(np.asarray(z, dtype=float), self.floor, self.cap)
         scale = np.square(z / self.z_build)[self.problem.rows.output]
         start = None if self._start is None else self._start[0] * scale / self._start[1]
-        try:
-            solution = solve_convex_allocation(
-                self.problem.cost.weights, self.problem.rows.matrix * scale[:, None],
-                np.square(self.problem.lower), np.square(self.problem.upper),
-                gap_tol=self.gap_tol, start=start)
-        except InfeasibleAllocationError:  # only by rounding at a cap
-            return _Point(z=z, t=np.asarray(self.problem.lower), cost=np.inf)
+        solution = solve_convex_allocation(
+            self.problem.cost.weights, self.problem.rows.matrix * scale[:, None],
+            np.square(self.problem.lower), np.square(self.problem.upper),
+            gap_tol=self.gap_tol, start=start)
         self._start = (np.array(solution.multipliers), scale)
         return _Point(z=z, t=np.asarray(solution.t), cost=float(solution.fun))
 
@@ -542,10 +547,8 @@ class _Search:
         key = tuple(np.round(z, 12))
         if key not in self._cache:
             point = self.solve(z)
-            verdicts = None if not np.isfinite(point.cost) else self.verdicts(
-                point.t, "design")
             self.evaluations += 1
-            self._cache[key] = replace(point, verdicts=verdicts)
+            self._cache[key] = replace(point, verdicts=self.verdicts(point.t, "design"))
         return self._cache[key]
 
     def draws(self, sample: str) -> np.ndarray:
@@ -567,16 +570,29 @@ class _Search:
         """Per-machine verdicts of an allocation on the fresh sample (same draws for all)."""
         return lambda t: self.verdicts(t, "verification").all(axis=1)
 
-    def naive(self, steps) -> _Point:
-        """One common required index, bisected to the smallest meeting the design yield."""
+    def naive(self, steps, yield_target) -> _Point:
+        """One common required index, bisected to the smallest meeting the design yield;
+        :class:`YieldUnreachableError` for ``yield_target`` when the largest the box holds
+        misses it."""
         high = self.evaluate(np.full(6, self.cap.min()))
         if not high.meets(self.design_target):
-            raise YieldUnreachableError(
-                f"yield unreachable inside the box: even the common per-pose target "
-                f"{two_sided_target(self.cap.min()):.6g} (the most the box holds) gives a "
-                f"yield of {high.passes.mean():.4f} on {self.machines} machines, short of "
-                f"the {self.design_target:.4f} aimed at; widen the box (bounds)")
+            raise YieldUnreachableError(self._unreachable(high, yield_target))
         return self._smallest_shift(np.zeros(6), self.floor, self.cap.min(), high, steps)
+
+    def _unreachable(self, high, yield_target) -> str:
+        """Why ``yield_target`` is out of reach: the yield, the box, the output whose rows
+        cap the common target and the output most machines fail at that target."""
+        capping = OUTPUTS[int(np.argmin(self.cap))]
+        failures = (~high.verdicts).sum(axis=0)
+        failing = OUTPUTS[int(np.argmax(failures))]
+        return (f"machine yield {yield_target:g} unreachable inside the box "
+                f"{self.problem.box_text()}: the most precise common per-pose target it "
+                f"holds, {two_sided_target(self.cap.min()):.6g} (output {capping}'s rows reach "
+                f"their limits with every tolerance at its lower bound), gives a yield of "
+                f"{high.passes.mean():.4f} on {self.machines} machines, short of the design "
+                f"yield {self.design_target:.4f} every candidate must reach there; output "
+                f"{failing} fails most of them ({failures.max()} of {self.machines}); "
+                f"widen the box (bounds)")
 
     def _smallest_shift(self, base, low, high, best, steps) -> _Point:
         """Bisection on the shift ``s`` of ``base + s`` between a failing ``low`` and a

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import re
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -271,3 +272,32 @@ def test_cli_bad_yield_input_is_one_line_exit_2(tmp_path, capsys, extra, words):
     assert words in err
     assert len(err.splitlines()) == 1
     assert not (tmp_path / "a.csv").exists()
+
+
+@pytest.fixture(scope="module")
+def gantry5_tool():
+    """The gantry example in the tool frame: its [bounds] box lets output dy reach the
+    largest common target only with every tolerance at its lower bound."""
+    machine = reliability.load_machine(Path(__file__).parents[1] / "docs/examples/gantry5.toml")
+    return replace(machine, frame="tool")
+
+
+def test_solve_at_the_cap_is_feasible(gantry5_tool):
+    """At the largest common target the box holds, the solve gives an allocation meeting it
+    at every pose (an independent FOSM computation), not an infeasible point."""
+    search = _Search(gantry5_tool, 3, None, 20, 0, 0.5)
+    cap = search.cap.min()
+    point = search.evaluate(np.full(6, cap))
+    assert np.isfinite(point.cost) and point.verdicts is not None
+    p = fosm_two_sided(search.problem.machine, search.problem.poses, point.t)
+    assert p.min() >= two_sided_target(cap) - 1e-9
+
+
+def test_unreachable_yield_names_yield_box_and_outputs(gantry5_tool):
+    with pytest.raises(YieldUnreachableError) as raised:
+        allocate_for_yield(gantry5_tool, 0.95, points=3, machines=200, rounds=0,
+                           shape_steps=0)
+    message = str(raised.value)
+    for words in ("machine yield 0.95 unreachable", "the machine file's [bounds]",
+                  "output dy's rows reach their limits", "on 200 machines", "fails most"):
+        assert words in message
