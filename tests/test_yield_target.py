@@ -245,7 +245,8 @@ def test_cli_allocates_for_yield(result, tmp_path, capsys):
     text = capsys.readouterr().out
     for words in ("lower bound", "of the initial cost", "gap", "verified yield",
                   f"from {MACHINES} fresh built machines", "naive method", "profile constant",
-                  "3-point grid", "box [0.5, 1.5]", "distribution 'normal'"):
+                  "3-point grid", "box [0.5, 1.5]", "distribution 'normal'",
+                  "the cheapest found by this search; not certified: see the lower bound"):
         assert words in text
     written = read_allocation_csv(out, reliability.load_machine(machine))
     problem = result.problem
@@ -301,3 +302,30 @@ def test_unreachable_yield_names_yield_box_and_outputs(gantry5_tool):
     for words in ("machine yield 0.95 unreachable", "the machine file's [bounds]",
                   "output dy's rows reach their limits", "on 200 machines", "fails most"):
         assert words in message
+
+
+@pytest.fixture(scope="module")
+def nested_boxes(mill3):
+    """One search in the default box and one in a box containing it (same seed, machines,
+    grid); on these draws the wider box's own search ends dearer than the default box's."""
+    options = dict(points=3, machines=100, seed=0, rounds=2, shape_steps=6)
+    return {box: allocate_for_yield(mill3, Y, bounds=box, **options)
+            for box in ((0.5, 1.5), (0.375, 3.0))}
+
+
+def test_wider_box_costs_no_more(nested_boxes):
+    narrow, wide = nested_boxes[(0.5, 1.5)], nested_boxes[(0.375, 3.0)]
+    assert wide.cost <= narrow.cost
+    assert not narrow.from_narrower_box and wide.from_narrower_box
+    assert np.all(wide.tolerances >= narrow.problem.lower)
+    assert np.all(wide.tolerances <= narrow.problem.upper)
+
+
+def test_result_is_not_called_the_cheapest_without_qualification(result, nested_boxes):
+    standing = "the cheapest found by this search; not certified: see the lower bound"
+    assert standing in result.summary()
+    assert "of the search in" not in result.summary()
+    wide = nested_boxes[(0.375, 3.0)]
+    assert standing in wide.summary()
+    assert ("of the search in [0.5, 1.5] × the initial allocation (the default factor box "
+            "within this box)") in wide.summary()
