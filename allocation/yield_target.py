@@ -256,8 +256,10 @@ class YieldAllocation:
         """Where the search that gave the allocation ran, when not in the box asked for."""
         if not self.from_narrower_box:
             return ""
-        return (f" of the search in {self.search_problem.box_text()} (the default factor "
-                f"box within this box), cheaper than this box's own search")
+        low, high = DEFAULT_FACTORS
+        return (f" of the search in this box intersected with the default factor box "
+                f"[{low:g}, {high:g}] × the initial allocation "
+                f"({self.search_problem.box_text()}), cheaper than this box's own search")
 
     def __repr__(self) -> str:
         return self.summary()

@@ -327,5 +327,6 @@ def test_result_is_not_called_the_cheapest_without_qualification(result, nested_
     assert "of the search in" not in result.summary()
     wide = nested_boxes[(0.375, 3.0)]
     assert standing in wide.summary()
-    assert ("of the search in [0.5, 1.5] × the initial allocation (the default factor box "
-            "within this box)") in wide.summary()
+    assert ("of the search in this box intersected with the default factor box [0.5, 1.5] × "
+            "the initial allocation ([0.5, 1.5] × the initial allocation), cheaper than this "
+            "box's own search") in wide.summary()
