@@ -1,4 +1,4 @@
-"""Allocation for a machine-yield target: the cheapest allocation whose built machines pass.
+"""Allocation for a machine-yield target: a cheap allocation whose built machines pass.
 
 The machine yield of an allocation is the share of built machines that keep all six
 outputs within their limits at every pose of the workspace grid, under the study's error
@@ -43,6 +43,17 @@ of its own; the cheaper of the two stages is the result (:attr:`YieldAllocation.
 The per-output stage cannot trade one error against another inside an output; on the paper's
 machine, whose failing machines fail several outputs at once, that is where the saving is.
 
+A wider box. The search is local, and the per-pose optimum it moves along is a poorer guide
+to the machine yield in a wider box: at the same targets it is cheaper, but it loosens
+items further, so more outputs come near their limits at more poses at once; its machine
+yield is lower, and the search starts from higher targets and ends elsewhere. So the stages also run in the default factor box
+([0.5, 1.5] × the initial allocation) intersected with the box asked for, when that is a
+different, non-empty box, exactly as a search asked for that box would run, and the cheaper
+of the two results is kept: the result never costs more than the result for that
+intersection (a box containing the default one never costs more than the default one). It
+is the cheapest allocation this search found, not a certified optimum: only the lower bound
+is certified.
+
 One engine. Every yield of both stages, of the verification and of the naive method is a
 share of built machines judged by
 :meth:`reliability.sampling.machine_yield.YieldModel.output_ratios` (per machine and output,
@@ -69,7 +80,7 @@ from reliability.sampling.machine_yield import YieldModel
 
 from .convex import InfeasibleAllocationError, solve_convex_allocation
 from .front import CommonTargetSolver
-from .problem import AllocationProblem
+from .problem import DEFAULT_FACTORS, AllocationProblem
 from .yield_shape import shape_search
 
 #: Two-sided per-pose target the constraint rows are built and screened at: every target
@@ -79,6 +90,10 @@ BUILD_TARGET = 1.0 - 1e-9
 #: fresh sample of N machines confirms Y (1.96 for the interval, about 2.3 for the
 #: difference of two independent samples at 95 %).
 DESIGN_Z = 4.0
+#: Relative margin of every output's largest required index below the one the box holds
+#: exactly (all items at their lower bounds), so that no solve at a cap is infeasible by
+#: rounding: the loads at the lower bounds stay below 1 by about twice this.
+CAP_MARGIN = 1e-9
 #: Required-index step of the finite differences and the first move of the search.
 FD_STEP = 0.15
 FIRST_STEP = 0.3
@@ -120,8 +135,14 @@ class YieldAllocation:
     Attributes
     ----------
     problem : AllocationProblem
-        The per-pose problem (two-sided, every pose of the grid) whose rows every candidate
-        was solved with; its ``reference`` is the initial allocation.
+        The per-pose problem (two-sided, every pose of the grid) in the box asked for: the
+        lower bound's; its ``reference`` is the initial allocation.
+    search_problem : AllocationProblem
+        The per-pose problem the search that gave the allocation solved every candidate
+        with: :attr:`problem`, or the same problem in the default factor box
+        ([0.5, 1.5] × the initial allocation) intersected with its box, when the search
+        there found a cheaper allocation (:attr:`from_narrower_box`). The naive method and
+        :attr:`output_targets` are that search's.
     yield_target : float
         Y.
     design_yield_target : float
@@ -152,12 +173,15 @@ class YieldAllocation:
         Built machines in each sample (design and verification).
     seed : int
     evaluations : int
-        Candidates solved and simulated on the design sample.
+        Candidates solved and simulated on the design sample, by both searches when the
+        default factor box was searched too.
     seconds : dict
-        Wall time of the build, the search and the verification.
+        Wall time of the build, the two stages (summed over the searches) and the
+        verification.
     """
 
     problem: object = field(repr=False)
+    search_problem: object = field(repr=False)
     yield_target: float
     design_yield_target: float
     tolerances: np.ndarray
@@ -181,6 +205,12 @@ class YieldAllocation:
     def initial_cost(self) -> float:
         """Cost of the initial (reference) allocation."""
         return float(self.problem.cost.total(self.problem.reference))
+
+    @property
+    def from_narrower_box(self) -> bool:
+        """The allocation comes from the search in the default factor box intersected with
+        the box asked for (:attr:`search_problem`)."""
+        return self.search_problem is not self.problem
 
     @property
     def verified(self) -> bool:
@@ -215,11 +245,21 @@ class YieldAllocation:
             f"({self.relative_gap:.2%} of the feasible cost)",
             f"verified yield {v.estimate:.4f}, 95% Clopper–Pearson [{v.lower:.4f}, "
             f"{v.upper:.4f}] from {v.n:,} fresh machines: {verdict}",
-            f"found by the {self.method} stage; per-output per-pose targets of the first "
-            f"stage: {targets}",
+            "the cheapest found by this search; not certified: see the lower bound",
+            f"found by the {self.method} stage{self.narrower_box_text()}; per-output "
+            f"per-pose targets of the first stage: {targets}",
             f"naive method (one common per-pose target {self.naive.target:.6g}): cost "
             f"{self.naive.cost / initial:.4%} of the initial cost, verified yield "
             f"{n.estimate:.4f} [{n.lower:.4f}, {n.upper:.4f}]"])
+
+    def narrower_box_text(self) -> str:
+        """Where the search that gave the allocation ran, when not in the box asked for."""
+        if not self.from_narrower_box:
+            return ""
+        low, high = DEFAULT_FACTORS
+        return (f" of the search in this box intersected with the default factor box "
+                f"[{low:g}, {high:g}] × the initial allocation "
+                f"({self.search_problem.box_text()}), cheaper than this box's own search")
 
     def __repr__(self) -> str:
         return self.summary()
@@ -246,7 +286,9 @@ def allocate_for_yield(machine, yield_target: float, *, profile=None, distributi
         Grid points per axis: the poses of the rows and of the simulated machines.
     bounds : (float, float), optional
         Box as factors of the initial allocation (default as
-        :meth:`AllocationProblem.build`).
+        :meth:`AllocationProblem.build`). When it differs from its intersection with the
+        default factor box, the search also runs in that intersection and the cheaper
+        result is kept (module docstring), which doubles the time of the search.
     machines : int
         Built machines in each sample: the design samples of the two stages and,
         independently, the verification sample.
@@ -291,25 +333,29 @@ def allocate_for_yield(machine, yield_target: float, *, profile=None, distributi
                                                            / machines),
                         1.0 - 0.5 / machines)
     search = _Search(machine, points, bounds, machines, seed, design_target, gap_tol)
+    searches = [search, *_narrower_searches(machine, points, search.problem, machines, seed,
+                                            design_target, gap_tol)]
     built = time.perf_counter()
-    try:
-        lower = search.solver(yield_target)
-    except InfeasibleAllocationError:
-        raise YieldUnreachableError(
-            f"yield unreachable inside the box: not even every (output, pose) row can reach "
-            f"probability {yield_target:g}; widen the box (bounds)") from None
-    naive = search.naive(naive_steps)
-    best = search.improve(naive, rounds, restore_steps)
-    targets_found = time.perf_counter()
-    shaped = search.shape(best, shape_steps)
-    chosen = best if shaped is None or shaped.cost >= best.cost else shaped
+    lower = _lower_bound(search, yield_target)
+    outcomes, unreachable = [], []
+    for each in searches:
+        try:
+            outcomes.append(_stages(each, yield_target, naive_steps, rounds, restore_steps,
+                                    shape_steps))
+        except YieldUnreachableError as error:
+            unreachable.append(error)
+    if not outcomes:
+        raise unreachable[0]
+    found = min(outcomes, key=lambda outcome: outcome.chosen.cost)
     searched = time.perf_counter()
-    verify = search.verification_sample()
-    result = YieldAllocation(
-        problem=search.problem, yield_target=yield_target,
+    verify = found.search.verification_sample()
+    chosen, naive = found.chosen, found.naive
+    return YieldAllocation(
+        problem=search.problem, search_problem=found.search.problem,
+        yield_target=yield_target,
         design_yield_target=float(design_target), tolerances=chosen.t, cost=chosen.cost,
-        output_targets=two_sided_target(best.z),
-        method="per-output targets" if chosen is best else "error shape",
+        output_targets=two_sided_target(found.best.z),
+        method="per-output targets" if chosen is found.best else "error shape",
         design_yield=all_within_share(chosen.passes),
         verified_yield=all_within_share(verify(chosen.t)),
         lower_bound=float(lower.dual_bound),
@@ -319,10 +365,64 @@ def allocate_for_yield(machine, yield_target: float, *, profile=None, distributi
                               design_yield=all_within_share(naive.passes),
                               verified_yield=all_within_share(verify(naive.t))),
         profile=machine.profile, distribution=machine.distribution, points=int(points),
-        machines=machines, seed=seed, evaluations=search.evaluations,
-        seconds={"build": built - started, "targets": targets_found - built,
-                 "shape": searched - targets_found, "verify": time.perf_counter() - searched})
-    return result
+        machines=machines, seed=seed, evaluations=sum(each.evaluations for each in searches),
+        seconds={"build": built - started,
+                 "targets": sum(outcome.seconds["targets"] for outcome in outcomes),
+                 "shape": sum(outcome.seconds["shape"] for outcome in outcomes),
+                 "verify": time.perf_counter() - searched})
+
+
+def _lower_bound(search, yield_target):
+    """The relaxation's certified solve (every row at probability ``yield_target``);
+    :class:`YieldUnreachableError` naming the outputs whose rows the box cannot hold."""
+    try:
+        return search.solver(yield_target)
+    except InfeasibleAllocationError as infeasible:
+        blocking = sorted({OUTPUTS[o] for o in search.problem.rows.output[list(infeasible.rows)]})
+        raise YieldUnreachableError(
+            f"machine yield {yield_target:g} unreachable inside the box "
+            f"{search.problem.box_text()}: not even every (output, pose) row can reach "
+            f"probability {yield_target:g} (rows of {', '.join(blocking)} miss it with every "
+            f"tolerance at its lower bound); widen the box (bounds)") from None
+
+
+def _narrower_searches(machine, points, problem, machines, seed, design_target, gap_tol):
+    """The search in the default factor box intersected with ``problem``'s box, built as a
+    search given that box would build it: none when the intersection is the box itself or
+    empty."""
+    reference = problem.reference
+    lower = np.maximum(problem.lower, reference * DEFAULT_FACTORS[0])
+    upper = np.minimum(problem.upper, reference * DEFAULT_FACTORS[1])
+    same = np.array_equal(lower, problem.lower) and np.array_equal(upper, problem.upper)
+    if same or np.any(lower > upper):
+        return []
+    return [_Search(machine, points, None, machines, seed, design_target, gap_tol,
+                    box={"lower": lower, "upper": upper})]
+
+
+@dataclass(frozen=True, eq=False)
+class _Outcome:
+    """One search's stages: the naive start, the per-output search's best, the allocation
+    chosen of the two stages, and the seconds of each stage."""
+
+    search: object
+    naive: object
+    best: object
+    chosen: object
+    seconds: dict
+
+
+def _stages(search, yield_target, naive_steps, rounds, restore_steps, shape_steps):
+    """The naive start, the per-output search and the shape search in ``search``'s box."""
+    started = time.perf_counter()
+    naive = search.naive(naive_steps, yield_target)
+    best = search.improve(naive, rounds, restore_steps)
+    targets_found = time.perf_counter()
+    shaped = search.shape(best, shape_steps)
+    chosen = best if shaped is None or shaped.cost >= best.cost else shaped
+    return _Outcome(search=search, naive=naive, best=best, chosen=chosen,
+                    seconds={"targets": targets_found - started,
+                             "shape": time.perf_counter() - targets_found})
 
 
 class YieldUnreachableError(InfeasibleAllocationError):
@@ -378,7 +478,7 @@ def equal_yield_margin(result: YieldAllocation, *, level: float | None = None,
     resamples = checks.positive_int(resamples, "resamples")
     target = result.design_yield_target if level is None else checks.probability(level, "level")
     search = _Search(result.problem.machine, result.points, None, machines, seed, 0.0,
-                     problem=result.problem)
+                     problem=result.search_problem)
     sample = search.verification_sample()
     z_naive = np.full(6, required_index(result.naive.target, "two_sided"))
     families = {"naive": lambda shift: search.solve(z_naive + shift),
@@ -410,7 +510,7 @@ def _result_family(result, search, z):
     if result.method == "per-output targets":
         z_result = required_index(result.output_targets, "two_sided")
         return lambda shift: search.solve(z_result + shift)
-    problem = result.problem
+    problem = result.search_problem
 
     def scaled(shift):
         t = np.clip(result.tolerances * z / (z + shift), problem.lower, problem.upper)
@@ -480,7 +580,7 @@ class _Point:
         return self.verdicts.all(axis=1)
 
     def meets(self, target) -> bool:
-        return self.verdicts is not None and self.passes.mean() >= target
+        return self.passes.mean() >= target
 
 
 class _Search:
@@ -492,10 +592,10 @@ class _Search:
     :meth:`~reliability.sampling.machine_yield.YieldModel.output_ratios`."""
 
     def __init__(self, machine, points, bounds, machines, seed, design_target,
-                 gap_tol=1e-6, problem=None):
+                 gap_tol=1e-6, problem=None, box=None):
         self.problem = problem if problem is not None else AllocationProblem.build(
             machine, workspace_grid(machine, points), side="two_sided", workspace="worst",
-            bounds=bounds, targets=dict.fromkeys(OUTPUTS, BUILD_TARGET))
+            bounds=bounds, targets=dict.fromkeys(OUTPUTS, BUILD_TARGET), **(box or {}))
         machine = self.problem.machine
         self.solver = CommonTargetSolver(self.problem, gap_tol)
         self.gap_tol = gap_tol
@@ -513,26 +613,24 @@ class _Search:
 
     def _caps(self) -> np.ndarray:
         """Largest required index of each output the box can hold (all items at their
-        lower bounds), at most the build's."""
+        lower bounds), at most the build's, less :data:`CAP_MARGIN`."""
         rows = self.problem.rows
         load = rows.matrix @ np.square(self.problem.lower)
         worst = np.zeros(len(OUTPUTS))
         np.maximum.at(worst, rows.output, load)
         with np.errstate(divide="ignore"):
-            return np.minimum(self.z_build, self.z_build / np.sqrt(worst))
+            held = np.minimum(self.z_build, self.z_build / np.sqrt(worst))
+        return held * (1.0 - CAP_MARGIN)
 
     def solve(self, z) -> _Point:
         """The certified per-pose optimum at required indices ``z`` (no sampling)."""
         z = np.clip(np.asarray(z, dtype=float), self.floor, self.cap)
         scale = np.square(z / self.z_build)[self.problem.rows.output]
         start = None if self._start is None else self._start[0] * scale / self._start[1]
-        try:
-            solution = solve_convex_allocation(
-                self.problem.cost.weights, self.problem.rows.matrix * scale[:, None],
-                np.square(self.problem.lower), np.square(self.problem.upper),
-                gap_tol=self.gap_tol, start=start)
-        except InfeasibleAllocationError:  # only by rounding at a cap
-            return _Point(z=z, t=np.asarray(self.problem.lower), cost=np.inf)
+        solution = solve_convex_allocation(
+            self.problem.cost.weights, self.problem.rows.matrix * scale[:, None],
+            np.square(self.problem.lower), np.square(self.problem.upper),
+            gap_tol=self.gap_tol, start=start)
         self._start = (np.array(solution.multipliers), scale)
         return _Point(z=z, t=np.asarray(solution.t), cost=float(solution.fun))
 
@@ -542,10 +640,8 @@ class _Search:
         key = tuple(np.round(z, 12))
         if key not in self._cache:
             point = self.solve(z)
-            verdicts = None if not np.isfinite(point.cost) else self.verdicts(
-                point.t, "design")
             self.evaluations += 1
-            self._cache[key] = replace(point, verdicts=verdicts)
+            self._cache[key] = replace(point, verdicts=self.verdicts(point.t, "design"))
         return self._cache[key]
 
     def draws(self, sample: str) -> np.ndarray:
@@ -567,16 +663,29 @@ class _Search:
         """Per-machine verdicts of an allocation on the fresh sample (same draws for all)."""
         return lambda t: self.verdicts(t, "verification").all(axis=1)
 
-    def naive(self, steps) -> _Point:
-        """One common required index, bisected to the smallest meeting the design yield."""
+    def naive(self, steps, yield_target) -> _Point:
+        """One common required index, bisected to the smallest meeting the design yield;
+        :class:`YieldUnreachableError` for ``yield_target`` when the largest the box holds
+        misses it."""
         high = self.evaluate(np.full(6, self.cap.min()))
         if not high.meets(self.design_target):
-            raise YieldUnreachableError(
-                f"yield unreachable inside the box: even the common per-pose target "
-                f"{two_sided_target(self.cap.min()):.6g} (the most the box holds) gives a "
-                f"yield of {high.passes.mean():.4f} on {self.machines} machines, short of "
-                f"the {self.design_target:.4f} aimed at; widen the box (bounds)")
+            raise YieldUnreachableError(self._unreachable(high, yield_target))
         return self._smallest_shift(np.zeros(6), self.floor, self.cap.min(), high, steps)
+
+    def _unreachable(self, high, yield_target) -> str:
+        """Why ``yield_target`` is out of reach: the yield, the box, the output whose rows
+        cap the common target and the output most machines fail at that target."""
+        capping = OUTPUTS[int(np.argmin(self.cap))]
+        failures = (~high.verdicts).sum(axis=0)
+        failing = OUTPUTS[int(np.argmax(failures))]
+        return (f"machine yield {yield_target:g} unreachable inside the box "
+                f"{self.problem.box_text()}: the most precise common per-pose target it "
+                f"holds, {two_sided_target(self.cap.min()):.6g} (output {capping}'s rows reach "
+                f"their limits with every tolerance at its lower bound), gives a yield of "
+                f"{high.passes.mean():.4f} on {self.machines} machines, short of the design "
+                f"yield {self.design_target:.4f} every candidate must reach there; output "
+                f"{failing} fails most of them ({failures.max()} of {self.machines}); "
+                f"widen the box (bounds)")
 
     def _smallest_shift(self, base, low, high, best, steps) -> _Point:
         """Bisection on the shift ``s`` of ``base + s`` between a failing ``low`` and a

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import re
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -244,7 +245,8 @@ def test_cli_allocates_for_yield(result, tmp_path, capsys):
     text = capsys.readouterr().out
     for words in ("lower bound", "of the initial cost", "gap", "verified yield",
                   f"from {MACHINES} fresh built machines", "naive method", "profile constant",
-                  "3-point grid", "box [0.5, 1.5]", "distribution 'normal'"):
+                  "3-point grid", "box [0.5, 1.5]", "distribution 'normal'",
+                  "the cheapest found by this search; not certified: see the lower bound"):
         assert words in text
     written = read_allocation_csv(out, reliability.load_machine(machine))
     problem = result.problem
@@ -271,3 +273,60 @@ def test_cli_bad_yield_input_is_one_line_exit_2(tmp_path, capsys, extra, words):
     assert words in err
     assert len(err.splitlines()) == 1
     assert not (tmp_path / "a.csv").exists()
+
+
+@pytest.fixture(scope="module")
+def gantry5_tool():
+    """The gantry example in the tool frame: its [bounds] box lets output dy reach the
+    largest common target only with every tolerance at its lower bound."""
+    machine = reliability.load_machine(Path(__file__).parents[1] / "docs/examples/gantry5.toml")
+    return replace(machine, frame="tool")
+
+
+def test_solve_at_the_cap_is_feasible(gantry5_tool):
+    """At the largest common target the box holds, the solve gives an allocation meeting it
+    at every pose (an independent FOSM computation), not an infeasible point."""
+    search = _Search(gantry5_tool, 3, None, 20, 0, 0.5)
+    cap = search.cap.min()
+    point = search.evaluate(np.full(6, cap))
+    assert np.isfinite(point.cost) and point.verdicts is not None
+    p = fosm_two_sided(search.problem.machine, search.problem.poses, point.t)
+    assert p.min() >= two_sided_target(cap) - 1e-9
+
+
+def test_unreachable_yield_names_yield_box_and_outputs(gantry5_tool):
+    with pytest.raises(YieldUnreachableError) as raised:
+        allocate_for_yield(gantry5_tool, 0.95, points=3, machines=200, rounds=0,
+                           shape_steps=0)
+    message = str(raised.value)
+    for words in ("machine yield 0.95 unreachable", "the machine file's [bounds]",
+                  "output dy's rows reach their limits", "on 200 machines", "fails most"):
+        assert words in message
+
+
+@pytest.fixture(scope="module")
+def nested_boxes(mill3):
+    """One search in the default box and one in a box containing it (same seed, machines,
+    grid); on these draws the wider box's own search ends dearer than the default box's."""
+    options = dict(points=3, machines=100, seed=0, rounds=2, shape_steps=6)
+    return {box: allocate_for_yield(mill3, Y, bounds=box, **options)
+            for box in ((0.5, 1.5), (0.375, 3.0))}
+
+
+def test_wider_box_costs_no_more(nested_boxes):
+    narrow, wide = nested_boxes[(0.5, 1.5)], nested_boxes[(0.375, 3.0)]
+    assert wide.cost <= narrow.cost
+    assert not narrow.from_narrower_box and wide.from_narrower_box
+    assert np.all(wide.tolerances >= narrow.problem.lower)
+    assert np.all(wide.tolerances <= narrow.problem.upper)
+
+
+def test_result_is_not_called_the_cheapest_without_qualification(result, nested_boxes):
+    standing = "the cheapest found by this search; not certified: see the lower bound"
+    assert standing in result.summary()
+    assert "of the search in" not in result.summary()
+    wide = nested_boxes[(0.375, 3.0)]
+    assert standing in wide.summary()
+    assert ("of the search in this box intersected with the default factor box [0.5, 1.5] × "
+            "the initial allocation ([0.5, 1.5] × the initial allocation), cheaper than this "
+            "box's own search") in wide.summary()

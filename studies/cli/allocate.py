@@ -207,13 +207,14 @@ def describe_yield(result) -> str:
         f"lower bound {result.lower_bound / initial:.4%} of the initial cost (every (output, "
         f"pose) row at probability {result.yield_target:g}, FOSM two-sided, certified)",
         f"cost {result.cost:.6g} = {result.cost / initial:.4%} of the initial allocation "
-        f"({initial:.6g})",
+        f"({initial:.6g}): the cheapest found by this search; not certified: see the lower "
+        "bound",
         f"gap {result.gap / initial:.4%} of the initial cost ({result.relative_gap:.2%} of "
         f"the cost)",
         f"verified yield {v.estimate:.4f}, 95% Clopper-Pearson [{v.lower:.4f}, {v.upper:.4f}] "
         f"from {v.n:,} fresh built machines: {verdict}",
-        f"found by the {result.method} stage; per-output per-pose targets of the first "
-        "stage: " + ", ".join(
+        f"found by the {result.method} stage{result.narrower_box_text()}; per-output "
+        "per-pose targets of the first stage: " + ", ".join(
             f"{name} {target:.6g}" for name, target in zip(OUTPUTS, result.output_targets)),
         f"naive method (one common per-pose target {naive.target:.6g}): cost "
         f"{naive.cost / initial:.4%} of the initial allocation, verified yield "
