@@ -306,7 +306,8 @@ def _machine_name(machine, item: str, where: str) -> str:
     try:
         return machine.error_names[machine.error_index(item)]
     except KeyError:
-        raise InputError(f"{where}: {unknown_error_text(item, machine.axes)}") from None
+        raise InputError(f"{where}: {unknown_error_text(item, machine.axes, 'item')}"
+                         ) from None
 
 
 def _renamed(component: Component, names: dict) -> Component:

@@ -69,7 +69,7 @@ def test_a_typo_in_a_components_items_is_named_with_its_close_names():
     with pytest.raises(InputError) as caught:
         Catalogue.from_dict(data, machine=MILL)
     message = str(caught.value)
-    assert "component 'X ball screw': unknown error 'X.dxx' (did you mean 'X.dx'" in message
+    assert "component 'X ball screw': unknown item 'X.dxx' (did you mean 'X.dx'" in message
     assert "class" not in message
 
 
@@ -79,7 +79,7 @@ def test_a_typo_in_the_machine_file_suggests_names_instead_of_listing_all():
     with pytest.raises(MachineDescriptionError) as caught:
         machine_from_dict(data)
     message = str(caught.value)
-    assert "unknown error 'X.dxx' (did you mean 'X.dx'" in message
+    assert "unknown key 'X.dxx' (did you mean 'X.dx'" in message
     assert "the 54 errors are named" in message and "EXC" not in message
 
 

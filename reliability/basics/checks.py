@@ -183,9 +183,9 @@ def poses_in_strokes(machine, poses: np.ndarray, name: str = "poses",
         values = poses[..., column]
         outside = np.flatnonzero((values < low - slack) | (values > high + slack))
         if len(outside):
-            value = number_text(float(values.ravel()[outside[0]]))
+            value = float(values.ravel()[outside[0]])
             raise InputError(
-                f"{name}: axis {axis.name!r} position {value} (row {int(outside[0])}) is "
+                f"{name}: axis {axis.name!r} position {value!r} (row {int(outside[0])}) is "
                 f"outside its stroke [{low}, {high}]; pass allow_outside_stroke=True to "
                 f"extrapolate the model beyond the stroke")
     return poses

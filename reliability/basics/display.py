@@ -90,7 +90,7 @@ def number_text(value) -> str:
         return repr(value)
     if isinstance(value, (int, np.integer)):
         return str(int(value))
-    return f"{float(value):.15g}"
+    return repr(float(value))
 
 
 def percent_text(probability: float) -> str:

@@ -361,13 +361,15 @@ def error_names(axes) -> tuple[str, ...]:
     return tuple(f"{owner}.{comp}" for owner in owners for comp in COMPONENTS)
 
 
-def unknown_error_text(name, axes) -> str:
-    """Why ``name`` is no error of a chain with these axis names: the close matches, and
-    how the errors are named instead of all of their names."""
+def unknown_error_text(name, axes, what: str = "error name") -> str:
+    """Why ``name`` (an error name, an item, a key: ``what``) is no error of a chain with
+    these axis names: the close matches, and how the errors are named instead of all of
+    their names."""
     names = error_names(axes)
-    return (f"unknown error {name!r}"
+    return (f"unknown {what} {name!r}"
             f"{checks.close_matches_text(name, names + iso_names(names))}; the "
-            f"{len(names)} errors are named <axis>.<{'|'.join(COMPONENTS)}> for the axes "
+            f"{len(names)} errors are named <axis>.<{'|'.join(COMPONENTS)}> (e.g. "
+            f"{names[0]!r}) for the axes "
             f"{', '.join(axes)} and <joint>.<…> for the joints "
             f"{', '.join(joint_names(axes)) or '(none)'}, or by their ISO 230-1 symbols "
             f"(docs/iso-names.md)")
@@ -455,7 +457,8 @@ def _only_keys(table: Mapping, allowed: set[str], where: str, axes=None) -> None
         raise MachineDescriptionError(f"{where}: expected a table, got {type(table).__name__}")
     unknown = sorted(set(table) - allowed)
     if unknown and axes is not None:
-        raise MachineDescriptionError(f"{where}: {unknown_error_text(unknown[0], axes)}")
+        raise MachineDescriptionError(f"{where}: "
+                                      f"{unknown_error_text(unknown[0], axes, 'key')}")
     if unknown:
         raise MachineDescriptionError(f"{where}: unknown key {unknown[0]!r}"
                                       f"{checks.close_matches_text(unknown[0], allowed)}; "
