@@ -20,7 +20,9 @@ Everything is checked before any work, and a bad catalogue is refused with one l
 the item, the component and, where one is at fault, the class. :func:`load_catalogue`
 reads a file; :meth:`Catalogue.from_dict` checks a parsed table; :meth:`Catalogue.for_machine`
 checks the item names against a machine (and turns ISO 230-1 symbols into the machine's
-names). The discrete optimum over a catalogue is :func:`allocation.discrete.solve_catalogue`.
+names). Given a machine, both check a component's items before its classes, so a typo in
+``items`` is named as the unknown item, with the machine's close names.
+:func:`unit_warnings` lists the class tolerances that look written in µm or arc seconds. The discrete optimum over a catalogue is :func:`allocation.discrete.solve_catalogue`.
 """
 
 from __future__ import annotations
@@ -34,6 +36,8 @@ import numpy as np
 
 from reliability.basics.errors import InputError, InputTypeError
 from reliability.basics.files import check_path
+from reliability.model.machine import unknown_error_text
+from reliability.model.machine_checks import implausible_values
 
 CATALOGUE_KEYS = ("currency", "components")
 COMPONENT_KEYS = ("name", "items", "classes", "source")
@@ -129,8 +133,15 @@ class Catalogue:
         return math.prod(len(c.classes) for c in self.components)
 
     @classmethod
-    def from_dict(cls, data, source: str = "catalogue") -> "Catalogue":
+    def from_dict(cls, data, source: str = "catalogue", machine=None) -> "Catalogue":
         """A catalogue from a parsed TOML table, checked (see the module docstring).
+
+        Parameters
+        ----------
+        data : dict
+        source : str
+        machine : Machine, optional
+            When given, each component's items are checked against it before its classes.
 
         Raises
         ------
@@ -149,7 +160,8 @@ class Catalogue:
         if not isinstance(entries, list) or not entries:
             raise InputError(f"{where}: components must be a non-empty list of "
                              f"[[components]] tables; got {entries!r}")
-        components = tuple(_component(entry, where, i) for i, entry in enumerate(entries))
+        components = tuple(_component(entry, where, i, machine)
+                           for i, entry in enumerate(entries))
         _unique([c.name for c in components], f"{where}: component", "is listed twice")
         owner = {}
         for component in components:
@@ -171,16 +183,9 @@ class Catalogue:
         InputError
             An item the machine does not have, or two names of one error.
         """
-        names = {}
-        for component in self.components:
-            for item in component.items:
-                try:
-                    names[item] = machine.error_names[machine.error_index(item)]
-                except KeyError:
-                    raise InputError(
-                        f"catalogue {self.source}: component {component.name!r}: unknown "
-                        f"item {item!r}; the machine's errors are named like "
-                        f"{machine.error_names[0]!r}") from None
+        names = {item: _machine_name(machine, item,
+                                     f"catalogue {self.source}: component {component.name!r}")
+                 for component in self.components for item in component.items}
         owner = {}
         for component in self.components:
             for item in component.items:
@@ -219,12 +224,32 @@ def load_catalogue(path, machine=None) -> Catalogue:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise InputError(f"catalogue {str(path)!r} is not valid TOML: {exc}") from None
-    catalogue = Catalogue.from_dict(data, source=str(path))
+    catalogue = Catalogue.from_dict(data, source=str(path), machine=machine)
     return catalogue if machine is None else catalogue.for_machine(machine)
 
 
+def unit_warnings(catalogue) -> list[str]:
+    """Class tolerances that look written in µm or arc seconds (over 1 mm or 0.01 rad;
+    :func:`reliability.model.machine_checks.implausible_values`), one sentence each.
+
+    Parameters
+    ----------
+    catalogue : Catalogue
+
+    Returns
+    -------
+    list of str
+    """
+    entries = [(f"catalogue {catalogue.source}: component {component.name!r}, class "
+                f"{grade.name!r}: the tolerance of {item}", value,
+                "rad" if item.split(".")[-1].startswith("e") else "mm")
+               for component in catalogue.components for grade in component.classes
+               for item, value in grade.tolerances.items()]
+    return implausible_values(entries)
+
+
 # ----- checks ---------------------------------------------------------------------------
-def _component(entry, where, position) -> Component:
+def _component(entry, where, position, machine=None) -> Component:
     _table(entry, f"{where}: component #{position + 1}")
     name = _name(entry, f"{where}: component #{position + 1}")
     where = f"{where}: component {name!r}"
@@ -237,6 +262,9 @@ def _component(entry, where, position) -> Component:
         if not isinstance(item, str) or not item:
             raise InputTypeError(f"{where}: item {item!r} must be an error name (a string)")
     _unique(items, f"{where}: item", "is listed twice")
+    if machine is not None:
+        for item in items:
+            _machine_name(machine, item, where)
     source = entry.get("source", "")
     if not isinstance(source, str):
         raise InputTypeError(f"{where}: source must be a string; got {source!r}")
@@ -270,6 +298,16 @@ def _class(entry, where, position, items) -> CatalogueClass:
     values = {item: _positive(tolerances[item], f"{where}: tolerance of item {item!r}")
               for item in items}
     return CatalogueClass(name=name, price=price, tolerances=MappingProxyType(values))
+
+
+def _machine_name(machine, item: str, where: str) -> str:
+    """The machine's name of ``item`` (a name or an ISO 230-1 symbol), or an InputError
+    naming the unknown item and the machine's close names."""
+    try:
+        return machine.error_names[machine.error_index(item)]
+    except KeyError:
+        raise InputError(f"{where}: {unknown_error_text(item, machine.axes, 'item')}"
+                         ) from None
 
 
 def _renamed(component: Component, names: dict) -> Component:

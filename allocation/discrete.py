@@ -44,6 +44,7 @@ import numpy as np
 import pandas as pd
 from scipy.optimize import Bounds, LinearConstraint, milp
 
+from reliability.basics.display import axis_units, pose_text
 from reliability.basics.errors import InputError, InputTypeError
 from reliability.basics.files import write_csv
 from reliability.basics.saved_results import check_count
@@ -113,7 +114,8 @@ class CatalogueResult:
         Per component, the class one step tighter and one looser (see
         :meth:`Component.loosest_first`) with the other components held: the price change,
         the total price and whether it still meets every requirement, else the output and
-        pose it breaks.
+        pose it breaks (its index ``pose`` among the problem's poses, -1 when it meets
+        every requirement, and its axis positions, NaN then).
     details : dict
         ``rows`` (screened rows, per step), ``variables``, ``nodes`` (of the last HiGHS
         run), ``rounds`` and ``active_rows`` of the row generation, ``cuts``,
@@ -143,7 +145,8 @@ class CatalogueResult:
 
     def binding(self) -> pd.DataFrame:
         """What binds: each output that forbids a one-class loosening of some component,
-        with those components, and the output's largest load at the choice and its pose."""
+        with those components, and the output's largest load at the choice and its pose
+        (axis positions)."""
         broken = self.neighbours[(self.neighbours["direction"] == "looser")
                                  & ~self.neighbours["meets"].astype(bool)]
         rows = []
@@ -153,7 +156,8 @@ class CatalogueResult:
                 rows.append({"output": output,
                              "blocks_loosening_of": ", ".join(blocked["component"]),
                              "worst_load": float(self.worst.loc[output, "load"]),
-                             "worst_pose": int(self.worst.loc[output, "pose"])})
+                             "worst_pose": _pose_text(self.problem,
+                                                      int(self.worst.loc[output, "pose"]))})
         return pd.DataFrame(rows, columns=["output", "blocks_loosening_of", "worst_load",
                                            "worst_pose"])
 
@@ -199,7 +203,7 @@ class CatalogueResult:
 
 def neighbour_table(result: CatalogueResult) -> pd.DataFrame:
     """One line per component: chosen class, and the price change one class tighter and one
-    looser (or what breaks, or that there is no such class)."""
+    looser (or what breaks and at which axis positions, or that there is no such class)."""
     rows = []
     for name, chosen in result.choice.items():
         row = {"component": name, "class": chosen}
@@ -212,8 +216,8 @@ def neighbour_table(result: CatalogueResult) -> pd.DataFrame:
             move = move.iloc[0]
             row[direction] = (f"{move['class']}: {move['price_change']:+.6g}"
                               if move["meets"] else
-                              f"{move['class']}: breaks {move['breaks']} "
-                              f"(pose {int(move['pose'])})")
+                              f"{move['class']}: breaks {move['breaks']} at "
+                              f"{_pose_text(result.problem, int(move['pose']))}")
         rows.append(row)
     return pd.DataFrame(rows, columns=["component", "class", "tighter", "looser"])
 
@@ -318,8 +322,8 @@ class _Model:
                               "pose": self.rows.pose[blocked], "load": least[blocked]})
         first = frame.iloc[0]
         raise CatalogueInfeasibleError(
-            f"no choice of classes meets {first['output']} at pose {int(first['pose'])} "
-            f"({_pose_text(self.problem, int(first['pose']))}): even the tightest classes "
+            f"no choice of classes meets {first['output']} at "
+            f"{_pose_text(self.problem, int(first['pose']))}: even the tightest classes "
             f"leave its load at {first['load']:.4g} (1 = what the requirement allows); "
             f"{len(frame)} (output, pose) row(s) blocked in all (see .blocking)", frame)
 
@@ -403,9 +407,12 @@ class _Model:
                     "breaks": "" if meets else OUTPUTS[self.rows.output[worst]],
                     "pose": -1 if meets else int(self.rows.pose[worst]),
                     "load": float(moved[worst]) if worst >= 0 else 0.0})
-        return pd.DataFrame(records, columns=["component", "direction", "class",
-                                              "price_change", "price", "meets", "breaks",
-                                              "pose", "load"])
+        frame = pd.DataFrame(records, columns=["component", "direction", "class",
+                                               "price_change", "price", "meets", "breaks",
+                                               "pose", "load"])
+        broken = frame["pose"].to_numpy() >= 0
+        positions = pose_frame(self.problem, np.where(broken, frame["pose"], 0))
+        return pd.concat([frame, positions.where(pd.Series(broken), axis=0)], axis=1)
 
 
 def _worst(problem, loads) -> pd.DataFrame:
@@ -430,9 +437,9 @@ def pose_frame(problem, pose) -> pd.DataFrame:
 
 
 def _pose_text(problem, pose) -> str:
-    row = pose_frame(problem, [pose]).iloc[0]
-    return ", ".join(f"{name.rsplit('_', 1)[0]}={value:.6g} {name.rsplit('_', 1)[1]}"
-                     for name, value in row.items())
+    """One of the problem's poses by its axis positions, ``"C=144 deg, Y=-300 mm, …"``."""
+    machine = problem.machine
+    return pose_text(problem.poses[pose], machine.axes, axis_units(machine), digits=6)
 
 
 def _reading(problem) -> str:

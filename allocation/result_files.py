@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from reliability.basics.display import axis_units, pose_columns
+from reliability.basics.display import axis_units, number_text, pose_columns
 from reliability.basics.errors import InputError, InputTypeError
 from reliability.basics.files import write_csv
 from reliability.basics.saved_results import check_count, encode_frame, load_payload, save_payload
@@ -288,7 +288,7 @@ def read_allocation_csv(path, machine) -> np.ndarray:
     bad = np.flatnonzero(~(np.isfinite(values) & (values > 0)))
     if len(bad):
         raise InputError(f"{path}: allocated value of {given[bad[0]]!r} is "
-                         f"{frame['allocated'][bad[0]]!r}; expected a number > 0")
+                         f"{number_text(frame['allocated'][bad[0]])}; expected a number > 0")
     return pd.Series(values, index=names).reindex(list(machine.error_names)).to_numpy()
 
 

@@ -72,6 +72,7 @@ import numpy as np
 from scipy.stats import norm
 
 from reliability.basics import checks, streams
+from reliability.basics.display import significant_percent
 from reliability.basics.statistics import all_within_share
 from reliability.first_order.fosm import required_index
 from reliability.model.machine import OUTPUTS
@@ -241,8 +242,8 @@ class YieldAllocation:
             f"lower bound {self.lower_bound / initial:.4%} of the initial cost "
             f"(every row at FOSM probability {self.yield_target:g}, certified)",
             f"feasible cost {self.cost / initial:.4%} of the initial cost ({self.cost:.6g}); "
-            f"gap {self.gap / initial:.4%} of the initial cost "
-            f"({self.relative_gap:.2%} of the feasible cost)",
+            f"gap {significant_percent(self.gap / initial)} of the initial cost "
+            f"({significant_percent(self.relative_gap)} of the feasible cost)",
             f"verified yield {v.estimate:.4f}, 95% Clopper–Pearson [{v.lower:.4f}, "
             f"{v.upper:.4f}] from {v.n:,} fresh machines: {verdict}",
             "the cheapest found by this search; not certified: see the lower bound",

@@ -200,7 +200,7 @@ def test_unreachable_names_output_and_pose():
     machine = hobbing_machine()
     problem = AllocationProblem.build(machine, workspace_grid(machine, 3))
     catalogue = random_catalogue(machine, [6, 6], (20.0, 40.0), seed=1)
-    with pytest.raises(allocation.CatalogueInfeasibleError, match=r"at pose \d+ \(C=") as info:
+    with pytest.raises(allocation.CatalogueInfeasibleError, match=r"meets \w+ at C=-?[\d.]+ deg, X=") as info:
         solve_catalogue(problem, catalogue)
     assert len(info.value.blocking) > 0
     assert (info.value.blocking["load"] > 1).all()

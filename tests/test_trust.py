@@ -191,7 +191,7 @@ def test_targets_near_one_stay_readable():
     assert target_text(0.99) == "0.99"
     assert target_text(1 - 1e-9) == "0.999999999"
     assert target_text(1 - 2.5e-8) == "0.999999975"
-    assert percent(1 - 1e-9) == "99.9999999 % (1 − 1e-09)"
+    assert percent(1 - 1e-9) == "> 99.9999999 % (1 − 1.0e-09)"
     assert percent(0.99) == "99.0000 %"
 
 

@@ -13,7 +13,8 @@ One ``[[tests]]`` table per test, each with ``name``, ``kind`` and ``limit``::
 Every refusal (unknown kind, axis, plane or key; a missing key; a radius or target that
 leaves the strokes; a limit <= 0) is an :class:`~reliability.basics.errors.InputError` that names
 the file, the test and the key, raised before any computation: the tests' paths are built
-and checked against the machine while reading.
+and checked against the machine while reading. A limit over 1 mm is accepted but looks
+written in µm: :func:`unit_warnings` lists such limits.
 """
 
 from __future__ import annotations
@@ -24,6 +25,7 @@ from pathlib import Path
 from typing import Mapping
 
 from ..basics.errors import InputError
+from ..model.machine_checks import implausible_values
 from .prediction import KINDS, CircularTest, PositioningTest, RotaryTest, build_path
 
 COMMON_KEYS = ("name", "kind", "limit")
@@ -55,6 +57,26 @@ def read_tests(path, machine) -> tuple:
     except UnicodeDecodeError:
         raise InputError(f"{path}: not a text file (UTF-8 TOML expected)") from None
     return parse_tests(data, machine, source=str(path))
+
+
+def unit_warnings(tests, source: str = "tests") -> list[str]:
+    """Limits that look written in µm (over 1 mm;
+    :func:`reliability.model.machine_checks.implausible_values`), one sentence each.
+
+    Parameters
+    ----------
+    tests : tuple of CircularTest, PositioningTest, RotaryTest
+        As :func:`read_tests` returns them.
+    source : str
+        The test file, named in each sentence.
+
+    Returns
+    -------
+    list of str
+    """
+    return implausible_values((f"{source}: test {test.name!r}: the limit on {quantity}",
+                               value, "mm")
+                              for test in tests for quantity, value in test.limits.items())
 
 
 def parse_tests(data: Mapping, machine, source: str = "tests") -> tuple:

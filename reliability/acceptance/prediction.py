@@ -449,7 +449,7 @@ def _circular_path(machine, test) -> TestPath:
         spec = machine.axis_specs[axis]
         for end in (-1.0, 1.0):
             _within_stroke(test, "radius", spec, centre[axis] + end * test.radius,
-                           what=f"radius {test.radius:g} mm takes the position")
+                           what=f"with radius {test.radius:g} mm, the position")
     nominal = test.radius * np.stack([np.cos(angles), np.sin(angles)], axis=-1)
     return TestPath(test, poses, units, nominal)
 

@@ -8,6 +8,7 @@ they implement is described in ``docs/inputs.md``.
 
 from __future__ import annotations
 
+import difflib
 import numbers
 import operator
 from collections.abc import Mapping
@@ -15,6 +16,7 @@ from collections.abc import Mapping
 import numpy as np
 import pandas as pd
 
+from .display import number_text
 from .errors import InputError, InputTypeError, SizeBudgetError
 
 #: Bytes a single array built by the toolkit may take unless the caller passes a budget.
@@ -30,7 +32,7 @@ def positive_int(value, name: str, minimum: int = 1) -> int:
     Non-numbers (strings, None) raise :class:`InputTypeError`; numbers that are not
     whole (2.5, even 3.0, True) raise :class:`InputError`.
     """
-    expected = f"{name} must be an integer >= {minimum}; got {value!r}"
+    expected = f"{name} must be an integer >= {minimum}; got {number_text(value)}"
     if not isinstance(value, (numbers.Number, np.bool_)):
         raise InputTypeError(f"{expected} ({type(value).__name__})")
     if isinstance(value, (bool, np.bool_)):
@@ -48,14 +50,14 @@ def finite_float(value, name: str, low: float | None = None, high: float | None 
                  *, low_open: bool = False, high_open: bool = False) -> float:
     """``value`` as a finite float within ``[low, high]`` (ends open when asked)."""
     if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Real):
-        raise InputTypeError(f"{name} must be a real number; got {value!r} "
+        raise InputTypeError(f"{name} must be a real number; got {number_text(value)} "
                              f"({type(value).__name__})")
     try:
         number = float(value)
     except OverflowError:
         raise InputError(f"{name} is too large for a float; got {_short(value)}") from None
     if not np.isfinite(number):
-        raise InputError(f"{name} must be finite; got {value!r}")
+        raise InputError(f"{name} must be finite; got {number_text(value)}")
     below = low is not None and (number <= low if low_open else number < low)
     above = high is not None and (number >= high if high_open else number > high)
     if below or above:
@@ -63,7 +65,7 @@ def finite_float(value, name: str, low: float | None = None, high: float | None 
         right = ")" if high_open else "]"
         span = f"{left}{'-inf' if low is None else f'{low:g}'}, " \
                f"{'inf' if high is None else f'{high:g}'}{right}"
-        raise InputError(f"{name} must lie in {span}; got {value!r}")
+        raise InputError(f"{name} must lie in {span}; got {number_text(value)}")
     return number
 
 
@@ -124,7 +126,8 @@ def finite_values(array: np.ndarray, name: str, labels=None) -> np.ndarray:
     if len(bad):
         where = tuple(int(i) for i in bad[0])
         label = labels[where[-1]] if labels is not None else where
-        raise InputError(f"{name} must be finite; entry {label!r} is {float(array[where])!r}")
+        raise InputError(f"{name} must be finite; entry {label!r} is "
+                         f"{number_text(array[where])}")
     return array
 
 
@@ -186,6 +189,13 @@ def poses_in_strokes(machine, poses: np.ndarray, name: str = "poses",
                 f"outside its stroke [{low}, {high}]; pass allow_outside_stroke=True to "
                 f"extrapolate the model beyond the stroke")
     return poses
+
+
+def close_matches_text(name, known) -> str:
+    """``" (did you mean 'X.dx'?)"`` naming the close matches of ``name`` among ``known``
+    (:func:`difflib.get_close_matches`), or ``""`` when there are none."""
+    matches = difflib.get_close_matches(str(name), [str(k) for k in known], n=3)
+    return f" (did you mean {' or '.join(map(repr, matches))}?)" if matches else ""
 
 
 def independent_errors(machine, what: str) -> None:

@@ -5,15 +5,29 @@ Results hold rotary positions in rad (the model's unit); everything printed for 
 and every pose column of a table meant for people, shows them in degrees, with the unit in
 the heading (``"A [deg]"``, or ``A_deg`` in a CSV column name). Output errors keep their
 model units (mm and rad), always named.
+
+Every number is printed only to the digits the computation fixes: a position in a pose
+text to :data:`POSITION_RESOLUTION` (a search over the continuous workspace fixes no
+finer), a probability near 1 by its failure probability to two significant digits, a gap
+or a bound to three (:func:`percent_text`, :func:`significant_percent`), and numbers in
+messages as plain numbers (:func:`number_text`), never as a numpy repr.
 """
 
 from __future__ import annotations
+
+import math
 
 import numpy as np
 import pandas as pd
 
 #: Unit of each comprehensive error: translations in mm, rotations in rad.
 OUTPUT_UNITS = ("mm", "mm", "mm", "rad", "rad", "rad")
+#: Resolution of a position shown in a pose text: mm for linear axes, degrees for rotary.
+POSITION_RESOLUTION = 1e-3
+#: Below this failure probability a percentage would round to 100.0000 %.
+SHOWN_FAILURE = 5e-7
+#: Below this failure probability double precision fixes only one significant digit of it.
+ONE_DIGIT_FAILURE = 1e-14
 
 
 def axis_units(machine) -> tuple[str, ...]:
@@ -61,10 +75,43 @@ def with_unit(value: float, unit: str, digits: int = 4) -> str:
 
 def pose_text(positions, axes, units, digits: int = 4) -> str:
     """A pose as ``"C=90 deg, X=400 mm, …"`` (positions in ``units``, rad shown in
-    degrees)."""
+    degrees), each position rounded to :data:`POSITION_RESOLUTION` and shown to at most
+    ``digits`` significant digits (``-0`` as ``0``)."""
     shown, shown_units = shown_positions(positions, units)
+    rounded = np.round(shown / POSITION_RESOLUTION) * POSITION_RESOLUTION + 0.0
     return ", ".join(f"{axis}={with_unit(float(q), unit, digits)}"
-                     for axis, q, unit in zip(axes, shown, shown_units))
+                     for axis, q, unit in zip(axes, rounded, shown_units))
+
+
+def number_text(value) -> str:
+    """A number for a message, as its author would write it (``-1e-05``, ``0.004``,
+    ``300``), whatever its type (a numpy scalar included); anything else as its repr."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.number)):
+        return repr(value)
+    if isinstance(value, (int, np.integer)):
+        return str(int(value))
+    return repr(float(value))
+
+
+def percent_text(probability: float) -> str:
+    """A probability in per cent to four decimals; near 1, where that would show
+    ``100.0000 %``, as a bound with its failure probability ``1 − p`` beside it to the
+    digits double precision fixes: ``> 99.99999999999 % (1 − 2.0e-14)``."""
+    probability = float(probability)
+    failure = 1.0 - probability
+    if failure <= 0.0:
+        return "100 % (1 − 0 in double precision)"
+    if failure >= SHOWN_FAILURE:
+        return f"{100.0 * probability:.4f} %"
+    nines = math.ceil(-math.log10(failure)) - 1
+    digits = 2 if failure >= ONE_DIGIT_FAILURE else 1
+    return f"> 99.{'9' * (nines - 2)} % (1 − {failure:.{digits - 1}e})"
+
+
+def significant_percent(fraction: float, digits: int = 3) -> str:
+    """A fraction in per cent to ``digits`` significant digits (a gap or a bound:
+    ``192 %``, ``0.0123 %``)."""
+    return f"{100.0 * float(fraction):.{digits}g} %"
 
 
 def pose_columns(poses, axes, units) -> pd.DataFrame:

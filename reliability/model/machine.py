@@ -28,6 +28,7 @@ import numpy as np
 import pandas as pd
 
 from ..basics import checks
+from ..basics.display import number_text
 from ..basics.errors import InputError, InputTypeError, MachineDescriptionError
 from . import kinematics
 from .correlation import (check_correlation_matrix, correlation_to_toml, parse_correlation,
@@ -96,6 +97,9 @@ class Axis:
 #: each unit one mm (length) or one rad (angle) is.
 COST_LENGTH_UNITS = {"mm": 1.0, "um": 1e3}
 COST_ANGLE_UNITS = {"rad": 1.0, "urad": 1e6, "arcsec": 180.0 * 3600.0 / np.pi}
+#: Spellings of the cost units read as their ASCII names: the micro sign (U+00B5) and the
+#: Greek small letter mu (U+03BC).
+COST_UNIT_SPELLINGS = {"µm": "um", "μm": "um", "µrad": "urad", "μrad": "urad"}
 
 
 @dataclass(frozen=True)
@@ -234,9 +238,7 @@ class Machine:
         try:
             return self._index[name]
         except KeyError:
-            raise KeyError(f"unknown error name {name!r}; known names look like "
-                           f"{self.error_names[0]!r} or {self.error_names[-1]!r} (or ISO "
-                           f"230-1 symbols like {self.iso_names[0]!r})") from None
+            raise KeyError(unknown_error_text(name, self.axes)) from None
 
     def error_vector(self, values, default: float | None = 0.0) -> np.ndarray:
         """Build an error (or tolerance) vector from ``{name: value}`` or a pandas Series.
@@ -326,7 +328,7 @@ class Machine:
         if np.any(bad):
             first = int(np.argwhere(bad)[0][-1])
             raise InputError(f"tolerance of {self.error_names[first]!r} must be finite and "
-                             f"> 0; got {t[np.nonzero(bad)][0]!r}")
+                             f"> 0; got {number_text(t[np.nonzero(bad)][0])}")
         return t
 
 
@@ -357,6 +359,20 @@ def error_names(axes) -> tuple[str, ...]:
     """Error names of a chain with these axis names, in the order of docs/model.md."""
     owners = tuple(axes) + joint_names(axes)
     return tuple(f"{owner}.{comp}" for owner in owners for comp in COMPONENTS)
+
+
+def unknown_error_text(name, axes, what: str = "error name") -> str:
+    """Why ``name`` (an error name, an item, a key: ``what``) is no error of a chain with
+    these axis names: the close matches, and how the errors are named instead of all of
+    their names."""
+    names = error_names(axes)
+    return (f"unknown {what} {name!r}"
+            f"{checks.close_matches_text(name, names + iso_names(names))}; the "
+            f"{len(names)} errors are named <axis>.<{'|'.join(COMPONENTS)}> (e.g. "
+            f"{names[0]!r}) for the axes "
+            f"{', '.join(axes)} and <joint>.<…> for the joints "
+            f"{', '.join(joint_names(axes)) or '(none)'}, or by their ISO 230-1 symbols "
+            f"(docs/iso-names.md)")
 
 
 # ----- loading -----------------------------------------------------------------------
@@ -413,12 +429,12 @@ def machine_from_dict(data: Mapping, source: str = "machine") -> Machine:
         limits=limits,
         targets=targets,
         initial_allocation=_parse_initial(_require(data, "initial_allocation", source),
-                                          error_names(names), source),
+                                          names, source),
         cost_coefficients=_parse_cost(_require(data, "cost", source), joint_names(names),
                                       {a.kind for a in axes}, source),
         tool_offset=_vector3(data.get("tool_offset", (0, 0, 0)), f"{source}: tool_offset"),
         tolerance_bounds=None if "bounds" not in data else
-        _parse_bounds(data["bounds"], error_names(names), source),
+        _parse_bounds(data["bounds"], names, source),
         frame=_parse_frame(requirements.get("frame", "tool"), f"{source}: requirements.frame"),
         distribution=_parse_distribution(requirements, source),
         profile=_parse_profile(requirements, source),
@@ -434,12 +450,18 @@ def _require(table: Mapping, key: str, where: str):
     return table[key]
 
 
-def _only_keys(table: Mapping, allowed: set[str], where: str) -> None:
+def _only_keys(table: Mapping, allowed: set[str], where: str, axes=None) -> None:
+    """Refuse keys outside ``allowed``; keys that name errors (``axes`` given) are
+    refused with the close matches and how errors are named, not with every name."""
     if not isinstance(table, Mapping):
         raise MachineDescriptionError(f"{where}: expected a table, got {type(table).__name__}")
     unknown = sorted(set(table) - allowed)
+    if unknown and axes is not None:
+        raise MachineDescriptionError(f"{where}: "
+                                      f"{unknown_error_text(unknown[0], axes, 'key')}")
     if unknown:
-        raise MachineDescriptionError(f"{where}: unknown key {unknown[0]!r}; "
+        raise MachineDescriptionError(f"{where}: unknown key {unknown[0]!r}"
+                                      f"{checks.close_matches_text(unknown[0], allowed)}; "
                                       f"allowed: {', '.join(sorted(allowed))}")
 
 
@@ -620,14 +642,17 @@ def _parse_cost(table, joints: tuple[str, ...], kinds: set[str],
 
 
 def _parse_cost_units(table, where: str) -> tuple[str, str] | None:
-    """``units = { length = "mm" | "um", angle = "rad" | "urad" | "arcsec" }``."""
+    """``units = { length = "mm" | "um", angle = "rad" | "urad" | "arcsec" }``; "µm" and
+    "µrad" (micro sign or Greek mu) are read as "um" and "urad"."""
     if table is None:
         return None
     if not isinstance(table, Mapping):
         raise MachineDescriptionError(f"{where}: expected a table like "
                                       f'{{ length = "mm", angle = "rad" }}; got {table!r}')
     _only_keys(table, {"length", "angle"}, where)
-    length, angle = _require(table, "length", where), _require(table, "angle", where)
+    length, angle = (_require(table, key, where) for key in ("length", "angle"))
+    length, angle = (COST_UNIT_SPELLINGS.get(value, value) if isinstance(value, str) else
+                     value for value in (length, angle))
     for key, value, allowed in (("length", length, COST_LENGTH_UNITS),
                                 ("angle", angle, COST_ANGLE_UNITS)):
         if value not in allowed:
@@ -636,33 +661,34 @@ def _parse_cost_units(table, where: str) -> tuple[str, str] | None:
     return length, angle
 
 
-def _parse_initial(table, names: tuple[str, ...], source: str) -> np.ndarray:
+def _parse_initial(table, axes: tuple[str, ...], source: str) -> np.ndarray:
     """``[initial_allocation]``: one tolerance per error, ``(n_errors,)``."""
     def tolerance(value, where):
         return _number(value, where, positive=True)
 
-    return _per_error(table, names, f"{source}: initial_allocation", tolerance)
+    return _per_error(table, axes, f"{source}: initial_allocation", tolerance)
 
 
-def _parse_bounds(table, names: tuple[str, ...], source: str) -> np.ndarray:
+def _parse_bounds(table, axes: tuple[str, ...], source: str) -> np.ndarray:
     """``[bounds]``: ``translation = [lo, hi]`` (mm), ``rotation = [lo, hi]`` (rad) and
     ``items = { "X.dx" = [lo, hi] }``, the achievable tolerances; ``(2, n_errors)``."""
-    return _per_error(table, names, f"{source}: bounds", _pair).T
+    return _per_error(table, axes, f"{source}: bounds", _pair).T
 
 
-def _per_error(table, names: tuple[str, ...], where: str, read) -> np.ndarray:
+def _per_error(table, axes: tuple[str, ...], where: str, read) -> np.ndarray:
     """A table of ``translation`` and ``rotation`` defaults and per-error ``items``
     (by paper name or ISO symbol), each value read by ``read(value, where)``; one row per
     error."""
     _only_keys(table, {"translation", "rotation", "items"}, where)
     translation = read(_require(table, "translation", where), f"{where}.translation")
     rotation = read(_require(table, "rotation", where), f"{where}.rotation")
+    names = error_names(axes)
     angular = [n.split(".")[1].startswith("e") for n in names]
     values = np.array([rotation if a else translation for a in angular], dtype=float)
     items = table.get("items", {})
     index = {n: i for i, n in enumerate(names)}
     index.update({n: i for i, n in enumerate(iso_names(names))})
-    _only_keys(items, set(index), f"{where}.items")
+    _only_keys(items, set(index), f"{where}.items", axes)
     given = {}
     for name, value in items.items():
         if index[name] in given:

@@ -3,7 +3,10 @@
 A machine file can be valid and still not mean what its author meant: degrees written
 where radians belong, millimetres where the cost model wants metres, an offset that has
 no effect. :func:`likely_mistakes` lists such findings as warnings (the machine still
-loads); :func:`describe` prints the description with its units.
+loads); :func:`unit_mistakes` the part of them about units, which every command repeats;
+:func:`implausible_values` is the one check of a tolerance or limit that looks written in
+µm or arc seconds, shared by the machine, tolerance, acceptance-test and catalogue files;
+:func:`describe` prints the description with its units.
 
 Units of a machine file: strokes and offsets in mm (linear) or rad (rotary); sizes (guide
 length L, rotation diameter D; Eqs. 25–26) in m; limits in mm (dx dy dz) and rad
@@ -23,8 +26,9 @@ from .machine import OUTPUTS, Machine
 
 LARGEST_SIZE_M = 20.0  # a guide length or rotation diameter beyond this is taken for mm
 SMALLEST_LINEAR_STROKE_MM = 1.0  # a linear stroke shorter than this is taken for metres
-LARGEST_LINEAR_LIMIT_MM = 1.0  # a positioning limit beyond this is unusual for a machine tool
-LARGEST_ANGULAR_LIMIT_RAD = 0.01  # 0.57°: an angular limit beyond this suggests degrees
+LARGEST_LINEAR_LIMIT_MM = 1.0  # a tolerance or limit beyond this suggests µm written as mm
+LARGEST_ANGULAR_LIMIT_RAD = 0.01  # 0.57°, 2063″: beyond this suggests arcsec, µrad or degrees
+ARCSEC_RAD = math.pi / 648000.0
 TURN = 2.0 * math.pi
 TURN_TOLERANCE = 1e-6  # a stroke this close to 2π covers a full turn
 
@@ -44,10 +48,81 @@ def likely_mistakes(machine) -> list[str]:
     """
     _check_machine(machine)
     warnings = []
-    for check in (_first_offset, _rotary_strokes, _sizes, _linear_strokes,
-                  _parallel_linear_axes, _limits, _initial_allocation, _cost_units):
+    for check in (_first_offset, *UNIT_CHECKS[:3], _parallel_linear_axes, *UNIT_CHECKS[3:],
+                  _cost_units):
         warnings.extend(check(machine))
     return warnings
+
+
+def unit_mistakes(machine) -> list[str]:
+    """The warnings of :func:`likely_mistakes` about units (strokes, sizes, limits,
+    tolerances and bounds that look written in the wrong unit), which every command that
+    loads the machine repeats.
+
+    Parameters
+    ----------
+    machine : Machine
+
+    Returns
+    -------
+    list of str
+    """
+    _check_machine(machine)
+    return [text for check in UNIT_CHECKS for text in check(machine)]
+
+
+def implausible_values(entries) -> list[str]:
+    """Tolerances or limits that look written in µm or angles in arc seconds, µrad or
+    degrees: above 1 mm (translational) or 0.01 rad = 2063 arcsec (angular).
+
+    Parameters
+    ----------
+    entries : iterable of (str, float, str)
+        What each value is (``"the limit of dx"``), the value, and the unit it was read in
+        (``"mm"`` or ``"rad"``).
+
+    Returns
+    -------
+    list of str
+        One sentence per implausible value, naming it, its value and unit and the likely
+        mistake.
+    """
+    warnings = []
+    for what, value, unit in entries:
+        value = float(value)
+        if unit == "mm" and value > LARGEST_LINEAR_LIMIT_MM:
+            warnings.append(f"{what} is {value:g} mm, over {LARGEST_LINEAR_LIMIT_MM:g} mm: "
+                            f"almost surely µm written as mm (did you mean "
+                            f"{value / 1000.0:g} mm?)")
+        if unit == "rad" and value > LARGEST_ANGULAR_LIMIT_RAD:
+            warnings.append(f"{what} is {value:g} rad ({math.degrees(value):.3g} degrees), "
+                            f"over {LARGEST_ANGULAR_LIMIT_RAD:g} rad: almost surely arc "
+                            f"seconds, µrad or degrees written as rad ({value:g} arcsec "
+                            f"would be {value * ARCSEC_RAD:.3g} rad)")
+    return warnings
+
+
+def tolerance_warnings(machine, tolerances, source: str = "tolerances") -> list[str]:
+    """Tolerances of an allocation (one per error, mm and rad) that look written in µm or
+    arc seconds (:func:`implausible_values`).
+
+    Parameters
+    ----------
+    machine : Machine
+    tolerances : array_like (n_errors,)
+    source : str
+        Where the tolerances were read, named in each sentence.
+
+    Returns
+    -------
+    list of str
+    """
+    _check_machine(machine)
+    values = machine.check_tolerances(tolerances)
+    return implausible_values(
+        (f"{source}: the tolerance of {name}", value,
+         "rad" if name.split(".")[1].startswith("e") else "mm")
+        for name, value in zip(machine.error_names, values))
 
 
 def _first_offset(machine) -> list[str]:
@@ -126,16 +201,21 @@ def _parallel_linear_axes(machine) -> list[str]:
 
 
 def _limits(machine) -> list[str]:
-    warnings = []
-    for output, limit, unit in zip(OUTPUTS, machine.limits, OUTPUT_UNITS):
-        if unit == "mm" and limit > LARGEST_LINEAR_LIMIT_MM:
-            warnings.append(f"the limit of {output} is {limit:g} mm, coarse for a machine "
-                            f"tool: µm given for mm? Limits of dx dy dz are in mm")
-        if unit == "rad" and limit > LARGEST_ANGULAR_LIMIT_RAD:
-            warnings.append(f"the limit of {output} is {limit:g} rad "
-                            f"({math.degrees(limit):.3g}°): degrees or arc seconds given "
-                            f"for radians? Limits of ex ey ez are in rad")
-    return warnings
+    return implausible_values((f"the requirement's limit of {output}", limit, unit)
+                              for output, limit, unit in zip(OUTPUTS, machine.limits,
+                                                             OUTPUT_UNITS))
+
+
+def _tolerances(machine) -> list[str]:
+    """Initial tolerances and bounds that look written in µm or arc seconds."""
+    units = ["rad" if name.split(".")[1].startswith("e") else "mm"
+             for name in machine.error_names]
+    tables = [("initial_allocation: the tolerance", machine.initial_allocation)]
+    if machine.tolerance_bounds is not None:
+        tables.append(("bounds: the upper bound", machine.tolerance_bounds[1]))
+    return [text for table, values in tables for text in implausible_values(
+        (f"{table} of {name}", value, unit)
+        for name, value, unit in zip(machine.error_names, values, units))]
 
 
 def _initial_allocation(machine) -> list[str]:
@@ -153,6 +233,10 @@ def _initial_allocation(machine) -> list[str]:
                             f"{unit}) is not smaller than the tightest limit "
                             f"({smallest:g} {unit}); check the units of initial_allocation")
     return warnings
+
+
+UNIT_CHECKS = (_rotary_strokes, _sizes, _linear_strokes, _limits, _tolerances,
+               _initial_allocation)
 
 
 def _check_machine(machine) -> None:

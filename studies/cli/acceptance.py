@@ -3,7 +3,6 @@ ISO 230 acceptance tests?"""
 
 from __future__ import annotations
 
-from reliability.acceptance.definitions import read_tests
 from reliability.acceptance.prediction import (DEFAULT_PROFILE, acceptance, path_profile,
                                                profile_note)
 from reliability.basics.files import SIGNIFICANT, write_csv
@@ -46,7 +45,7 @@ def run(args) -> int:
     out = None if args.out is None else options.destination(
         args.out, args.overwrite, folder=True, markers=(RESULT_FILE,))
     machine = options.machine(args)
-    tests = read_tests(args.tests, machine)
+    tests = options.read_tests(args.tests, machine)
     tolerances = None if args.tolerances is None else \
         options.read_tolerances(args.tolerances, machine)
     path_profile(args.profile, tests)

@@ -9,11 +9,12 @@ import dataclasses
 import numpy as np
 import pandas as pd
 
-from allocation import AllocationProblem, allocate_for_yield, load_catalogue, solve_catalogue
+from allocation import AllocationProblem, allocate_for_yield, solve_catalogue
 from allocation.continuous import check_continuous, solve_continuous
 from allocation.elasticity import requirement_table
 from allocation.result_files import (allocation_to_csv, cost_shares_text, cost_units_text, gap_text,
                                      nearly_free_text)
+from reliability.basics import display
 from reliability.basics.errors import InputError
 from reliability.model.machine import OUTPUTS
 from reliability.model.poses import workspace_grid
@@ -140,7 +141,7 @@ def run_catalogue(args) -> int:
     if tolerances_out is not None and tolerances_out.resolve() == out.resolve():
         raise InputError("--tolerances-out must differ from --out")
     machine = options.machine(args)
-    catalogue = load_catalogue(args.catalogue, machine)
+    catalogue = options.read_catalogue(args.catalogue, machine)
     start = None if args.tolerances is None else \
         options.read_tolerances(args.tolerances, machine)
     if args.target is not None:
@@ -209,8 +210,8 @@ def describe_yield(result) -> str:
         f"cost {result.cost:.6g} = {result.cost / initial:.4%} of the initial allocation "
         f"({initial:.6g}): the cheapest found by this search; not certified: see the lower "
         "bound",
-        f"gap {result.gap / initial:.4%} of the initial cost ({result.relative_gap:.2%} of "
-        f"the cost)",
+        f"gap {display.significant_percent(result.gap / initial)} of the initial cost "
+        f"({display.significant_percent(result.relative_gap)} of the cost)",
         f"verified yield {v.estimate:.4f}, 95% Clopper-Pearson [{v.lower:.4f}, {v.upper:.4f}] "
         f"from {v.n:,} fresh built machines: {verdict}",
         f"found by the {result.method} stage{result.narrower_box_text()}; per-output "

@@ -22,7 +22,7 @@ def add_parser(subparsers):
 
 
 def run(args) -> int:
-    machine = options.machine(args)
+    machine = options.machine(args, warn=False)
     cost = CostModel.from_machine(machine).total(machine.initial_allocation)
     print(describe(machine))
     model = CostModel.from_machine(machine)

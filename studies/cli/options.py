@@ -15,11 +15,14 @@ import numpy as np
 from allocation.continuous import DEFAULT_RTOL, WORKSPACE_CHOICES, check_continuous
 from allocation.problem import DEFAULT_FACTORS, bounds_source
 from allocation.result_files import read_allocation_csv
+from allocation.catalogue import load_catalogue, unit_warnings
+from reliability.acceptance import definitions
 from reliability.basics import display
 from reliability.basics.errors import InputError
 from reliability.basics.files import check_destination
 from reliability.model.kinematics import FRAMES
 from reliability.model.machine import load_machine
+from reliability.model.machine_checks import tolerance_warnings, unit_mistakes
 from reliability.sampling.machine_yield import DEFAULT_MACHINES
 
 SIDE_CHOICES = ("one_sided", "two_sided")
@@ -251,12 +254,15 @@ def destination(path, overwrite: bool, option: str = "--out", *, folder: bool = 
                          f"exist") from None
 
 
-def machine(args):
+def machine(args, *, warn: bool = True):
     """Load ``args.machine`` (a MachineDescriptionError or OSError names the file), in the
     frame of ``--frame``, with the reading of ``--distribution`` and the error profile of
     ``--profile`` when the command has those options and they are given (a bad
-    ``--profile`` is an InputError naming it)."""
+    ``--profile`` is an InputError naming it); its unit mistakes are printed as warnings
+    unless ``warn`` is false (``check`` lists them itself)."""
     loaded = load_machine(args.machine)
+    if warn:
+        print_warnings(unit_mistakes(loaded))
     chosen = {name: getattr(args, name, None) for name in ("frame", "distribution", "profile")}
     chosen = {name: value for name, value in chosen.items() if value is not None}
     try:
@@ -276,9 +282,27 @@ def read_tolerances(path, machine) -> np.ndarray:
     """``--tolerances CSV``: :func:`allocation.read_allocation_csv`, its refusals naming the
     option."""
     try:
-        return read_allocation_csv(path, machine)
+        tolerances = read_allocation_csv(path, machine)
     except InputError as exc:
         raise InputError(f"--tolerances {exc}") from None
+    print_warnings(tolerance_warnings(machine, tolerances, f"--tolerances {path}"))
+    return tolerances
+
+
+def read_tests(path, machine) -> tuple:
+    """``--tests TESTS.toml``: :func:`reliability.acceptance.definitions.read_tests`, with
+    limits that look written in µm printed as warnings."""
+    tests = definitions.read_tests(path, machine)
+    print_warnings(definitions.unit_warnings(tests, str(path)))
+    return tests
+
+
+def read_catalogue(path, machine):
+    """``--catalogue CAT.toml``: :func:`allocation.load_catalogue`, with class tolerances
+    that look written in µm or arc seconds printed as warnings."""
+    catalogue = load_catalogue(path, machine)
+    print_warnings(unit_warnings(catalogue))
+    return catalogue
 
 
 # ----- printing ------------------------------------------------------------------------
@@ -288,18 +312,8 @@ def pose_text(machine, pose) -> str:
 
 
 def percent(value: float) -> str:
-    """A probability in per cent, with its failure probability beside it when it would
-    round to 100 % (``99.9999999 % (1 − 1e-09)``)."""
-    text = f"{100.0 * value:.4f} %"
-    if value >= 1.0:
-        return "100 % (1 − 0 in double precision)"
-    return text if 1.0 - value >= 5e-7 else \
-        f"{100.0 * value:.{display_decimals(value)}f} % (1 − {1.0 - value:.3g})"
-
-
-def display_decimals(value: float) -> int:
-    """Decimals of a percentage that keep ``1 − value`` visible to three digits."""
-    return len(display.target_text(value).split(".")[-1]) - 2
+    """A probability in per cent (:func:`reliability.basics.display.percent_text`)."""
+    return display.percent_text(value)
 
 
 def progress_bar(total: int, description: str):
@@ -307,6 +321,12 @@ def progress_bar(total: int, description: str):
     from tqdm import tqdm
     return tqdm(total=total, desc=description, file=sys.stderr, leave=False,
                 disable=None)
+
+
+def print_warnings(texts) -> None:
+    """Each text as one line ``warning: ...`` on stderr; the work goes on."""
+    for text in texts:
+        print(f"warning: {text}", file=sys.stderr, flush=True)
 
 
 def say(text: str) -> None:

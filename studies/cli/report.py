@@ -2,8 +2,7 @@
 
 from __future__ import annotations
 
-from allocation import load_catalogue, solve_catalogue
-from reliability.acceptance.definitions import read_tests
+from allocation import solve_catalogue
 from reliability.basics.streams import extra_stream
 from studies.report import machine_sections
 from studies.report.acceptance_section import acceptance_section
@@ -54,8 +53,9 @@ def run(args) -> int:
     bounds = options.check_bounds(args.bounds)
     out = options.destination(args.out, args.overwrite, folder=True, markers=REPORT_MARKERS)
     machine = options.machine(args)
-    tests = None if args.tests is None else read_tests(args.tests, machine)
-    catalogue = None if args.catalogue is None else load_catalogue(args.catalogue, machine)
+    tests = None if args.tests is None else options.read_tests(args.tests, machine)
+    catalogue = None if args.catalogue is None else \
+        options.read_catalogue(args.catalogue, machine)
     study = machine_study.run(machine, points=args.points, side=args.side, bounds=bounds,
                               seed=args.seed, repeats=args.repeats, samples=args.samples,
                               progress=options.say, bar=options.progress_bar,
