@@ -111,3 +111,37 @@ def test_advice_names_errors_that_cannot_be_told_apart_as_one_group(study):
                   / np.sum(study.problem.reference[index] ** 2))
     assert f"dz group {groups.index(dz) + 1} ({len(dz)} items: " in relax
     assert f"{rss - 1:+.0%} in root-sum-square" in relax
+
+
+def _claims_hold(text, poses, machine):
+    """Whether every pose satisfies each ``A = v unit``, ``A = ±v unit`` or ``A = v or w
+    unit`` claim of ``text``."""
+    for name, values, unit in re.findall(r"([A-Z]+) = ([-±0-9.e+ or]+) (mm|deg)", text):
+        column = poses[:, machine.axes.index(name)]
+        column = np.degrees(column) if unit == "deg" else column
+        allowed = ([-float(values[1:]), float(values[1:])] if values.startswith("±")
+                   else [float(v) for v in values.split(" or ")])
+        if not np.isclose(column[:, None], allowed, atol=1e-6).any(axis=1).all():
+            return False
+    return True
+
+
+def test_failure_regions_say_which_positions_the_worst_poses_share(study):
+    from reliability.sampling.machine_yield import YieldModel
+
+    machine = study.machine
+    model = YieldModel(machine, points_per_axis=3)
+    u = np.random.default_rng(11).standard_normal((3000, model.dimension))
+    failed, rows = model.worst_rows(u, study.allocated)
+    rows = rows[failed]
+    deciding = model.deciding_axes(model.row_sigma(study.allocated))
+    texts = np.array(model.region_texts(rows, deciding))
+    output = rows % 6
+    undecided = [o for o in np.unique(output) if not deciding[o].any()]
+    assert undecided, "the optimum should leave some output with no deciding axis"
+    for o in undecided:
+        poses = np.unique(model.experiment.poses[rows[output == o] // 6], axis=0)
+        text = texts[output == o][0]
+        assert (texts[output == o] == text).all()
+        assert text.startswith(f"{len(poses)} poses, all with "), text
+        assert _claims_hold(text, poses, machine), text
