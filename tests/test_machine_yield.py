@@ -233,7 +233,8 @@ def test_failure_shares_sum_to_one_and_name_readable_regions(mill):
     assert shares["failures"].sum() == result.failures
     assert (shares["lower"] <= shares["share"]).all() and (shares["share"] <= shares["upper"]).all()
     assert set(shares["output"]) <= set(mill.outputs)
-    assert shares["region"].str.contains(r"(?:low|middle|high) \(.* mm\)|anywhere").all()
+    assert shares["region"].str.contains(
+        r"(?:low|middle|high) \(.* mm\)|poses?, all with |sharing no axis position").all()
     text = result.summary()
     assert "profile constant" in text and "first-order bounds" in text
     assert json.loads(json.dumps(result.to_dict()))["method"] == "crude"

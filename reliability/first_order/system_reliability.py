@@ -127,7 +127,7 @@ class SystemReliability:
         return "\n".join([
             f"system reliability over {len(self.probability)} pose(s) "
             f"({self.n_batches} × {self.n_points} scrambled Sobol' points per pose)",
-            f"worst pose {int(self.index[w])} ({positions})",
+            f"worst pose {positions}",
             f"  all six inside  {self.probability[w]:.8f} ± {self.error[w]:.2g} (std. error)",
             f"  product         {self.product[w]:.8f} (Šidák lower bound)",
             f"  Bonferroni      {bound_text(self.bonferroni[w], 8)}",
@@ -136,8 +136,9 @@ class SystemReliability:
         ])
 
     def __repr__(self) -> str:
+        positions = pose_text(self.worst_pose, self.axes, self.units)
         return (f"SystemReliability(n_poses={len(self.probability)}, worst pose "
-                f"{int(self.index[self.worst])}: {self.worst_probability:.6g} ± "
+                f"{positions}: {self.worst_probability:.6g} ± "
                 f"{self.error[self.worst]:.2g})")
 
 

@@ -96,7 +96,8 @@ Among failing machines, the requirement that fails first is the row with the lar
 over the grid: its output and its pose region. A region bins the worst pose per axis into the low,
 middle or high third of the axis' stroke, showing only the axes along which that output's mean σ²
 changes most (at most :data:`MAX_REGION_AXES`, each by more than :data:`REGION_SPREAD`; the others
-hardly decide where it fails). Shares are weighted by ``w`` under importance sampling; their
+hardly decide where it fails); an output no axis decides has one region, the axis positions
+all its failing rows' worst poses share. Shares are weighted by ``w`` under importance sampling; their
 intervals are Wilson intervals on Kish's effective number of failing machines ``(Σw)²/Σw²``.
 """
 
@@ -601,14 +602,36 @@ class YieldModel:
         return (spread > REGION_SPREAD) & (rank < MAX_REGION_AXES)
 
     def region_texts(self, rows, deciding) -> list[str]:
-        """The worst pose of each row as its stroke thirds along the deciding axes."""
+        """The worst pose of each row as its stroke thirds along the deciding axes; for an
+        output no axis decides, the axis positions all its rows' worst poses share."""
         pose, output = np.divmod(np.asarray(rows), len(OUTPUTS))
         position = self.experiment.poses[pose]
-        texts = []
-        for q, o in zip(position, output):
-            parts = [self._third_text(a, q[a]) for a in np.flatnonzero(deciding[o])]
-            texts.append(", ".join(parts) if parts else "anywhere (no axis decides)")
-        return texts
+        shared = {o: self._shared_text(position[output == o])
+                  for o in np.unique(output) if not deciding[o].any()}
+        return [shared[o] if o in shared else
+                ", ".join(self._third_text(a, q[a]) for a in np.flatnonzero(deciding[o]))
+                for q, o in zip(position, output)]
+
+    def _shared_text(self, positions) -> str:
+        """What a set of grid poses shares, e.g. ``48 poses, all with Y = ±300 mm,
+        Z = 0 or 500 mm (C, X any)``."""
+        poses = np.unique(positions, axis=0)
+        shared, free = [], []
+        for a, axis in enumerate(self.machine.axis_specs):
+            values = np.unique(poses[:, a])
+            if len(values) == len(self.experiment.points[a]):
+                free.append(axis.name)
+                continue
+            unit = "deg" if axis.kind == "rotary" else "mm"
+            shown = np.degrees(values) if axis.kind == "rotary" else values
+            words = (f"±{shown[1]:.4g}" if len(shown) == 2 and np.isclose(shown[0], -shown[1])
+                     else " or ".join(f"{v:.4g}" for v in shown))
+            shared.append(f"{axis.name} = {words} {unit}")
+        if not shared:
+            return f"{len(poses)} poses sharing no axis position"
+        rest = f" ({', '.join(free)} any)" if free else ""
+        return f"{len(poses)} pose{'s' if len(poses) > 1 else ''}, all with " \
+               f"{', '.join(shared)}{rest}"
 
     def _third_text(self, a, position) -> str:
         axis = self.machine.axis_specs[a]

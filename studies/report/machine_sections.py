@@ -22,7 +22,7 @@ from reliability.basics.display import (OUTPUT_UNITS, axis_units, pose_frame, sh
 from reliability.basics.files import as_written
 from reliability.model.identifiability import EQUAL_RTOL, indistinguishable_groups
 from reliability.model.machine import OUTPUTS
-from studies.workflows.machine_study import MachineStudy, summary, tolerance_changes
+from studies.workflows.machine_study import UNCHANGED, MachineStudy, summary
 
 from . import plots
 from .markdown import markdown_table
@@ -30,6 +30,8 @@ from .section import Section
 from .yield_section import yield_section, yield_sentence
 
 PERCENT = "{:.3%}".format
+#: How the advice names a group of errors that cannot be told apart.
+GROUP_WORD = "group"
 
 
 def answers(study: MachineStudy) -> str:
@@ -64,8 +66,11 @@ def answers(study: MachineStudy) -> str:
                "Monte-Carlo at the worst pose is significantly below target for "
                + ", ".join(below["output"]))
     free = study.optimum.nearly_free()
-    tighten, relax = (_changes_text(changes.drop(free, errors="ignore"))
-                      for changes in tolerance_changes(study))
+    tighten, relax = advice(study, free)
+    group_note = ("- A group is a set of errors that cannot be told apart (the allocation "
+                  "section's table): only their summed variance matters, so none of them can "
+                  "be changed alone; the cost decides how the group's variance is shared."
+                  if GROUP_WORD in tighten + relax else "")
     free_note = (f"- {len(free)} items sit at a bound carrying under 0.1 % of the cost each "
                  f"(nearly free with t in {' and '.join(study.problem.cost.units or ('mm', 'rad'))}"
                  f" inside the cost): their tolerance is "
@@ -86,6 +91,7 @@ def answers(study: MachineStudy) -> str:
         *([free_note] if free_note else []),
         f"- Tighten: {tighten or 'none'}.",
         f"- May be relaxed: {relax or 'none'}.",
+        *([group_note] if group_note else []),
     ])
 
 
@@ -127,10 +133,63 @@ def unreachable_section(study: MachineStudy) -> Section:
     return Section("Targets out of reach", text, tables={"blocking.csv": blocking})
 
 
-def _changes_text(changes: pd.Series, n: int = 6) -> str:
-    """The first ``n`` relative changes as ``"X.dx (-50%), ..."``, and how many more."""
-    shown = ", ".join(f"{name} ({value:+.0%})" for name, value in changes.head(n).items())
-    return shown + (f" and {len(changes) - n} more" if len(changes) > n else "")
+def advice(study: MachineStudy, free=()) -> tuple[str, str]:
+    """The tighten and the relax advice of the answers, e.g. ``"X.dx (-50%); the dz group
+    1 (9 items: C.dz, Y.dz, X.dz, …; +58% in root-sum-square); ..."``.
+
+    Errors that cannot be told apart (:func:`groups_table`) are one entry, changed by the
+    root-sum-square of their tolerances, since only their summed variance reaches the
+    outputs; errors in ``free`` are left out. Entries change by more than
+    :data:`~studies.workflows.machine_study.UNCHANGED`, largest change first.
+    """
+    rates, groups = _advice_rates(study, free)
+    tighten = rates[rates < -UNCHANGED].sort_values(kind="stable")
+    relax = rates[rates > UNCHANGED].sort_values(ascending=False, kind="stable")
+    return _changes_text(tighten, groups), _changes_text(relax, groups)
+
+
+def _advice_rates(study: MachineStudy, free) -> tuple[pd.Series, dict]:
+    """Relative change (allocated / initial − 1) of every single error and of every group
+    of errors that cannot be told apart (of the root-sum-square), and each group's
+    members by its name (``"the dz group 1"``)."""
+    names = study.machine.error_names
+    allocated = pd.Series(study.optimum.tolerances, index=names).drop(free, errors="ignore")
+    initial = pd.Series(study.problem.reference, index=names)[allocated.index]
+    rates, groups = {}, {}
+    for row in groups_table(study.machine, study.problem.poses).itertuples():
+        members = [name for name in row.errors.split() if name in allocated.index]
+        if len(members) > 1:
+            name = _group_name(row.group, members)
+            groups[name] = members
+            rss = np.sqrt(np.sum(allocated[members] ** 2) / np.sum(initial[members] ** 2))
+            rates[name] = rss - 1.0
+    grouped = [member for members in groups.values() for member in members]
+    for name in allocated.index.difference(grouped, sort=False):
+        rates[name] = allocated[name] / initial[name] - 1.0
+    return pd.Series(rates, dtype=float), groups
+
+
+def _group_name(number: int, members) -> str:
+    """``"the dz group 1"`` when every member is a dz error, else ``"group 1"``."""
+    kinds = {name.rsplit(".", 1)[-1] for name in members}
+    kind = f"the {kinds.pop()} " if len(kinds) == 1 else ""
+    return f"{kind}{GROUP_WORD} {number}"
+
+
+def _changes_text(changes: pd.Series, groups: dict, n: int = 6) -> str:
+    """The first ``n`` relative changes as ``"X.dx (-50%); the dz group 1 (9 items: C.dz,
+    Y.dz, X.dz, …; +58% in root-sum-square); ..."``, and how many more."""
+    entries = []
+    for name, value in changes.head(n).items():
+        if name in groups:
+            members = groups[name]
+            shown = ", ".join(members[:3]) + (", …" if len(members) > 3 else "")
+            entries.append(f"{name} ({len(members)} items: {shown}; {value:+.0%} in "
+                           f"root-sum-square)")
+        else:
+            entries.append(f"{name} ({value:+.0%})")
+    more = f" and {len(changes) - n} more" if len(changes) > n else ""
+    return "; ".join(entries) + more
 
 
 def sections(study: MachineStudy, extra=()) -> list[Section]:

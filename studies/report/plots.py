@@ -36,6 +36,38 @@ UNITS = {"dx": "mm", "dy": "mm", "dz": "mm", "ex": "rad", "ey": "rad", "ez": "ra
 INSIDE_COLOR, OUTSIDE_COLOR = "tab:blue", "tab:red"
 
 
+# --------------------------------------------------------------------------- titles
+def fit_titles(figure) -> None:
+    """Wrap the figure's suptitle and every axes' title that is wider than the room it has
+    (the figure's width, or its axes' width) onto more lines, and fit the layout again."""
+    for _ in range(3):
+        figure.draw_without_rendering()
+        renderer = figure._get_renderer()
+        texts = [(ax.title, ax.get_window_extent(renderer).width) for ax in figure.axes]
+        if figure._suptitle is not None:
+            texts.append((figure._suptitle, TITLE_ROOM * figure.bbox.width))
+        wrapped = [_wrap(text, room, renderer) for text, room in texts if text.get_text()]
+        if not any(wrapped):
+            return
+
+
+#: Share of the figure's width a suptitle may take.
+TITLE_ROOM = 0.96
+
+
+def _wrap(text, room: float, renderer) -> bool:
+    """Wrap ``text`` (a matplotlib Text) to fit ``room`` pixels; whether it changed."""
+    width = text.get_window_extent(renderer).width
+    if width <= room:
+        return False
+    lines = text.get_text().split("\n")
+    longest = max(len(line) for line in lines)
+    characters = max(12, int(longest * room / width) - 2)
+    text.set_text("\n".join(textwrap.fill(line, characters, break_long_words=False)
+                            for line in lines))
+    return True
+
+
 # --------------------------------------------------------------------------- helpers
 def _axes(ax, figsize):
     """Return ``ax``, or the axes of a new figure of ``figsize`` inches."""

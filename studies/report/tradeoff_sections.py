@@ -13,7 +13,7 @@ import pandas as pd
 
 from allocation.front import allocation_point, cost_reliability_front
 from allocation.result_files import gap_bound, gap_text
-from reliability.basics.display import axis_units, bound_text, pose_frame
+from reliability.basics.display import axis_units, bound_text, pose_frame, pose_text
 from reliability.basics.streams import spawn
 from reliability.first_order.system_reliability import worst_system_reliability
 from reliability.model.poses import workspace_grid
@@ -118,27 +118,29 @@ def system_section(machine, allocations, *, poses=None, rng=None) -> Section:
     poses = workspace_grid(machine) if poses is None else poses
     jacobian = machine.jacobian(poses)
     children = spawn(rng, len(allocations))
-    rows = []
+    units = axis_units(machine)
+    rows, where = [], {}
     for child, (label, t) in zip(children, allocations.items()):
         result = worst_system_reliability(machine, t, poses, rng=child, jacobian=jacobian)
         w = result.worst
-        rows.append({"allocation": label, "worst_pose": int(result.index[w]),
-                     **pose_frame(result.poses[w], machine.axes, axis_units(machine),
+        where[label] = pose_text(result.poses[w], machine.axes, units, digits=6)
+        rows.append({"allocation": label,
+                     **pose_frame(result.poses[w], machine.axes, units,
                                   style="csv").iloc[0].to_dict(),
                      "system": result.probability[w], "error": result.error[w],
                      "product": result.product[w], "bonferroni": result.bonferroni[w],
                      "least_output": result.min_marginal[w]})
     table = pd.DataFrame(rows).set_index("allocation")
-    lines = [f"| {label} | {row['worst_pose']:.0f} | {row['system']:.6f} ± "
-             f"{row['error']:.1g} | {row['product']:.6f} | {bound_text(row['bonferroni'])} | "
+    lines = [f"| {label} | {where[label]} | {row['system']:.6f} ± {row['error']:.1g} | "
+             f"{row['product']:.6f} | {bound_text(row['bonferroni'])} | "
              f"{row['least_output']:.6f} |" for label, row in table.iterrows()]
     text = ("A part is good only when all six outputs are inside their limits at once. "
             "For the linearised model this is a six-dimensional normal rectangle "
             "probability, computed exactly up to the stated numerical standard error; "
             "the product of the per-output probabilities is a lower bound (Šidák), "
             "Bonferroni a weaker one, and the least reliable output an upper bound. "
-            "Worst pose of the grid:\n\n"
-            "| allocation | pose | all six inside | product | Bonferroni | least output |\n"
+            "Worst pose of the grid, as axis positions:\n\n"
+            "| allocation | worst pose | all six inside | product | Bonferroni | least output |\n"
             "|---|---|---|---|---|---|\n" + "\n".join(lines))
     summary = {f"system_worst_{label}": float(value) for label, value in table["system"].items()}
     return Section(title="System reliability", text=text,

@@ -23,6 +23,7 @@ from reliability.basics.files import (SIGNIFICANT, atomic_write_bytes, atomic_wr
                                       check_destination, make_temporary_folder, write_csv)
 
 from .markdown import markdown_to_html
+from .plots import fit_titles
 
 #: Files whose presence marks a folder as holding an earlier report.
 REPORT_MARKERS = ("summary.json", "report.md", "report.html")
@@ -134,6 +135,7 @@ def png_bytes(figure, dpi: int = FIGURE_DPI) -> bytes:
     and closed: how every figure of a report or of the paper's reproduction is written."""
     import matplotlib.pyplot as plt
     buffer = io.BytesIO()
+    fit_titles(figure)
     figure.savefig(buffer, format="png", dpi=dpi, metadata={"Software": None})
     plt.close(figure)
     return buffer.getvalue()
