@@ -21,7 +21,7 @@ import pandas as pd
 
 from reliability.basics.display import axis_units, pose_columns
 from reliability.basics.errors import InputError, InputTypeError
-from reliability.basics.files import write_csv
+from reliability.basics.files import SIGNIFICANT, rounded_down, write_csv
 from reliability.basics.saved_results import check_count, encode_frame, load_payload, save_payload
 from reliability.model.machine import OUTPUTS
 
@@ -222,12 +222,35 @@ def _changes(result, top: int) -> pd.DataFrame:
 
 
 # ----- files ---------------------------------------------------------------------------
-def allocation_frame(result) -> pd.DataFrame:
+def allocation_frame(result, significant: int | None = None) -> pd.DataFrame:
     """The allocation CSV's table: columns ``error, reference, allocated``, one row per
-    error in the machine's order."""
+    error in the machine's order; with ``significant``, the allocation as a file written to
+    that many digits holds it (:func:`written_tolerances`)."""
     context = _context(result.problem)
+    allocated = result.tolerances if significant is None else \
+        written_tolerances(result.tolerances, significant)
     return pd.DataFrame({"error": context.names, "reference": context.reference,
-                         "allocated": result.tolerances}, columns=list(CSV_COLUMNS))
+                         "allocated": allocated}, columns=list(CSV_COLUMNS))
+
+
+def written_tolerances(tolerances, significant: int = SIGNIFICANT) -> np.ndarray:
+    """Tolerances rounded down (tighter) to ``significant`` significant digits: what an
+    allocation CSV written to those digits holds and every reader computes with.
+
+    With independent errors each output's σ at each pose, the worst-case stack sum and
+    the probability that all outputs are inside at once are monotone in each tolerance, so
+    a tighter allocation meets every target the computed one meets.
+    """
+    return rounded_down(tolerances, check_count(significant, "significant"))
+
+
+def written_cost_text(result, significant: int = SIGNIFICANT) -> str:
+    """The rounding of the written allocation and its cost beside the computed one."""
+    context = _context(result.problem)
+    written = context.cost.total(written_tolerances(result.tolerances, significant))
+    return (f"written rounded down to {significant} significant digits (never looser); cost "
+            f"of the written allocation {written:.6g} "
+            f"({written / result.cost - 1:+.2g} relative to {result.cost:.6g})")
 
 
 def allocation_to_csv(result, path, overwrite: bool = False, *,
@@ -242,10 +265,12 @@ def allocation_to_csv(result, path, overwrite: bool = False, *,
         Replace an existing file; otherwise an existing file raises FileExistsError.
     significant : int, optional
         Significant digits of the numbers; all digits (an exact round trip) by default.
+        The allocated tolerances are rounded down (:func:`written_tolerances`), so the file
+        meets every target the result meets; the reference column to the nearest.
     """
     float_format = None if significant is None else \
         f"%.{check_count(significant, 'significant')}g"
-    return write_csv(allocation_frame(result), path, overwrite, index=False,
+    return write_csv(allocation_frame(result, significant), path, overwrite, index=False,
                      float_format=float_format)
 
 
