@@ -62,7 +62,7 @@ class MachineStudy:
     def allocated(self):
         """The optimal tolerances exactly as ``allocation.csv`` holds them (what every
         later step of the study verifies); None when the targets are out of reach."""
-        return None if self.optimum is None else written_tolerances(self.optimum.tolerances)
+        return None if self.optimum is None else written_tolerances(self.optimum)
 
     def summary(self) -> str:
         """The study's choices and its headline numbers, one line each."""
@@ -161,7 +161,7 @@ def run(machine, *, points: int = 5, side: str = "two_sided", bounds=None,
         unreachable = exc
         progress(f"targets out of reach in the box: {exc}")
     if optimum is not None:
-        written = written_tolerances(optimum.tolerances)
+        written = written_tolerances(optimum)
         optimal = fosm(machine, written, problem.poses, jacobian=problem.jacobian,
                        distribution=machine.distribution)
         verified.append(("optimum", written, optimal))
