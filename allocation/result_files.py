@@ -2,7 +2,9 @@
 
 The allocation CSV (columns ``error, reference, allocated``, one row per error) has one
 writer, :func:`allocation_to_csv` (its table: :func:`allocation_frame`), and one reader,
-:func:`read_allocation_csv`, used by the library and the command line alike.
+:func:`read_allocation_csv`, used by the library and the command line alike. Written to
+a number of significant digits, the allocated tolerances are rounded down
+(:func:`written_tolerances`), so the file meets every target the result meets.
 
 The JSON file holds the allocation, its cost, feasibility, certificate, binding
 constraints, GWO history and per-requirement elasticities, and what is needed to read them

@@ -100,7 +100,7 @@ def test_the_report_says_its_own_optimum_meets_its_targets(study, tmp_path):
 def test_the_yield_of_the_written_allocation_is_the_yield_in_memory(study, swivel5,
                                                                      tmp_path):
     path = study.optimum.to_csv(tmp_path / "allocation.csv", significant=SIGNIFICANT)
-    options = dict(points_per_axis=3, machines=400, rng=11, method="crude")
+    options = {"points_per_axis": 3, "machines": 400, "rng": 11, "method": "crude"}
     computed = machine_yield(swivel5, study.optimum.tolerances, **options)
     read = machine_yield(swivel5, read_allocation_csv(path, swivel5), **options)
     # the same built machines, each tolerance at most 1e-5 tighter: the same count, or one
