@@ -24,6 +24,7 @@ import numpy as np
 import pandas as pd
 
 from reliability.basics.errors import InputError
+from reliability.basics.files import SIGNIFICANT, probability_text, write_csv
 from reliability.first_order.fosm import required_index
 from reliability.model.machine import OUTPUTS
 
@@ -143,6 +144,21 @@ def allocation_point(machine, tolerances, *, side: str = "two_sided", **build_op
     t = machine.check_tolerances(tolerances)
     worst = float(problem.probability(t).min())
     return worst, float(problem.cost.total(t) / _reference_cost(problem))
+
+
+def front_file_table(table: pd.DataFrame) -> pd.DataFrame:
+    """A front table as its CSV file holds it: the ``target`` column as text that keeps
+    both R and 1 − R to :data:`~reliability.basics.files.SIGNIFICANT` digits
+    (``0.999999999``, never a rounded ``1``); the other numbers are written to that many
+    digits by the writer."""
+    return table.assign(target=[probability_text(r) for r in table["target"]])
+
+
+def front_to_csv(table: pd.DataFrame, path, overwrite: bool = False):
+    """Write a front table (columns from :func:`cost_reliability_front`, at least
+    ``target``) as CSV without its index; returns the path."""
+    return write_csv(front_file_table(table), path, overwrite, index=False,
+                     float_format=f"%.{SIGNIFICANT}g")
 
 
 def _check_targets(targets) -> np.ndarray:

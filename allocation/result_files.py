@@ -2,7 +2,9 @@
 
 The allocation CSV (columns ``error, reference, allocated``, one row per error) has one
 writer, :func:`allocation_to_csv` (its table: :func:`allocation_frame`), and one reader,
-:func:`read_allocation_csv`, used by the library and the command line alike.
+:func:`read_allocation_csv`, used by the library and the command line alike. Written to
+a number of significant digits, the allocated tolerances are rounded down
+(:func:`written_tolerances`), so the file meets every target the result meets.
 
 The JSON file holds the allocation, its cost, feasibility, certificate, binding
 constraints, GWO history and per-requirement elasticities, and what is needed to read them
@@ -21,7 +23,7 @@ import pandas as pd
 
 from reliability.basics.display import axis_units, number_text, pose_columns
 from reliability.basics.errors import InputError, InputTypeError
-from reliability.basics.files import write_csv
+from reliability.basics.files import SIGNIFICANT, as_written, rounded_down, write_csv
 from reliability.basics.saved_results import check_count, encode_frame, load_payload, save_payload
 from reliability.model.machine import OUTPUTS
 
@@ -34,6 +36,8 @@ CSV_COLUMNS = ("error", "reference", "allocated")
 READINGS = {"worst": "every target at every pose", "mean": "targets on the workspace mean"}
 #: Share of the cost below which an item at a bound counts as nearly free.
 NEARLY_FREE_SHARE = 1e-3
+#: Relative distance within which a solver's tolerance is taken to be on its bound.
+AT_BOUND_RTOL = 1e-12
 #: Significant digits a Lagrange multiplier (and an elasticity made from it) is written to:
 #: the dual solver fixes their sums per output only to about 1e-5 relative.
 MULTIPLIER_DIGITS = 3
@@ -222,12 +226,46 @@ def _changes(result, top: int) -> pd.DataFrame:
 
 
 # ----- files ---------------------------------------------------------------------------
-def allocation_frame(result) -> pd.DataFrame:
+def allocation_frame(result, significant: int | None = None) -> pd.DataFrame:
     """The allocation CSV's table: columns ``error, reference, allocated``, one row per
-    error in the machine's order."""
+    error in the machine's order; with ``significant``, the allocation as a file written to
+    that many digits holds it (:func:`written_tolerances`)."""
     context = _context(result.problem)
+    allocated = result.tolerances if significant is None else \
+        written_tolerances(result, significant)
     return pd.DataFrame({"error": context.names, "reference": context.reference,
-                         "allocated": result.tolerances}, columns=list(CSV_COLUMNS))
+                         "allocated": allocated}, columns=list(CSV_COLUMNS))
+
+
+def written_tolerances(result, significant: int = SIGNIFICANT) -> np.ndarray:
+    """The result's tolerances rounded down (tighter) to ``significant`` significant
+    digits: what an allocation CSV written to those digits holds and every reader computes
+    with.
+
+    With independent errors each output's σ at each pose, the worst-case stack sum and
+    the probability that all outputs are inside at once are monotone in each tolerance, so
+    a tighter allocation meets every target the computed one meets. A tolerance the solver
+    put on a bound (within :data:`AT_BOUND_RTOL`, the last few bits of its arithmetic) is
+    the bound: it is written as the bound when the file holds that bound exactly, so
+    ``0.0015`` is not written ``0.00149999``, below its lower bound.
+    """
+    significant = check_count(significant, "significant")
+    context = _context(result.problem)
+    written = rounded_down(result.tolerances, significant)
+    for bound in (context.lower, context.upper):
+        exact = as_written(bound, significant) == bound
+        on_bound = np.abs(result.tolerances - bound) <= AT_BOUND_RTOL * bound
+        written = np.where(exact & on_bound, bound, written)
+    return written
+
+
+def written_cost_text(result, significant: int = SIGNIFICANT) -> str:
+    """The rounding of the written allocation and its cost beside the computed one."""
+    context = _context(result.problem)
+    written = context.cost.total(written_tolerances(result, significant))
+    return (f"written rounded down to {significant} significant digits (items on a bound "
+            f"as the bound); cost of the written allocation {written:.6g} "
+            f"({written / result.cost - 1:+.2g} relative to {result.cost:.6g})")
 
 
 def allocation_to_csv(result, path, overwrite: bool = False, *,
@@ -242,10 +280,12 @@ def allocation_to_csv(result, path, overwrite: bool = False, *,
         Replace an existing file; otherwise an existing file raises FileExistsError.
     significant : int, optional
         Significant digits of the numbers; all digits (an exact round trip) by default.
+        The allocated tolerances are rounded down (:func:`written_tolerances`), so the file
+        meets every target the result meets; the reference column to the nearest.
     """
     float_format = None if significant is None else \
         f"%.{check_count(significant, 'significant')}g"
-    return write_csv(allocation_frame(result), path, overwrite, index=False,
+    return write_csv(allocation_frame(result, significant), path, overwrite, index=False,
                      float_format=float_format)
 
 

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import os
 import tempfile
+from decimal import ROUND_DOWN, Decimal
 from pathlib import Path
 
 import numpy as np
@@ -28,6 +29,49 @@ def as_written(values, digits: int = SIGNIFICANT) -> np.ndarray:
     digits (``%.{digits}g``): what a later command reading that file computes with."""
     values = np.asarray(values, dtype=float)
     return np.array([float(f"{v:.{digits}g}") for v in values.ravel()]).reshape(values.shape)
+
+
+def rounded_down(values, digits: int = SIGNIFICANT) -> np.ndarray:
+    """Positive ``values`` cut (rounded toward zero) to ``digits`` significant digits, as
+    floats that a file written with ``%.{digits}g`` holds exactly and reads back unchanged.
+
+    A value whose nearest ``digits``-digit decimal reads back at or below it is written as
+    that decimal (``0.0015`` stays ``0.0015``); any other is cut in exact decimal arithmetic.
+    Either way what a file reads back is never above the value: a tolerance written this
+    way is never looser than the one computed.
+
+    Raises
+    ------
+    InputError
+        A value that is not a finite number > 0.
+    """
+    values = np.asarray(values, dtype=float)
+    bad = np.flatnonzero(~(np.isfinite(values) & (values > 0)))
+    if len(bad):
+        raise InputError(f"values: entry {int(bad[0])} is {values.ravel()[bad[0]]!r}; "
+                         f"expected a finite number > 0 to round down")
+    return np.array([_cut(float(v), digits) for v in values.ravel()]).reshape(values.shape)
+
+
+def _cut(value: float, digits: int) -> float:
+    nearest = float(f"{value:.{digits}g}")
+    if nearest <= value:
+        return nearest
+    exact = Decimal(value)
+    step = Decimal(1).scaleb(exact.adjusted() - digits + 1)
+    return float(exact.quantize(step, rounding=ROUND_DOWN))
+
+
+def probability_text(value: float, digits: int = SIGNIFICANT) -> str:
+    """A probability as a file keeps it: both ``value`` and ``1 − value`` to ``digits``
+    significant digits (``0.999999999``, never a rounded ``1``); 0 and 1 as ``0`` and ``1``.
+    """
+    value = float(value)
+    if not 0.0 < value < 1.0:
+        return f"{value:g}"
+    smallest = min(value, 1.0 - value)
+    decimals = digits - 1 - int(np.floor(np.log10(smallest)))
+    return f"{value:.{decimals}f}".rstrip("0")
 
 
 #: Permissions asked for a new file and a new folder, before the umask (as ``open``/``mkdir``).

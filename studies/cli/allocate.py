@@ -13,7 +13,7 @@ from allocation import AllocationProblem, allocate_for_yield, solve_catalogue
 from allocation.continuous import check_continuous, solve_continuous
 from allocation.elasticity import requirement_table
 from allocation.result_files import (allocation_to_csv, cost_shares_text, cost_units_text, gap_text,
-                                     nearly_free_text)
+                                     nearly_free_text, written_cost_text)
 from reliability.basics import display
 from reliability.basics.errors import InputError
 from reliability.model.machine import OUTPUTS
@@ -122,7 +122,7 @@ def run(args) -> int:
                                f"{len(problem.poses)} poses of the {args.points}-point grid "
                                f"(not certified between them)"))
     allocation_to_csv(result, out, args.overwrite, significant=SIGNIFICANT)
-    print(f"\nallocation written to {out}")
+    print(f"\nallocation written to {out}, {written_cost_text(result)}")
     return 0
 
 
@@ -189,7 +189,7 @@ def run_yield(args) -> int:
                                 machines=args.machines, seed=args.seed)
     print(describe_yield(result))
     allocation_to_csv(result, out, args.overwrite, significant=SIGNIFICANT)
-    print(f"\nallocation written to {out}")
+    print(f"\nallocation written to {out}, {written_cost_text(result)}")
     return 0
 
 

@@ -13,11 +13,10 @@ from pathlib import Path
 import numpy as np
 
 from allocation import AllocationProblem
-from allocation.front import FRONT_SIDES, cost_reliability_front
+from allocation.front import FRONT_SIDES, cost_reliability_front, front_to_csv
 from allocation.result_files import gap_bound, gap_text
 from reliability.basics.display import target_text
 from reliability.basics.errors import InputError
-from reliability.basics.files import SIGNIFICANT, write_csv
 from reliability.model.machine import OUTPUTS
 from reliability.model.poses import workspace_grid
 
@@ -86,8 +85,7 @@ def run(args) -> int:
     options.say(f"time: build and row screening {seconds['build']:.2f} s, "
                 f"{len(targets)} solves {seconds['solve']:.2f} s")
     if args.out is not None:
-        write_csv(shown, args.out, overwrite=args.overwrite,
-                  float_format=f"%.{SIGNIFICANT}g", index=False)
+        front_to_csv(shown, args.out, overwrite=args.overwrite)
         print(f"written: {args.out}")
     return 0
 

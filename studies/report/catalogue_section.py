@@ -14,6 +14,7 @@ import pandas as pd
 from allocation.discrete import neighbour_table
 from allocation.result_files import allocation_frame
 
+from reliability.basics.files import SIGNIFICANT
 from reliability.model.machine import OUTPUTS
 from reliability.sampling.pose_sampling import sample_at_poses
 
@@ -79,7 +80,7 @@ def catalogue_section(result, *, samples: int = 20_000, rng=None) -> Section:
                              "choice": dict(result.choice), "currency": catalogue.currency,
                              "worst_pose_mc": dict(zip(checked["output"], checked["mc"]))}}
     return Section(title="Component choice", text="\n".join(text),
-                   tables={"choice.csv": choice, "choice_tolerances.csv": allocation_frame(result),
+                   tables={"choice.csv": choice, "choice_tolerances.csv": allocation_frame(result, SIGNIFICANT),
                            "choice_neighbours.csv": result.neighbours,
                            "choice_worst_poses.csv": worst, "choice_worst_pose_mc.csv": checked},
                    summary=summary)

@@ -16,10 +16,11 @@ from matplotlib.figure import Figure
 
 from allocation.elasticity import requirement_table
 from allocation.result_files import (MULTIPLIER_DIGITS, allocation_frame, cost_shares_text,
-                                     cost_units_text, gap_text, nearly_free_text)
+                                     cost_units_text, gap_text, nearly_free_text,
+                                     written_cost_text)
 from reliability.basics.display import (OUTPUT_UNITS, axis_units, pose_frame, shown_positions,
                                         top_contributors)
-from reliability.basics.files import as_written
+from reliability.basics.files import SIGNIFICANT, as_written
 from reliability.model.identifiability import EQUAL_RTOL, indistinguishable_groups
 from reliability.model.machine import OUTPUTS
 from studies.workflows.machine_study import UNCHANGED, MachineStudy, summary
@@ -346,7 +347,7 @@ def allocation_section(study: MachineStudy) -> Section:
                                                f"relative to the initial allocation")
         figures[name] = figure
     return Section("Cheapest certified allocation", text, figures=figures,
-                   tables={"allocation.csv": allocation_frame(optimum),
+                   tables={"allocation.csv": allocation_frame(optimum, SIGNIFICANT),
                            "allocation_detail.csv": detail,
                            "requirements_elasticity.csv": requirements,
                            "indistinguishable_groups.csv": groups})
@@ -359,7 +360,8 @@ def cost_text(study: MachineStudy) -> str:
     return (f"**Cost units**: {cost_units_text(cost)}. Cost shares at the initial "
             f"allocation: {cost_shares_text(cost, study.problem.reference)}; at the optimum: "
             f"{cost_shares_text(cost, study.optimum.tolerances)}."
-            + (f" **{free}**." if free else ""))
+            + (f" **{free}**." if free else "")
+            + f" `allocation.csv`: {written_cost_text(study.optimum)}.")
 
 
 def groups_table(machine, poses) -> pd.DataFrame:

@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from allocation.front import allocation_point, cost_reliability_front
+from allocation.front import allocation_point, cost_reliability_front, front_file_table
 from allocation.result_files import gap_bound, gap_text
 from reliability.basics.display import axis_units, bound_text, pose_frame, pose_text
 from reliability.basics.streams import spawn
@@ -61,9 +61,9 @@ def front_section(machine, *, targets=DEFAULT_TARGETS, reliability: float = 0.99
     points = {label: allocation_point(machine, t, poses=poses)
               for label, t in allocations.items()}
     ax = plot_front(front, marks=points)
-    table = front[["target", "required_index", "cost", "relative_cost", "relative_gap",
-                   "certified", "feasible", "binding"]].assign(
-        relative_gap=[gap_bound(g) for g in front["relative_gap"]])
+    table = front_file_table(front[["target", "required_index", "cost", "relative_cost",
+                                    "relative_gap", "certified", "feasible", "binding"]].assign(
+        relative_gap=[gap_bound(g) for g in front["relative_gap"]]))
     reached = int(front["feasible"].sum())
     words = f"box {bounds[0]:g}–{bounds[1]:g} × the initial allocation" if box_text is None \
         else f"box {box_text}"

@@ -23,9 +23,8 @@ import pandas as pd
 from allocation import AllocationProblem, TargetUnreachableError
 from allocation.continuous import DEFAULT_RTOL, WORKSPACE_CHOICES, check_continuous, \
     solve_continuous
-from allocation.result_files import gap_bound
+from allocation.result_files import gap_bound, written_tolerances
 from reliability.basics import checks as input_checks
-from reliability.basics.files import as_written
 from reliability.first_order.fosm import fosm
 from reliability.model.poses import workspace_grid
 from reliability.sampling.machine_yield import DEFAULT_MACHINES
@@ -63,7 +62,7 @@ class MachineStudy:
     def allocated(self):
         """The optimal tolerances exactly as ``allocation.csv`` holds them (what every
         later step of the study verifies); None when the targets are out of reach."""
-        return None if self.optimum is None else as_written(self.optimum.tolerances)
+        return None if self.optimum is None else written_tolerances(self.optimum)
 
     def summary(self) -> str:
         """The study's choices and its headline numbers, one line each."""
@@ -113,11 +112,11 @@ def run(machine, *, points: int = 5, side: str = "two_sided", bounds=None,
         Seed of the Monte-Carlo verification of each allocation
         (:func:`reliability.basics.streams.verification_streams`), as ``precrel verify --seed``.
         The optimum is verified (and its FOSM computed) exactly as written to
-        ``allocation.csv`` (:func:`reliability.basics.files.as_written`), so ``precrel verify
-        --tolerances allocation.csv --seed S`` prints the report's Monte-Carlo numbers
-        (``--workspace grid`` under workspace 'grid'): each allocation is sampled at the
-        worst poses of the study's workspace, certified over the continuous strokes by
-        default (:func:`reliability.sampling.verification.verify`).
+        ``allocation.csv``, rounded down (:func:`allocation.result_files.written_tolerances`),
+        so ``precrel verify --tolerances allocation.csv --seed S`` prints the report's
+        Monte-Carlo numbers (``--workspace grid`` under workspace 'grid'): each allocation is
+        sampled at the worst poses of the study's workspace, certified over the continuous
+        strokes by default (:func:`reliability.sampling.verification.verify`).
     repeats, samples : int
         Grid experiments, and random-pose / worst-pose samples, per allocation.
     progress : callable, optional
@@ -163,7 +162,7 @@ def run(machine, *, points: int = 5, side: str = "two_sided", bounds=None,
         unreachable = exc
         progress(f"targets out of reach in the box: {exc}")
     if optimum is not None:
-        written = as_written(optimum.tolerances)
+        written = written_tolerances(optimum)
         optimal = fosm(machine, written, problem.poses, jacobian=problem.jacobian,
                        distribution=machine.distribution)
         verified.append(("optimum", written, optimal))

@@ -44,7 +44,7 @@ from allocation.discrete import CatalogueInfeasibleError, solve_catalogue
 from allocation.problem import AllocationProblem
 from allocation.solve import TargetUnreachableError
 from reliability.basics.errors import InputError, InputTypeError
-from reliability.basics.files import SIGNIFICANT, write_csv
+from reliability.basics.files import SIGNIFICANT, probability_text, write_csv
 from reliability.basics.result_store import ResultStore, canonical_json, machine_fingerprint
 from reliability.basics.streams import verification_streams
 from reliability.model.error_draws import DISTRIBUTIONS
@@ -357,7 +357,8 @@ def run_sweep(spec: SweepSpec, store, *, executor=None, progress=None, log=None,
         if progress is not None:
             progress(done, len(tasks))
     frame = results_frame(tasks, finished)
-    path = write_csv(frame, folder / RESULTS_FILE, overwrite=True, index=False,
+    written = frame.assign(target=[probability_text(r) for r in frame["target"]])
+    path = write_csv(written, folder / RESULTS_FILE, overwrite=True, index=False,
                      float_format=f"%.{SIGNIFICANT}g")
     return SweepResult(frame=frame, computed=len(pending), resumed=resumed, path=path)
 
