@@ -193,18 +193,13 @@ def check_continuous(machine, side: str = "two_sided") -> None:
     Raises
     ------
     InputError
-        Naming the workspace and suggesting the grid: outputs in the workpiece frame,
-        correlated errors.
+        Naming the workspace and suggesting the grid: correlated errors.
     """
-    why = None
-    if machine.frame != "tool":
-        why = (f"the certificate encloses the tool-frame chain (Eq. 18) and this study reads "
-               f"its outputs in the {machine.frame!r} frame")
-    elif getattr(machine, "correlation", None) is not None:
-        why = "the certificate bounds σ of independent errors and this machine's are correlated"
-    if why is not None:
-        raise InputError(f"workspace 'continuous' is not available: {why}; use workspace "
-                         f"'grid' (--workspace grid) for the allocation on the grid poses")
+    if getattr(machine, "correlation", None) is not None:
+        raise InputError("workspace 'continuous' is not available: the certificate bounds σ "
+                         "of independent errors and this machine's are correlated; use "
+                         "workspace 'grid' (--workspace grid) for the allocation on the grid "
+                         "poses")
 
 
 def solve_continuous(problem, *, rtol: float = DEFAULT_RTOL, max_solves: int = MAX_SOLVES,
