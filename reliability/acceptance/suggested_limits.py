@@ -215,7 +215,7 @@ class SuggestedLimits:
         :data:`COLUMNS` added (mm); empty on the last row ``all, pass``."""
         return self.result.to_frame().merge(self.limits, on=["test", "quantity"], how="left")
 
-    def text(self) -> str:
+    def summary(self) -> str:
         """Each result's suggested limit and interval in µm beside its limit, then the
         probability of passing each test with its suggested limits at once."""
         heading = (f"suggested limits: the {self.probability:g}-quantile of each result over "
@@ -224,9 +224,9 @@ class SuggestedLimits:
                    f"order-statistic interval (coverage {self.coverage:.4f} >= "
                    f"{self.confidence:g}):")
         joint = (f"pass probability of each test with every limited quantity at its "
-                 f"suggested limit (lower than {self.probability:g} when a test limits "
-                 f"several quantities: a machine must meet them all), Wilson "
-                 f"{100 * self.confidence:g} %:")
+                 f"suggested limit (below {self.probability:g} when a test limits "
+                 f"quantities that do not move together: a machine must meet them all), "
+                 f"Wilson {100 * self.confidence:g} %:")
         lines = [heading, self._printed_table().to_string(index=False), "", joint]
         lines += [f"  {row.test} ({row.quantities}): {row.pass_probability:.4f} "
                   f"[{row.pass_low:.4f}, {row.pass_high:.4f}]"

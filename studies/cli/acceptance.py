@@ -68,7 +68,7 @@ def run(args) -> int:
     print(result.results_text())
     suggestion = None if args.suggest is None else suggest_limits(result, args.suggest)
     if suggestion is not None:
-        print(f"\n{suggestion.text()}")
+        print(f"\n{suggestion.summary()}")
     if out is not None:
         out.mkdir(exist_ok=True)
         table = result.to_frame() if suggestion is None else suggestion.to_frame()
