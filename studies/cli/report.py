@@ -2,13 +2,12 @@
 
 from __future__ import annotations
 
-from allocation import load_catalogue, solve_catalogue
+from allocation import load_catalogue
 from reliability.acceptance.definitions import read_tests
-from reliability.basics.streams import extra_stream
+from reliability.basics.errors import InputError
 from studies.report import machine_sections
-from studies.report.acceptance_section import acceptance_section
-from studies.report.catalogue_section import catalogue_section
-from studies.report.extras import EXTRAS, allocations, builders
+from studies.report.extras import (EXTRAS, TITLES, acceptance_builder, builders,
+                                   catalogue_builder, guarded, not_computed)
 from studies.report.writer import REPORT_MARKERS, write_report
 from studies.workflows import machine_study
 
@@ -22,7 +21,9 @@ def add_parser(subparsers):
                     "optimum (under --profile; the optimum over the continuous workspace by "
                     "default, --workspace), FOSM, Monte-Carlo verification, CSV tables, "
                     "figures, report.md, a self-contained report.html, summary.json and "
-                    "allocation.csv in DIR.")
+                    "allocation.csv in DIR. An optional section that cannot be computed "
+                    "(e.g. a catalogue that cannot meet the targets) says why in its place; "
+                    "the report is still written and the command exits 0.")
     options.add_machine(parser)
     parser.add_argument("--out", required=True, metavar="DIR", help="output folder")
     options.add_monte_carlo(parser)
@@ -41,6 +42,9 @@ def add_parser(subparsers):
     parser.add_argument("--catalogue", metavar="CAT.toml",
                         help="add a 'Component choice' section: the certified cheapest "
                              "choice of one class per component of this catalogue")
+    parser.add_argument("--tolerances", metavar="CSV",
+                        help="with --catalogue: tolerances of the items in no component "
+                             "(default the initial allocation)")
     parser.add_argument("--overwrite", action="store_true",
                         help="replace an earlier report in DIR (other files are left alone)")
     return parser
@@ -48,31 +52,45 @@ def add_parser(subparsers):
 
 def run(args) -> int:
     bounds = options.check_bounds(args.bounds)
+    if args.tolerances is not None and args.catalogue is None:
+        raise InputError("--tolerances is used with --catalogue only")
     out = options.destination(args.out, args.overwrite, folder=True, markers=REPORT_MARKERS)
     machine = options.machine(args)
-    tests = None if args.tests is None else read_tests(args.tests, machine)
-    catalogue = None if args.catalogue is None else load_catalogue(args.catalogue, machine)
+    included = [name for name in EXTRAS if name not in args.skip]
+    extra = builders(included)
+    if args.tests is not None:
+        included.append("tests")
+        extra.append(guarded("tests", acceptance_builder(read_tests(args.tests, machine))))
+    if args.catalogue is not None:
+        included.append("catalogue")
+        start, start_text = start_tolerances(args, machine)
+        extra.append(guarded("catalogue", catalogue_builder(
+            load_catalogue(args.catalogue, machine), start, start_text=start_text,
+            samples=args.samples)))
     study = machine_study.run(machine, points=args.points, side=args.side, bounds=bounds,
                               seed=args.seed, repeats=args.repeats, samples=args.samples,
                               progress=options.say, bar=options.progress_bar,
                               machines=args.machines, workspace=options.workspace(args),
                               rtol=args.rtol)
-    included = [name for name in EXTRAS if name not in args.skip]
     options.say("optional sections: " + (", ".join(included) or "none"))
-    extra = builders(included)
-    if tests is not None:
-        extra.append(lambda study: acceptance_section(
-            machine, tests, allocations(study), rng=extra_stream(study.seed, 2)))
-    if catalogue is not None:
-        options.say("choosing catalogue classes (HiGHS)")
-        choice = solve_catalogue(study.problem, catalogue)
-        extra.append(lambda _: catalogue_section(choice, samples=args.samples,
-                                                 rng=extra_stream(args.seed, 3)))
     sections = machine_sections.sections(study, extra=extra)
+    missing = not_computed(sections)
     options.say("drawing figures and writing the report")
-    written = write_report(out, sections, machine_study.summary(study),
+    written = write_report(out, sections,
+                           {**machine_study.summary(study), "not_computed": missing},
                            title=f"Precision allocation and reliability of {machine.name}",
                            overwrite=args.overwrite)
     print(machine_sections.answers(study))
+    for name, reason in missing.items():
+        print(f"\nsection {TITLES[name]!r} not computed: {reason}")
     print(f"\n{len(written)} files written to {out}/ (open report.html)")
     return 0  # a report whose targets are out of reach is still a complete answer
+
+
+def start_tolerances(args, machine) -> tuple:
+    """``--tolerances``: the starting tolerances of the items in no component, and their
+    source in words (none and the initial allocation when not given)."""
+    if args.tolerances is None:
+        return None, "the initial allocation"
+    return (options.read_tolerances(args.tolerances, machine),
+            f"the tolerances of {args.tolerances} (--tolerances)")
