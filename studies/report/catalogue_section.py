@@ -22,9 +22,11 @@ from .markdown import markdown_table
 from .section import Section
 
 PERCENT = "{:.3%}".format
+TITLE = "Component choice"
 
 
-def catalogue_section(result, *, samples: int = 20_000, rng=None) -> Section:
+def catalogue_section(result, *, samples: int = 20_000, rng=None,
+                      start_text: str = "the starting allocation") -> Section:
     """The "Component choice" section of ``result`` (a :class:`CatalogueResult`).
 
     Parameters
@@ -34,6 +36,8 @@ def catalogue_section(result, *, samples: int = 20_000, rng=None) -> Section:
         Monte-Carlo samples at each output's worst grid pose (normal errors, σ = t/k).
     rng : None, int or numpy.random.Generator
         Stream of the Monte-Carlo.
+    start_text : str
+        Where the tolerances of the items in no component come from, in words.
     """
     catalogue, problem = result.catalogue, result.problem
     currency = f" {catalogue.currency}" if catalogue.currency else ""
@@ -45,7 +49,7 @@ def catalogue_section(result, *, samples: int = 20_000, rng=None) -> Section:
             f"choices) that meets every target at every one of {len(problem.poses)} poses "
             f"(workspace 'grid': a choice of classes is made on the grid poses only; "
             f"{problem.side.replace('_', '-')} reading, tolerances ±{problem.k:g}σ). Items in "
-            f"no component keep the starting allocation; classes are used as given (no "
+            f"no component keep {start_text}; classes are used as given (no "
             f"search box). Solved by HiGHS (scipy.optimize.milp) to a proved relative gap of "
             f"**{result.gap:.1e}**: total price **{result.price:.6g}{currency}** "
             f"(dual bound {result.dual_bound:.6g}), re-checked on every row "
@@ -79,8 +83,9 @@ def catalogue_section(result, *, samples: int = 20_000, rng=None) -> Section:
                              "certified": result.certified, "feasible": result.feasible,
                              "choice": dict(result.choice), "currency": catalogue.currency,
                              "worst_pose_mc": dict(zip(checked["output"], checked["mc"]))}}
-    return Section(title="Component choice", text="\n".join(text),
-                   tables={"choice.csv": choice, "choice_tolerances.csv": allocation_frame(result, SIGNIFICANT),
+    return Section(title=TITLE, text="\n".join(text),
+                   tables={"choice.csv": choice,
+                           "choice_tolerances.csv": allocation_frame(result, SIGNIFICANT),
                            "choice_neighbours.csv": result.neighbours,
                            "choice_worst_poses.csv": worst, "choice_worst_pose_mc.csv": checked},
                    summary=summary)
