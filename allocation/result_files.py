@@ -395,8 +395,8 @@ def drawing_check_text(result, resolution=DRAWING_RESOLUTION, *, targets: bool =
     cost = problem.cost.total(drawn)
     check = (f"meets the targets at the {len(problem.poses)} poses of the problem: "
              f"{'yes' if problem.meets_targets(drawn) else 'NO'}; " if targets else "")
-    return (f"rounded down to {number_text(float(resolution[0]))} µm and "
-            f"{number_text(float(resolution[1]))} arcsec, so every item is at most the "
+    return (f"rounded down to {float(resolution[0]):g} µm and "
+            f"{float(resolution[1]):g} arcsec, so every item is at most the "
             f"allocation's; {check}cost {cost:.6g} ({cost / result.cost - 1:+.2g} relative "
             f"to the allocation's {result.cost:.6g})")
 
