@@ -80,7 +80,7 @@ def test_the_reader_takes_other_units_and_refuses_one_that_does_not_fit(mill, tm
         read_allocation_csv(tmp_path / "bad.csv", mill)
 
 
-def test_allocate_writes_the_drawing_beside_out_and_verify_reads_it(tmp_path, capsys):
+def test_allocate_writes_the_drawing_beside_out_and_predict_reads_it(tmp_path, capsys):
     machine = str(MACHINES / "mill3.toml")
     out = tmp_path / "alloc.csv"
     assert cli.main(["allocate", machine, "--out", str(out), "--workspace", "grid",
