@@ -24,7 +24,7 @@ from studies.workflows import machine_study
 
 ROOT = Path(__file__).resolve().parent
 SWIVEL = str(ROOT / "machines" / "swivel5.toml")
-SWIVEL_TESTS = ROOT / "machines" / "swivel5_tests.toml"
+SWIVEL_TESTS = ROOT / "acceptance_tests" / "swivel5.toml"
 MILL = str(ROOT / "machines" / "mill3.toml")
 MILL_CIRCLE = ('[[tests]]\nname = "c"\nkind = "circular"\nplane = "xy"\n'
                'centre = { Y = 200.0, X = 0.0, Z = -175.0 }\nradius = 100.0\nlimit = 0.004\n')
