@@ -96,8 +96,15 @@ def main(argv=None):
         print(f"\n== {label}: yield {args.yield_target:g}, profile constant, distribution "
               f"{machine.distribution}, 5-point grid, default box")
         for machines in args.machines:
-            margins = [show(machine, args.yield_target, machines, seed, args.at_target)
-                       for seed in args.seeds]
+            margins = []
+            for seed in args.seeds:
+                try:
+                    margins.append(show(machine, args.yield_target, machines, seed,
+                                        args.at_target))
+                except allocation.YieldUnreachableError as unreachable:
+                    print(f"  N {machines}, seed {seed}: {unreachable}")
+            if not margins:
+                continue
             error = np.std(margins, ddof=1) / np.sqrt(len(margins)) if len(margins) > 1 \
                 else float("nan")
             print(f"  N {machines}: margin over the naive method {np.mean(margins):.2%} ± "
