@@ -203,8 +203,11 @@ def _main() -> int:
 
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--full", action="store_true", help="the whole product")
+    parser.add_argument("--part", default="1/1", metavar="I/N",
+                        help="run every N-th cell from the I-th (to split a run over processes)")
     args = parser.parse_args()
-    cells = all_cells() if args.full else covering_cells()
+    first, every = (int(value) for value in args.part.split("/"))
+    cells = (all_cells() if args.full else covering_cells())[first - 1::every]
     tally, start = {}, time.perf_counter()
     with tempfile.TemporaryDirectory() as tmp:
         for number, cell in enumerate(cells):
