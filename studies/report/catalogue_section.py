@@ -14,6 +14,7 @@ import pandas as pd
 from allocation.discrete import neighbour_table
 from allocation.result_files import allocation_frame
 
+from reliability.basics.display import axis_units, pose_text
 from reliability.basics.files import SIGNIFICANT
 from reliability.model.machine import OUTPUTS
 from reliability.sampling.pose_sampling import sample_at_poses
@@ -100,8 +101,10 @@ def _monte_carlo(result, samples, rng):
                             rng=rng, k=problem.k, distribution="normal").to_frame()
     own = [f"pose {i}" for i in range(len(OUTPUTS))]
     frame = frame[frame["pose"].map(dict(zip(own, OUTPUTS))) == frame["event"]]
+    machine = problem.machine
+    positions = [pose_text(pose, machine.axes, axis_units(machine), digits=6) for pose in poses]
     return pd.DataFrame({
-        "output": frame["event"].to_numpy(), "pose": result.worst["pose"].to_numpy(),
+        "output": frame["event"].to_numpy(), "worst pose": positions,
         "samples": frame["samples"].to_numpy(), "mc": 1.0 - frame["mc_failure"].to_numpy(),
         "lower": 1.0 - frame["upper"].to_numpy(), "upper": 1.0 - frame["lower"].to_numpy(),
         "fosm": 1.0 - frame["fosm_failure"].to_numpy(), "target": problem.machine.targets})
