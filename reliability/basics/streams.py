@@ -77,7 +77,7 @@ def extra_stream(seed: int, index: int) -> np.random.Generator:
     spawn_key=(index,))``, independent of every stream :func:`spawn` derives from ``seed``.
 
     The extra streams in use: 0, :func:`system_stream`; 1, :func:`rare_stream`; 2,
-    :func:`profiles_stream`; 3, :func:`catalogue_stream`.
+    :func:`profiles_stream`; 3, :func:`catalogue_stream`; 4, :func:`sensitivity_stream`.
     """
     seed = _seed(seed)
     return np.random.default_rng(np.random.SeedSequence([seed, EXTRA_FAMILY],
@@ -153,3 +153,10 @@ def _seed(seed) -> int:
     if seed < 0:
         raise InputError(f"seed must be a non-negative integer; got {seed}")
     return int(seed)
+
+
+def sensitivity_stream(seed) -> np.random.Generator:
+    """The yield-sensitivity stream of seed ``seed`` (extra stream 4): the built machines of
+    ``precrel sensitivity --yield --seed S`` and of the report's "What each tolerance buys"
+    section (``report --sensitivity --seed S``)."""
+    return extra_stream(seed, 4)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from reliability.acceptance.suggested_limits import minimum_machines
 from reliability.basics.errors import InputError
-from reliability.basics.streams import extra_stream
+from reliability.basics.streams import sensitivity_stream
 from studies.report import machine_sections
 from studies.report.acceptance_section import BUILT_MACHINES
 from studies.report.extras import (EXTRAS, TITLES, acceptance_builder, builders,
@@ -81,7 +81,7 @@ def run(args) -> int:
     if args.sensitivity:
         included.append("sensitivity")
         extra.append(guarded("sensitivity", lambda study: study_sensitivity_section(
-            study, machines=args.machines, rng=extra_stream(study.seed, 4))))
+            study, machines=args.machines, rng=sensitivity_stream(study.seed))))
     study = machine_study.run(machine, points=args.points, side=args.side, bounds=bounds,
                               seed=args.seed, repeats=args.repeats, samples=args.samples,
                               progress=options.say, bar=options.progress_bar,
