@@ -18,7 +18,7 @@ import numpy as np
 import pandas as pd
 
 from ..basics.errors import InputError
-from ..basics.files import SIGNIFICANT, write_csv
+from ..basics.files import write_csv
 
 #: The quantities a reading can be of: the six outputs in the workpiece frame, and a ballbar's.
 QUANTITIES = ("dx", "dy", "dz", "ex", "ey", "ez", "radial")
@@ -26,6 +26,8 @@ QUANTITIES = ("dx", "dy", "dz", "ex", "ey", "ez", "radial")
 CENTRE_COLUMNS = ("cx_mm", "cy_mm", "cz_mm")
 #: Columns every file has besides the pose columns.
 FIXED_COLUMNS = ("run", "quantity", "value", "u")
+#: Significant digits of the numbers a measurement file is written with.
+WRITTEN_DIGITS = 12
 
 
 @dataclass(frozen=True, eq=False)
@@ -83,7 +85,7 @@ def pose_columns(machine) -> tuple[str, ...]:
 def write_measurements(measurements, machine, path, overwrite: bool = False) -> Path:
     """Write ``measurements`` as a measurement file (atomically)."""
     return write_csv(measurements.to_frame(machine), path, overwrite=overwrite, index=False,
-                     float_format=f"%.{SIGNIFICANT + 4}g")
+                     float_format=f"%.{WRITTEN_DIGITS}g")
 
 
 def read_measurements(path, machine) -> Measurements:
