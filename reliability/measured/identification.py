@@ -192,9 +192,11 @@ def identify(machine, measurements: Measurements, *, tolerances=None, profile="c
 
 
 def reading_rows(machine, measurements, part) -> np.ndarray:
-    """``(n, n_errors)``: each reading's first-order sensitivity to every error."""
+    """``(n, n_errors)``: each reading's first-order sensitivity to every error (the
+    Jacobian formed once per distinct pose: a pose is often read for several quantities)."""
     poses = measurements.poses[part]
-    jac = machine.jacobian(poses, frame="workpiece")
+    distinct, where = np.unique(poses, axis=0, return_inverse=True)
+    jac = machine.jacobian(distinct, frame="workpiece")[where.ravel()]
     quantity = measurements.quantity[part]
     radial = quantity == "radial"
     index = np.array([QUANTITIES.index(q) if q != "radial" else 0 for q in quantity])
@@ -248,28 +250,25 @@ def _circle_plane(machine, measurements, rows, run) -> np.ndarray:
     return vectors[:2]
 
 
-def _setup_matrix(setups, part, count) -> np.ndarray:
-    block = np.zeros((part.stop - part.start, count))
-    rows = np.arange(block.shape[0])
-    np.add.at(block, (rows[:, None], setups.columns[part]), setups.coefficients[part])
-    return block
-
-
 def information_blocks(machine, measurements, setups, memory=None) -> dict:
-    """``AᵀWA, BᵀWA, BᵀWB, AᵀWy, BᵀWy``, accumulated over chunks of readings."""
+    """``AᵀWA, BᵀWA, BᵀWB, AᵀWy, BᵀWy``, accumulated over chunks of readings; ``B`` is
+    never formed: each reading touches at most two set-up columns, summed into place."""
     p, s = machine.n_errors, len(setups.names)
     out = {"AA": np.zeros((p, p)), "BA": np.zeros((s, p)), "BB": np.zeros((s, s)),
            "Ay": np.zeros(p), "By": np.zeros(s)}
-    for part in chunks(len(measurements), jacobian_bytes(machine) + 8 * s, memory):
+    for part in chunks(len(measurements), jacobian_bytes(machine), memory):
         weight = 1.0 / measurements.u[part]
         a = reading_rows(machine, measurements, part) * weight[:, None]
-        b = _setup_matrix(setups, part, s) * weight[:, None]
+        columns = setups.columns[part]
+        b = setups.coefficients[part] * weight[:, None]
         y = measurements.value[part] * weight
         out["AA"] += a.T @ a
-        out["BA"] += b.T @ a
-        out["BB"] += b.T @ b
         out["Ay"] += a.T @ y
-        out["By"] += b.T @ y
+        for k in range(columns.shape[1]):
+            np.add.at(out["BA"], columns[:, k], b[:, k, None] * a)
+            np.add.at(out["By"], columns[:, k], b[:, k] * y)
+            for j in range(columns.shape[1]):
+                np.add.at(out["BB"], (columns[:, k], columns[:, j]), b[:, k] * b[:, j])
     return out
 
 
