@@ -1,5 +1,6 @@
 """The machine as measured: measurement files, simulated readings and identification."""
 
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -180,3 +181,12 @@ def test_predict_and_sample_agree(mill):
 def test_identify_refuses_readings_not_read_from_a_file(mill):
     with pytest.raises(InputError, match="measurements"):
         reliability.identify(mill, {"value": [1.0]})
+
+
+def test_a_reading_the_model_cannot_explain_is_named(mill):
+    meas = simulate_measurements(mill, mill_plan(mill, circle=True), rng=3).measurements
+    value = meas.value.copy()
+    value[17] += 40 * meas.u[17]
+    result = reliability.identify(mill, replace(meas, value=value))
+    assert result.chi2_p_value < 1e-3
+    assert f"run {meas.run[17]!r}, row 18" in result.summary()
