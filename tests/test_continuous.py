@@ -305,11 +305,16 @@ def test_allocate_names_the_workspace(tmp_path, capsys):
     assert "workspace: grid — the targets hold at the 27 poses" in capsys.readouterr().out
     for extra, words in ((["--method", "gwo"], "--workspace grid"),
                          (["--workspace", "plane"], "plane")):
-        code = cli.main(["allocate", MILL, "--out", str(tmp_path / "b.csv"), *extra])
+        code = cli.main(["allocate", MILL, "--out", str(tmp_path / "b.csv"), "--drawing",
+                         str(tmp_path / "b_drawing.csv"), *extra])
         assert code == 2 and words in capsys.readouterr().err
     assert not (tmp_path / "b.csv").exists()
     assert cli.main(["allocate", MILL, "--out", str(tmp_path / "c.csv"), "--points", "3",
-                     "--workspace", "grid", "--frame", "workpiece"]) == 0
+                     "--workspace", "grid", "--frame", "workpiece"]) == 2
+    assert "or name this one with --drawing CSV" in capsys.readouterr().err
+    assert cli.main(["allocate", MILL, "--out", str(tmp_path / "c.csv"), "--points", "3",
+                     "--workspace", "grid", "--frame", "workpiece", "--drawing",
+                     str(tmp_path / "c_drawing.csv")]) == 0
 
 
 def test_report_summary_names_the_workspace(tmp_path, capsys):

@@ -146,7 +146,13 @@ def drawing_destination(args, out: Path) -> Path:
     """Where the drawing file goes (``--drawing``, else beside ``--out``), checked before
     any work: it must differ from ``--out``."""
     path = Path(args.drawing) if args.drawing is not None else out.parent / DRAWING_FILE
-    drawing = options.destination(path, args.overwrite, "--drawing")
+    try:
+        drawing = options.destination(path, args.overwrite, "--drawing")
+    except InputError as error:
+        if args.drawing is not None:
+            raise
+        raise InputError(f"{error} (the drawing file of an earlier allocation in this "
+                         f"folder?), or name this one with --drawing CSV") from None
     if drawing.resolve() == out.resolve():
         raise InputError(f"--drawing {drawing} is also --out; give the drawing file another "
                          f"name")
