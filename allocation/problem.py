@@ -213,10 +213,11 @@ class AllocationProblem:
         made of factors of the reference, else its extent and where it comes from."""
         free = ~self.locked
         low, high = self.lower[free] / self.reference[free], self.upper[free] / self.reference[free]
-        if low.size and np.ptp(low) <= 1e-12 * low.max() and np.ptp(high) <= 1e-12 * high.max():
-            return f"[{low[0]:.6g}, {high[0]:.6g}] × the initial allocation"
         where = {"machine file": "the machine file's [bounds]"}.get(self.bounds_source,
                                                                     "the given bounds")
+        if low.size and np.ptp(low) <= 1e-12 * low.max() and np.ptp(high) <= 1e-12 * high.max():
+            factors = f"[{low[0]:.6g}, {high[0]:.6g}] × the initial allocation"
+            return factors if self.bounds_source != "machine file" else f"{where} ({factors})"
         return (f"{where} (translations {_span(self.lower, self.upper, self.machine, False)} "
                 f"mm, rotations {_span(self.lower, self.upper, self.machine, True)} rad)")
 

@@ -107,3 +107,19 @@ def test_report_sensitivity_is_the_sensitivity_command(tmp_path):
     written = pd.read_csv(tmp_path / "s" / "yield_sensitivity.csv")
     shown = section.tables["yield_sensitivity.csv"].reset_index(drop=True)
     pd.testing.assert_frame_equal(written, shown, check_exact=False, rtol=1e-5)
+
+
+def test_a_bounds_table_is_named_even_when_it_equals_factors(tmp_path):
+    """A file's [bounds] table that happens to be 0.5–1.5 × a uniform initial allocation is
+    still named as the file's table, not as factors the user never gave."""
+    from allocation import AllocationProblem
+    from reliability import load_machine
+    from reliability.model.poses import workspace_grid
+
+    text = SWIVEL5.read_text().replace("translation = [0.0015, 0.012]",
+                                       "translation = [0.002, 0.006]")
+    path = tmp_path / "factors_as_table.toml"
+    path.write_text(text.replace("rotation = [8e-6, 6e-5]", "rotation = [1e-5, 3e-5]"))
+    machine = load_machine(path)
+    box = AllocationProblem.build(machine, workspace_grid(machine, 2)).box_text()
+    assert box == "the machine file's [bounds] ([0.5, 1.5] × the initial allocation)"
