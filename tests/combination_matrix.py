@@ -39,9 +39,9 @@ MACHINES = {
     "paper": (None, ROOT / "docs/examples/paper_catalogue.toml",
               ROOT / "docs/examples/paper_tests.toml"),
     "swivel5": (ROOT / "tests/machines/swivel5.toml", ROOT / "tests/catalogues/swivel5.toml",
-                ROOT / "tests/machines/swivel5_tests.toml"),
+                ROOT / "tests/acceptance_tests/swivel5.toml"),
     "mill3": (ROOT / "tests/machines/mill3.toml", ROOT / "tests/catalogues/mill3.toml",
-              ROOT / "tests/machines/mill3_tests.toml"),
+              ROOT / "tests/acceptance_tests/mill3.toml"),
 }
 FRAMES = ("tool", "workpiece")
 BOXES = ("factors", "table")
