@@ -194,7 +194,7 @@ def check_continuous(machine, side: str = "two_sided") -> None:
     ------
     InputError
         Naming the workspace and suggesting the grid: outputs in the workpiece frame,
-        correlated errors.
+        correlated errors, a work zone.
     """
     why = None
     if machine.frame != "tool":
@@ -202,6 +202,9 @@ def check_continuous(machine, side: str = "two_sided") -> None:
                f"its outputs in the {machine.frame!r} frame")
     elif getattr(machine, "correlation", None) is not None:
         why = "the certificate bounds σ of independent errors and this machine's are correlated"
+    elif getattr(machine, "work_zone", None) is not None:
+        why = ("the certificate bounds σ over the whole stroke box and this machine's "
+               "workspace is its work zone")
     if why is not None:
         raise InputError(f"workspace 'continuous' is not available: {why}; use workspace "
                          f"'grid' (--workspace grid) for the allocation on the grid poses")
