@@ -73,7 +73,9 @@ def extra_stream(seed: int, index: int) -> np.random.Generator:
     The extra streams in use: 0, the system-reliability section of a report and
     ``precrel verify --precision``; 1, the rare-event section and ``precrel verify --rare``;
     2, the acceptance-test section (``precrel report --tests``); 3, the Monte-Carlo of
-    the component-choice section (``precrel report --catalogue``).
+    the component-choice section (``precrel report --catalogue``); 4, the sensitivity
+    section (``precrel report --sensitivity``); 5, the work-zone section of a machine with
+    a work zone.
     """
     seed = _seed(seed)
     return np.random.default_rng(np.random.SeedSequence([seed, EXTRA_FAMILY],

@@ -10,7 +10,9 @@ from studies.report.catalogue_section import catalogue_section
 from studies.report.extras import EXTRAS, allocations, builders
 from studies.report.sensitivity_section import study_sensitivity_section
 from studies.report.writer import REPORT_MARKERS, write_report
+from studies.report.zone_section import zone_section
 from studies.workflows import machine_study
+from studies.workflows.zone_comparison import zone_comparison
 
 from . import options
 
@@ -72,6 +74,10 @@ def run(args) -> int:
         choice = solve_catalogue(study.problem, catalogue)
         extra.append(lambda _: catalogue_section(choice, samples=args.samples,
                                                  rng=extra_stream(args.seed, 3)))
+    if machine.work_zone is not None:
+        extra.append(lambda study: zone_section(zone_comparison(
+            machine, points=args.points, side=args.side, bounds=bounds,
+            machines=args.machines, rng=extra_stream(args.seed, 5))))
     if args.sensitivity:
         extra.append(lambda study: study_sensitivity_section(
             study, machines=args.machines, rng=extra_stream(study.seed, 4)))
