@@ -20,6 +20,9 @@ from reliability.model.poses import full_grid, random_poses, workspace_grid
 from reliability.model.work_zone import WorkZone, inside_zone, tool_points, tool_tilts
 from reliability.sampling.grid_experiment import GridExperiment
 from reliability.sampling.machine_yield import YieldModel
+from studies import cli
+from studies.report.zone_section import zone_section
+from studies.workflows.zone_comparison import zone_comparison
 
 SWIVEL = Path(__file__).parent / "machines" / "swivel5.toml"
 CYLINDER = {"shape": "cylinder", "centre": [0.0, 0.0], "radius": 250.0, "z": [0.0, 300.0],
@@ -197,3 +200,30 @@ def test_random_poses_lie_in_the_zone(zoned):
 
 def test_without_zone_is_the_machine_as_before(zoned, swivel):
     assert replace(zoned, work_zone=None) == swivel
+
+
+# ----- what the commands and the report say ---------------------------------------------
+def test_predict_states_the_grid_poses_in_the_zone(tmp_path, capsys, zoned, swivel):
+    for machine, words in ((zoned, "5-point grid, 105 of its 3 125 poses inside the work "
+                                   "zone cylinder about (0, 0) mm, radius 250 mm"),
+                           (swivel, "5-point grid (3 125 poses; no work zone: every pose "
+                                    "of the strokes)")):
+        path = tmp_path / "machine.toml"
+        path.write_text(machine.to_toml())
+        assert cli.main(["predict", str(path)]) == 0
+        assert words in capsys.readouterr().out
+
+
+def test_zone_section_compares_the_zone_with_the_strokes(zoned):
+    """On the 3-point grid only C at Z = 0, B = 0, X = Y = 0 is inside (3 table angles)."""
+    comparison = zone_comparison(zoned, points=3, machines=40, rng=1)
+    section = zone_section(comparison)
+    assert section.summary["zone_grid_poses"] == 3 and section.summary["grid_poses"] == 243
+    assert "**3 of the 243 poses**" in section.text
+    costs = comparison.allocations["cost"]
+    assert costs["optimum for the zone"] <= costs["optimum for the strokes"] * (1 + 1e-9)
+    worst = comparison.worst.loc["zone"]
+    assert inside_zone(zoned, worst[list(zoned.axes)].to_numpy(dtype=float)).all()
+    assert np.allclose(worst[["x", "y", "z"]].to_numpy(dtype=float), [0.0, 0.0, 200.0],
+                       atol=1e-9)
+    assert set(section.figures) == {"zone.png"}
