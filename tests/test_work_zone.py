@@ -14,6 +14,7 @@ import reliability
 from allocation import AllocationProblem
 from reliability.basics.errors import InputError, MachineDescriptionError
 from reliability.first_order.fosm import fosm
+from reliability.first_order.zone_enclosure import ZoneEnclosure
 from reliability.model.machine import machine_from_dict, machine_from_toml
 from reliability.model.machine_checks import describe, likely_mistakes
 from reliability.model.poses import full_grid, random_poses, workspace_grid
@@ -227,3 +228,32 @@ def test_zone_section_compares_the_zone_with_the_strokes(zoned):
     assert np.allclose(worst[["x", "y", "z"]].to_numpy(dtype=float), [0.0, 0.0, 200.0],
                        atol=1e-9)
     assert set(section.figures) == {"zone.png"}
+
+
+# ----- boxes of poses against the zone (for the certificate) ---------------------------
+def test_enclosure_holds_every_tool_point_and_proves_outside_only_empty_boxes(zoned):
+    """Random boxes of swivel5's strokes: 300 poses drawn in each lie inside the enclosure
+    of (x, y, z, cos tilt), and no box proved outside holds a pose of the zone."""
+    enclosure = ZoneEnclosure(zoned)
+    rng = np.random.default_rng(7)
+    low = np.array([a.stroke[0] for a in zoned.axis_specs])
+    span = np.array([a.stroke[1] for a in zoned.axis_specs]) - low
+    corner = low + span * rng.random((60, 5)) * 0.8
+    width = span * rng.random((60, 5)) * 0.2
+    lo, hi = enclosure.ranges(corner, corner + width)
+    outside = enclosure.outside(corner, corner + width)
+    assert 0 < outside.sum() < len(outside)
+    for b in range(len(corner)):
+        poses = corner[b] + width[b] * rng.random((300, 5))
+        points, tilts = tool_points(zoned, poses), tool_tilts(zoned, poses)
+        values = np.column_stack([points, np.cos(tilts)])
+        assert np.all((values >= lo[b] - 1e-9) & (values <= hi[b] + 1e-9))
+        assert not (outside[b] and inside_zone(zoned, poses).any())
+
+
+def test_enclosure_keeps_a_box_around_a_pose_of_the_zone(zoned):
+    pose = np.array([0.3, 0.0, 0.0, 0.0, 0.0])  # tool point (0, 0, 200), tilt 0
+    half = np.array([0.01, 1.0, 1.0, 1.0, 0.01])
+    assert not ZoneEnclosure(zoned).outside(pose - half, pose + half)[0]
+    far = np.array([0.3, 0.0, 0.0, 450.0, 0.0])  # tool point 650 mm up
+    assert ZoneEnclosure(zoned).outside(far - half, far + half)[0]
