@@ -193,14 +193,10 @@ def check_continuous(machine, side: str = "two_sided") -> None:
     Raises
     ------
     InputError
-        Naming the workspace and suggesting the grid: outputs in the workpiece frame,
-        correlated errors, a work zone.
+        Naming the workspace and suggesting the grid: correlated errors, a work zone.
     """
     why = None
-    if machine.frame != "tool":
-        why = (f"the certificate encloses the tool-frame chain (Eq. 18) and this study reads "
-               f"its outputs in the {machine.frame!r} frame")
-    elif getattr(machine, "correlation", None) is not None:
+    if getattr(machine, "correlation", None) is not None:
         why = "the certificate bounds σ of independent errors and this machine's are correlated"
     elif getattr(machine, "work_zone", None) is not None:
         why = ("the certificate bounds σ over the whole stroke box and this machine's "

@@ -48,6 +48,7 @@ from scipy import sparse
 from scipy.optimize import minimize, nnls
 from threadpoolctl import threadpool_limits
 
+from reliability.basics.display import axis_units, pose_text
 from reliability.basics.errors import InputError
 from reliability.model.correlation import check_correlation_matrix
 from reliability.model.iso_names import iso_names
@@ -170,8 +171,9 @@ def solve_correlated(machine, poses=None, *, correlation=None, side: str = "two_
     load = rows.load(t)
     if load.max(initial=0.0) > 1.0 + ROW_ADD_TOLERANCE:
         raise InputError(f"targets cannot be met inside the bounds with this correlation: "
-                         f"{OUTPUTS[rows.output[np.argmax(load)]]} at pose "
-                         f"{rows.pose[np.argmax(load)]} has load {load.max():.6g} > 1")
+                         f"{OUTPUTS[rows.output[np.argmax(load)]]} at "
+                         f"{_pose_at(problem, rows.pose[np.argmax(load)])} has load "
+                         f"{load.max():.6g} > 1")
     active = np.flatnonzero(load >= 1.0 - ACTIVE_TOLERANCE)
     lam = _multipliers(w, rows, t, lo, hi, active)
     fun = float(np.sum(w / t ** 2))  # Eq. (28)
@@ -388,3 +390,9 @@ def _read_only(array):
     array = np.array(array, dtype=float)
     array.setflags(write=False)
     return array
+
+
+def _pose_at(problem, index: int) -> str:
+    """Grid pose ``index`` of ``problem`` by its axis positions."""
+    machine = problem.machine
+    return pose_text(problem.poses[index], machine.axes, axis_units(machine), digits=6)

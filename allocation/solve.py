@@ -83,8 +83,8 @@ def _unreachable_worst(problem, rows=(), loads=()) -> TargetUnreachableError:
     positions = pose_text(first[list(machine.axes)].to_numpy(dtype=float), machine.axes,
                           axis_units(machine), digits=6)
     unit = OUTPUT_UNITS[OUTPUTS.index(first["output"])]
-    message = (f"{what} unreachable inside the bounds: {first['output']} at pose "
-               f"{int(first['pose'])} ({positions}) {verb} {first[need]:.4g} {unit} "
+    message = (f"{what} unreachable inside the bounds: {first['output']} at "
+               f"{positions} {verb} {first[need]:.4g} {unit} "
                f"but the tightest allowed tolerances give {first[have]:.4g} {unit}; "
                f"{len(frame)} (output, pose) pair(s) blocked in all")
     return TargetUnreachableError(message, frame, rows, loads)

@@ -504,10 +504,11 @@ def test_report_with_tests_adds_the_section(tmp_path, capsys):
                      'limit = 0.004\n')
     code = cli.main(["report", str(MACHINES / "mill3.toml"), "--out", str(tmp_path / "r"),
                      "--tests", str(tests), "--skip", "front", "system", "rare", "profiles",
-                     "--repeats", "2", "--samples", "500", "--points", "3"])
+                     "--repeats", "2", "--samples", "500", "--points", "3", "--suggest", "0.95"])
     capsys.readouterr()
     assert code == 0
     assert "## Acceptance tests" in (tmp_path / "r" / "report.md").read_text()
+    assert "suggested_limit" in (tmp_path / "r" / "acceptance_optimum.csv").read_text()
     for name in ("acceptance.png", "acceptance_initial.csv", "acceptance_optimum.csv"):
         assert (tmp_path / "r" / name).exists()
     tests.write_text(tests.read_text().replace("radius = 100.0", "radius = 500.0"))

@@ -5,11 +5,14 @@ against random poses, grids and closed forms, the stack reading, bad input."""
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
+from pathlib import Path
 
 import numpy as np
 import pytest
 
+import reliability
 from reliability import OUTPUTS
 from reliability.basics.errors import InputError
 from reliability.first_order.certificate import _SigmaModel, _StackModel, certified_worst
@@ -49,6 +52,13 @@ def trunnion_table(trunnion5):
     return certified_worst(trunnion5, trunnion5.initial_allocation, rtol=RTOL)
 
 
+@pytest.fixture(scope="module")
+def swivel5():
+    """C table and B swivel head: the tool frame turns with both, so the frames differ."""
+    path = Path(__file__).parent / "machines" / "swivel5.toml"
+    return dataclasses.replace(reliability.load_machine(path), frame="workpiece")
+
+
 # ----- the expansion -----------------------------------------------------------------------
 @pytest.mark.parametrize("name", ["hobbing", "trunnion5", "mill3"])
 def test_expansions_equal_the_chain_at_random_poses(name, request):
@@ -64,6 +74,28 @@ def test_expansions_equal_the_chain_at_random_poses(name, request):
     weighted = jacobian_expansion(machine, t)
     direct = jacobian(machine, poses) * t
     scale = np.abs(direct).max(axis=(0, 2))  # per output
+    error = np.abs(weighted.values(weighted.local(poses)) - direct).max(axis=(0, 2))
+    assert np.all(error <= 1e-10 * scale)
+
+
+@pytest.mark.parametrize("name", ["trunnion5", "swivel5"])
+def test_workpiece_frame_expansions_equal_the_chain(name, request):
+    """In the workpiece frame a link's error is R_0k (ε × p + δ), R_0k ε with R_0k of the
+    axes before it and p of those after it, so the degrees per axis are kept: both
+    expansions agree with the rotated chain at 300 random poses to 1e-10 relative, and
+    they differ from the tool frame's."""
+    machine = dataclasses.replace(request.getfixturevalue(name), frame="workpiece")
+    t = perturbed(machine, 21)
+    variance = np.square(t / 3)
+    poses = random_poses(machine, 300, 22)
+    sigma_sq = variance_expansion(machine, variance, "workpiece")
+    direct = output_variance(machine, poses, variance, "workpiece")
+    np.testing.assert_allclose(sigma_sq.values(sigma_sq.local(poses)), direct, rtol=1e-10)
+    tool = output_variance(machine, poses, variance, "tool")
+    assert np.abs(direct - tool).max() > 0.01 * np.abs(tool).max()
+    weighted = jacobian_expansion(machine, t, "workpiece")
+    direct = jacobian(machine, poses, "workpiece") * t
+    scale = np.abs(direct).max(axis=(0, 2))
     error = np.abs(weighted.values(weighted.local(poses)) - direct).max(axis=(0, 2))
     assert np.all(error <= 1e-10 * scale)
 
@@ -222,6 +254,40 @@ def test_agrees_with_dense_grid_and_local_search(trunnion5, trunnion_table):
     assert np.all(trunnion_table["sigma"].to_numpy() >= found / (1 + RTOL))
 
 
+def test_workpiece_frame_certificate_against_a_dense_search(swivel5):
+    """Workpiece frame of a C-table, B-head machine: the best of a 7-point grid and a
+    local search from its worst poses, and σ at 20 000 random poses (computations on the
+    rotated chain, independent of the expansion), stay below the certified bound, and the
+    certified σ is within the stated gap (≤ rtol) of the search's best."""
+    t = perturbed(swivel5, 23)
+    table = certified_worst(swivel5, t, rtol=RTOL)
+    assert table["certified"].all() and np.all(table["gap"] <= RTOL)
+    bound, sigma = table["sigma_bound"].to_numpy(), table["sigma"].to_numpy()
+    searched = continuous_worst(swivel5, t, workspace_grid(swivel5, 7))
+    found = swivel5.limits / searched["beta"].to_numpy()
+    assert np.all(found <= bound * (1 + 1e-9))
+    assert np.all(sigma * (1 + table["gap"].to_numpy()) >= found * (1 - 1e-9))
+    variance = np.square(t / 3)
+    poses = random_poses(swivel5, 20_000, 24)
+    assert np.all(np.sqrt(output_variance(swivel5, poses, variance, "workpiece")).max(axis=0)
+                  <= bound)
+    at_pose = output_variance(swivel5, table[list(swivel5.axes)].to_numpy(), variance,
+                              "workpiece")
+    np.testing.assert_allclose(np.sqrt(at_pose[np.arange(6), np.arange(6)]), sigma,
+                               rtol=1e-12)
+
+
+def test_workpiece_frame_stack_bounds_random_poses(swivel5):
+    """The worst-case stack in the workpiece frame: certified, below its bound at 20 000
+    random poses of the rotated chain."""
+    t = perturbed(swivel5, 25)
+    table = certified_worst(swivel5, t, reading="stack", rtol=RTOL)
+    assert table["certified"].all()
+    poses = random_poses(swivel5, 20_000, 26)
+    values = np.abs(jacobian(swivel5, poses, "workpiece")) @ t
+    assert np.all(values.max(axis=0) <= table["stack_bound"].to_numpy())
+
+
 @pytest.mark.parametrize("reading", ["sigma", "stack"])
 def test_all_linear_machine_against_its_corners(mill3, reading):
     """On an all-linear machine every J_oi is affine in each position, so σ² and the stack
@@ -315,8 +381,6 @@ def test_verify_samples_at_the_certified_worst_poses(trunnion5, trunnion_table):
 
 
 def test_cli_certify(capsys):
-    from pathlib import Path
-
     from studies import cli
 
     mill = str(Path(__file__).parent / "machines" / "mill3.toml")
@@ -324,3 +388,12 @@ def test_cli_certify(capsys):
     out = capsys.readouterr().out
     assert "certified to 0.001 in sigma" in out and "sigma bound" in out
     assert cli.main(["predict", mill, "--certify", "--rtol", "2"]) == 2
+
+
+def test_cli_certify_in_the_workpiece_frame(capsys):
+    from studies import cli
+
+    swivel = str(Path(__file__).parent / "machines" / "swivel5.toml")
+    assert cli.main(["predict", swivel, "--points", "3", "--certify"]) == 0
+    out = capsys.readouterr().out
+    assert "outputs in the workpiece frame" in out and "certified to 0.001 in sigma" in out

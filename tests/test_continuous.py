@@ -6,7 +6,6 @@ line and the study's summary."""
 
 from __future__ import annotations
 
-import dataclasses
 import json
 from pathlib import Path
 
@@ -264,8 +263,8 @@ def test_mean_reading_refused(hobbing):
 
 
 def test_searched_only_refusals_and_the_workpiece_frame(mill3):
-    """Searched only needs the search (σ readings, ``search=True``); it does not need the
-    certificate's tool frame, so a workpiece-frame study runs searched only."""
+    """Searched only needs the search (σ readings, ``search=True``); a workpiece-frame
+    study runs searched only and certified."""
     stack = AllocationProblem.build(mill3, workspace_grid(mill3, 2), side="stack")
     with pytest.raises(InputError, match="stack reading"):
         solve_continuous(stack, certify=False)
@@ -276,8 +275,7 @@ def test_searched_only_refusals_and_the_workpiece_frame(mill3):
         solve_continuous(problem, certify=False, rtol=-1e-3)
     workpiece = AllocationProblem.build(mill3, interior_poses(mill3), bounds=BOX,
                                         frame="workpiece")
-    with pytest.raises(InputError, match="'workpiece' frame"):
-        solve_continuous(workpiece)
+    assert solve_continuous(workpiece).certified
     result, added = solve_over_workspace(workpiece)
     assert len(added) > 0
     assert workpiece.with_poses(added).meets_targets(result.tolerances)
@@ -285,8 +283,6 @@ def test_searched_only_refusals_and_the_workpiece_frame(mill3):
 
 # ----- refusals ---------------------------------------------------------------------------
 def test_refusals_name_the_workspace(mill3):
-    with pytest.raises(InputError, match="'workpiece' frame.*--workspace grid"):
-        check_continuous(dataclasses.replace(mill3, frame="workpiece"))
     with pytest.raises(InputError, match="correlated.*--workspace grid"):
         check_continuous(mill3.with_correlation({("X.dx", "Y.dx"): 0.5}))
     mean = AllocationProblem.build(mill3, workspace_grid(mill3, 2), workspace="mean")
@@ -307,8 +303,7 @@ def test_allocate_names_the_workspace(tmp_path, capsys):
     assert cli.main(["allocate", MILL, "--out", str(out), "--points", "3", "--overwrite",
                      "--workspace", "grid", "--rtol", "0.01"]) == 0
     assert "workspace: grid — the targets hold at the 27 poses" in capsys.readouterr().out
-    for extra, words in ((["--frame", "workpiece"], "--workspace grid"),
-                         (["--method", "gwo"], "--workspace grid"),
+    for extra, words in ((["--method", "gwo"], "--workspace grid"),
                          (["--workspace", "plane"], "plane")):
         code = cli.main(["allocate", MILL, "--out", str(tmp_path / "b.csv"), *extra])
         assert code == 2 and words in capsys.readouterr().err

@@ -1,6 +1,7 @@
 """One answer per question across commands: where the worst poses are sampled, refusals
 before any work, and advice that fits the box the study uses."""
 
+import re
 from pathlib import Path
 
 import pandas as pd
@@ -85,6 +86,7 @@ def test_unreachable_advice_names_the_files_bounds_table(tmp_path, capsys):
                  "--out", str(tmp_path / "a.csv")])
     err = capsys.readouterr().err
     assert code == 2 and "[bounds] table" in err and "would replace it" in err
+    assert re.search(r"pose \d", err) is None and re.search(r"at C=-?[\d.]+ deg, Y=", err)
     code = main(["allocate", str(strict), "--workspace", "grid", "--points", "3",
                  "--bounds", "0.5", "1.5", "--out", str(tmp_path / "b.csv")])
     assert code == 2 and "a wider box (--bounds LO HI" in capsys.readouterr().err

@@ -2,7 +2,6 @@
 refusal to overwrite, paper regressions."""
 
 import numpy as np
-import pandas as pd
 import pytest
 
 from studies.paper import reproduce as rp

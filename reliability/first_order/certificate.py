@@ -67,6 +67,8 @@ CLOSING_MARGIN = 1e-9
 START_POINTS = {"sigma": 5, "stack": 3}
 #: Local searches (σ reading) from the best points of that grid.
 START_SEARCHES = 3
+#: Fraction of a stroke's span within which a reported position is put on the stroke's end.
+END_SNAP = 1e-12
 
 
 def certified_worst(machine, tolerances, *, rtol: float = 1e-3, k: float = 3.0,
@@ -79,8 +81,8 @@ def certified_worst(machine, tolerances, *, rtol: float = 1e-3, k: float = 3.0,
     Parameters
     ----------
     machine : Machine
-        With independent errors (``machine.correlation`` None), outputs in the tool
-        frame (``machine.frame``; the expansion is of the tool-frame chain).
+        With independent errors (``machine.correlation`` None); the outputs are read in
+        ``machine.frame`` (tool, Eq. 18, or workpiece).
     tolerances : array_like
         ``(n_errors,)`` allocation, read as ±kσ.
     rtol : float
@@ -114,8 +116,7 @@ def certified_worst(machine, tolerances, *, rtol: float = 1e-3, k: float = 3.0,
     ------
     InputError
         For a bad ``rtol``, ``k``, ``distribution``, ``reading``, ``max_calls`` or
-        allocation, correlated errors, a
-        frame other than the tool's, or a machine whose chain fails the expansion check
+        allocation, correlated errors, or a machine whose chain fails the expansion check
         (:mod:`reliability.first_order.pose_expansion`).
     """
     rtol = checks.finite_float(rtol, "rtol", 0.0, 1.0, low_open=True, high_open=True)
@@ -124,10 +125,6 @@ def certified_worst(machine, tolerances, *, rtol: float = 1e-3, k: float = 3.0,
     if machine.correlation is not None:
         raise InputError("machine: certified_worst bounds σ² = Σ J² σ² of independent "
                          "errors; this machine's errors are correlated")
-    if machine.frame != "tool":
-        raise InputError(f"machine: certified_worst expands the tool-frame chain (Eq. 18); "
-                         f"this study reads its outputs in the {machine.frame!r} frame "
-                         f"(use frame='tool' or the grid and the continuous search)")
     t = machine.check_tolerances(tolerances)
     if t.ndim != 1:
         raise InputError(f"tolerances must be one allocation of shape ({machine.n_errors},)")
@@ -137,17 +134,17 @@ def certified_worst(machine, tolerances, *, rtol: float = 1e-3, k: float = 3.0,
     started = time.perf_counter()
     if reading == "sigma":
         variance = np.square(error_sigma(t, k, distribution))
-        expansion = variance_expansion(machine, variance)
+        expansion = variance_expansion(machine, variance, machine.frame)
         models = [_SigmaModel(expansion.restricted(o)) for o in range(len(OUTPUTS))]
 
         def direct(q, o):
-            return np.sqrt(output_variance(machine, q, variance, "tool")[:, o])
+            return np.sqrt(output_variance(machine, q, variance, machine.frame)[:, o])
     else:
-        expansion = jacobian_expansion(machine, t)
+        expansion = jacobian_expansion(machine, t, machine.frame)
         models = [_StackModel(expansion.restricted(o)) for o in range(len(OUTPUTS))]
 
         def direct(q, o):
-            return np.abs(jacobian(machine, q, "tool")[:, o, :]) @ t
+            return np.abs(jacobian(machine, q, machine.frame)[:, o, :]) @ t
     shared = (time.perf_counter() - started) / len(OUTPUTS)  # the expansion, per output
     rows = [_certify(machine, models[o], lambda q, o=o: direct(q, o), rtol, max_calls,
                      memory, reading, shared) for o in range(len(OUTPUTS))]
@@ -164,6 +161,7 @@ def _certify(machine, model, direct, rtol, max_calls, memory, reading, shared) -
     low, high = model.local_strokes(machine)
     tied, bound, calls = branch_and_bound(model, low, high, rtol, max_calls, memory)
     tied[:, model.fixed] = low[model.fixed]  # axes the spread does not depend on
+    tied = _onto_ends(tied, low, high)
     poses = model.expansion.pose(np.unique(tied, axis=0))
     values = direct(poses)
     choice = worst_rows(values, poses)
@@ -174,6 +172,15 @@ def _certify(machine, model, direct, rtol, max_calls, memory, reading, shared) -
                 "certified": bool(bound <= value * (1 + rtol)), "calls": int(calls),
                 "seconds": time.perf_counter() - started})
     return row
+
+
+def _onto_ends(points, low, high):
+    """Points within :data:`END_SNAP` of the span from a stroke's end put on the end, so
+    that a worst pose at the end of a stroke reads as that end rather than as a rounding
+    residue of a local search."""
+    near = END_SNAP * (high - low)
+    points = np.where(points - low <= near, low, points)
+    return np.where(high - points <= near, high, points)
 
 
 def branch_and_bound(model, low, high, rtol, max_calls, memory=None):
@@ -205,7 +212,8 @@ def branch_and_bound(model, low, high, rtol, max_calls, memory=None):
     closed_bound = -np.inf
     calls = 0
     while len(box_low) and calls < max_calls:
-        bound, contribution, points, values = _evaluate(model, box_low, box_high, memory)
+        bound, contribution, points, values, slope = _evaluate(model, box_low, box_high,
+                                                               memory)
         calls += len(box_low)
         top = values.max()
         if top > best * (1 + TIE_RTOL):
@@ -217,7 +225,8 @@ def branch_and_bound(model, low, high, rtol, max_calls, memory=None):
         if done.any():
             closed_bound = max(closed_bound, bound[done].max())
         keep = ~done
-        box_low, box_high = _halve(box_low[keep], box_high[keep], contribution[keep])
+        box_low, box_high = _narrow(box_low[keep], box_high[keep], contribution[keep],
+                                    slope[keep])
     if len(box_low):  # stopped by max_calls: the open boxes still count
         closed_bound = max(closed_bound, _evaluate(model, box_low, box_high, memory)[0].max())
         calls += len(box_low)
@@ -234,6 +243,17 @@ def _evaluate(model, low, high, memory):
     parts = [model.boxes(low[part], high[part])
              for part in chunks(len(low), model.bytes_per_box, memory)]
     return tuple(np.concatenate(items) for items in zip(*parts))
+
+
+def _narrow(low, high, contribution, slope):
+    """Each box monotone along some axes replaced by its face where the function is
+    largest (the maximum over the box is on it); the others halved (:func:`_halve`)."""
+    monotone = (slope != 0).any(axis=1)
+    face_low = np.where(slope > 0, high, low)[monotone]
+    face_high = np.where(slope < 0, low, high)[monotone]
+    halved_low, halved_high = _halve(low[~monotone], high[~monotone],
+                                     contribution[~monotone])
+    return np.vstack([face_low, halved_low]), np.vstack([face_high, halved_high])
 
 
 def _halve(low, high, contribution):
@@ -328,28 +348,66 @@ class _SigmaModel(_Model):
                          for x in starts])
 
     def boxes(self, low, high):
-        """Bound, contributions, candidate points and their values for boxes."""
+        """Bound, contributions, candidate points, their values and slopes for boxes:
+        the tighter of the second-order Taylor bound and the first-order mean-value
+        bound on the gradient's enclosure, per box."""
         e = self.expansion
         centre, half = (low + high) / 2, (high - low) / 2
-        n = e.n_axes
         point = point_tree(e, centre, 1)
         value = point[()]
-        gradient = np.stack([point[(a,)] for a in range(n)], axis=1)
-        hessian = interval_tree(e, low, high, 2)
-        quadratic = np.zeros((len(low), n, n))
-        for (a, b), (mid, rad) in hessian.items():
-            if a == b:
-                quadratic[:, a, a] = np.maximum(mid + rad, 0.0)  # d_a² ≥ 0
-            else:
-                quadratic[:, a, b] = quadratic[:, b, a] = np.abs(mid) + rad
-        contribution = half * np.abs(gradient) + 0.5 * half * np.einsum(
-            "bac,bc->ba", quadratic, half)
+        gradient = np.stack([point[(a,)] for a in range(e.n_axes)], axis=1)
+        second, step = self._second_order(low, high, gradient)
+        slope_mid, slope_rad = _stacked(interval_tree(e, low, high, 1), e.n_axes)
+        first = half * (np.abs(slope_mid) + slope_rad)
+        use_first = first.sum(axis=1) < second.sum(axis=1)
+        contribution = np.where(use_first[:, None], first, second)
         bound = value + contribution.sum(axis=1) + e.margin
-        vertex = np.clip(centre + half * np.sign(gradient), low, high)
+        vertex = _stepped(low, high, step, np.sign(gradient))
         vertex_value = e.values(vertex)
         better = vertex_value > value
         points = np.where(better[:, None], vertex, centre)
-        return bound, contribution, points, np.where(better, vertex_value, value)
+        away = (np.abs(slope_mid) > slope_rad + e.margin) & (high > low)
+        return (bound, contribution, points, np.where(better, vertex_value, value),
+                np.where(away, np.sign(slope_mid), 0.0))
+
+    def _second_order(self, low, high, gradient):
+        """Each axis' share of the second-order Taylor bound's rise above the centre
+        value, and the step towards the largest value of its quadratic model."""
+        n = self.expansion.n_axes
+        half = (high - low) / 2
+        curvature = np.zeros((len(low), n))
+        cross = np.zeros((len(low), n, n))
+        for (a, b), (mid, rad) in interval_tree(self.expansion, low, high, 2).items():
+            if a == b:
+                curvature[:, a] = mid + rad
+            else:
+                cross[:, a, b] = cross[:, b, a] = np.abs(mid) + rad
+        step = _rising_step(np.abs(gradient), curvature, half)
+        return (np.abs(gradient) * step + 0.5 * curvature * step ** 2
+                + 0.5 * half * np.einsum("bac,bc->ba", cross, half)), step
+
+
+def _stepped(low, high, step, direction):
+    """The centre of each box moved by ``step`` along ``direction`` per axis, exactly on
+    the box's face where the step reaches it."""
+    centre, half = (low + high) / 2, (high - low) / 2
+    face = np.where(direction > 0, high, low)
+    return np.where((step >= half) & (direction != 0), face,
+                    np.clip(centre + step * direction, low, high))
+
+
+def _stacked(tree, n_axes):
+    """The first derivatives of an interval tree as ``(mid, rad)``, each ``(b, n_axes)``."""
+    return (np.stack([tree[(a,)][0] for a in range(n_axes)], axis=1),
+            np.stack([tree[(a,)][1] for a in range(n_axes)], axis=1))
+
+
+def _rising_step(slope, curvature, half):
+    """The step ``0 ≤ d ≤ h`` that maximises ``slope·d + ½ curvature·d²``: ``h`` unless
+    the curvature is negative and the maximum of the parabola lies inside."""
+    concave = curvature < 0
+    inside = np.divide(slope, -curvature, out=np.array(half, dtype=float), where=concave)
+    return np.where(concave, np.minimum(half, inside), half)
 
 
 class _StackModel(_Model):
@@ -403,7 +461,8 @@ class _StackModel(_Model):
         centre_value = np.abs(value).sum(axis=-1)
         better = vertex_value > centre_value
         points = np.where(better[:, None], vertex, centre)
-        return bound, contribution, points, np.where(better, vertex_value, centre_value)
+        return (bound, contribution, points, np.where(better, vertex_value, centre_value),
+                np.zeros_like(half))
 
 
 def curvature_bound(expansion) -> np.ndarray:

@@ -2,7 +2,8 @@
 
 For a serial chain every Jacobian entry ``J_oi(q)`` is, in each axis separately, of
 degree 1 in ``(1, u_a)`` for a linear axis and in ``(1, cos θ_a, sin θ_a)`` for a rotary
-one (docs/certified-workspace.md, "The expansion"), so
+one, with the outputs read in the tool frame (Eq. 18) or in the workpiece frame
+(docs/certified-workspace.md, "The expansion"), so
 
     J_oi(q) = Σ_k C_k,oi Π_a φ_{a,k_a}(q_a)                      (degree 1)
     σ_o²(q) = Σ_i σ_i² J_oi(q)² = Σ_k S_k,o Π_a φ_{a,k_a}(q_a)   (degree 2, Eq. 20)
@@ -379,24 +380,25 @@ def _check(expansion, evaluate, low, high, what, pooled) -> None:
             f"chain whose Jacobian is of degree 1 in each axis (docs/certified-workspace.md)")
 
 
-def variance_expansion(machine, variance) -> PoseExpansion:
+def variance_expansion(machine, variance, frame: str = "tool") -> PoseExpansion:
     """σ_o² (Eq. 20) of all six outputs, per-axis degree 2, values ``(6,)``.
 
     Parameters
     ----------
     machine : Machine
-        Outputs in the tool frame (Eq. 18).
     variance : ndarray (n_errors,)
         Error variances σ_i² (independent errors).
+    frame : {'tool', 'workpiece'}
+        The frame the outputs are read in (Eq. 18, or rotated into the workpiece's axes).
     """
-    return fit_expansion(machine, lambda q: output_variance(machine, q, variance, "tool"),
-                         2, "sigma^2")
+    return fit_expansion(machine, lambda q: output_variance(machine, q, variance, frame),
+                         2, f"sigma^2 ({frame} frame)")
 
 
-def jacobian_expansion(machine, weights) -> PoseExpansion:
-    """The tool-frame Jacobian (Eq. 18's first-order sensitivities) times a weight per
+def jacobian_expansion(machine, weights, frame: str = "tool") -> PoseExpansion:
+    """The Jacobian (Eq. 18's first-order sensitivities, in ``frame``) times a weight per
     error, ``J_oi w_i`` (e.g. ``w = t`` for the worst-case stack ``Σ_i |J_oi| t_i``),
     per-axis degree 1, values ``(6, n_errors)``; sizes pooled per output."""
     weights = np.asarray(weights, dtype=float)
-    return fit_expansion(machine, lambda q: jacobian(machine, q, "tool") * weights, 1,
-                         "the Jacobian", pooled=1)
+    return fit_expansion(machine, lambda q: jacobian(machine, q, frame) * weights, 1,
+                         f"the Jacobian ({frame} frame)", pooled=1)

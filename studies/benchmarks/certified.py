@@ -1,10 +1,13 @@
 """The certified worst pose over the continuous workspace against grids of the strokes.
 
 Run as ``python -m studies.benchmarks.certified [--rtol R] [--reading sigma|stack]
-[--machines hobbing trunnion] [--allocations initial table6 optimum]``. For the paper's
-machine (``reliability.hobbing_machine()``: its initial allocation, the paper's Table 6 and
-the certified two-sided optimum of the 5-point grid problem) and the 5-axis trunnion of the
-tests (initial allocation and its two-sided optimum), it prints per output
+[--machines hobbing trunnion swivel gantry] [--allocations initial table6 optimum]
+[--frame tool|workpiece] [--frames]``. For the paper's machine
+(``reliability.hobbing_machine()``: its initial allocation, the paper's Table 6 and the
+certified two-sided optimum of the 5-point grid problem), the 5-axis trunnion and the C-table,
+B-head swivel machine of the tests and the example gantry (initial allocation and its
+two-sided optimum), with the outputs read in ``--frame`` (default: each machine's own), it
+prints per output
 
 * the worst σ (or worst-case stack ``Σ|J| t``) on the 5-, 9- and 13-point grids of the
   workspace (:func:`reliability.model.poses.workspace_grid`: full turns without repeating 0 = 2π)
@@ -15,12 +18,16 @@ tests (initial allocation and its two-sided optimum), it prints per output
 * ``miss13``: how much larger the certified worst value is than the 13-point grid's;
 
 and the ratio of the certificate's time to each grid's. A grid gives only a lower bound of
-the worst value; the certificate gives both ends. Nothing is asserted on times.
+the worst value; the certificate gives both ends. With ``--frames`` it prints instead, per
+machine and allocation, the certificate's time with the outputs in the tool frame and in the
+workpiece frame (the least of :data:`REPEATS` runs, wall and processor time) and their
+ratio. Nothing is asserted on times.
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import time
 from pathlib import Path
 
@@ -36,10 +43,14 @@ from reliability.model.poses import grid_axis_points, workspace_grid
 from studies.paper.tables import TABLE6
 from studies.workflows.timing import one_blas_thread
 
-TRUNNION = Path(__file__).resolve().parents[2] / "tests" / "machines" / "trunnion5.toml"
+ROOT = Path(__file__).resolve().parents[2]
 GRIDS = (5, 9, 13)
 MACHINES = {"hobbing": reliability.hobbing_machine,
-            "trunnion": lambda: reliability.load_machine(TRUNNION)}
+            "trunnion": lambda: reliability.load_machine(ROOT / "tests/machines/trunnion5.toml"),
+            "swivel": lambda: reliability.load_machine(ROOT / "tests/machines/swivel5.toml"),
+            "gantry": lambda: reliability.load_machine(ROOT / "docs/examples/gantry5.toml")}
+#: Runs of each certificate in the frame comparison; the least time is reported.
+REPEATS = 3
 
 
 def grid_worst(machine, tolerances, points: int, reading: str) -> tuple[np.ndarray, float]:
@@ -99,6 +110,33 @@ def compare(machine, tolerances, rtol: float, reading: str) -> pd.DataFrame:
     return frame
 
 
+def frame_times(machine, tolerances, rtol: float, reading: str) -> pd.DataFrame:
+    """The certificate's least wall and processor time over :data:`REPEATS` runs and its
+    boxes, with the outputs in the tool and in the workpiece frame."""
+    rows = {}
+    for frame in ("tool", "workpiece"):
+        framed = dataclasses.replace(machine, frame=frame)
+        wall, processor = [], []
+        for _ in range(REPEATS):
+            started, used = time.perf_counter(), time.process_time()
+            table = certified_worst(framed, tolerances, rtol=rtol, reading=reading)
+            wall.append(time.perf_counter() - started)
+            processor.append(time.process_time() - used)
+        rows[frame] = {"seconds": min(wall), "cpu_seconds": min(processor),
+                       "boxes": int(table["calls"].sum()),
+                       "certified": bool(table["certified"].all())}
+    return pd.DataFrame(rows).T
+
+
+def print_frames(machine, label: str, tolerances, rtol: float, reading: str) -> None:
+    times = frame_times(machine, tolerances, rtol, reading)
+    ratio = times.loc["workpiece"] / times.loc["tool"]
+    print(f"{machine.name}, {label}: " + "; ".join(
+        f"{frame} {row.seconds:.2f} s (cpu {row.cpu_seconds:.2f} s, {row.boxes:,} boxes"
+        f"{'' if row.certified else ', NOT certified'})" for frame, row in times.iterrows())
+        + f"; workpiece / tool {ratio['seconds']:.2f} (cpu {ratio['cpu_seconds']:.2f})")
+
+
 @one_blas_thread
 def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -108,16 +146,26 @@ def main(argv=None) -> None:
                         choices=tuple(MACHINES))
     parser.add_argument("--allocations", nargs="+", default=("initial", "table6", "optimum"),
                         choices=("initial", "table6", "optimum"))
+    parser.add_argument("--frame", choices=("tool", "workpiece"), default=None,
+                        help="frame of the outputs (default: each machine's own)")
+    parser.add_argument("--frames", action="store_true",
+                        help="time the certificate in both frames instead of the grids")
     args = parser.parse_args(argv)
     for name in args.machines:
         machine = MACHINES[name]()
+        if args.frame is not None:
+            machine = dataclasses.replace(machine, frame=args.frame)
         for label, t in allocations(machine, name, args.allocations).items():
+            if args.frames:
+                print_frames(machine, label, t, args.rtol, args.reading)
+                continue
             frame = compare(machine, t, args.rtol, args.reading)
             grid_seconds = frame.attrs["grid_seconds"]
             total = frame["seconds"].sum()
             reading = (f"sigma reading ({machine.distribution} errors, k = 3)"
                        if args.reading == "sigma" else "worst-case stack reading (Σ|J| t)")
-            print(f"\n{machine.name}: {label} allocation, {reading}, rtol {args.rtol:g}")
+            print(f"\n{machine.name}: {label} allocation, {reading}, rtol {args.rtol:g}, "
+                  f"outputs in the {machine.frame} frame")
             print(frame.to_string(float_format="{:.6g}".format))
             sizes = {p: np.prod([len(a) for a in grid_axis_points(machine, p)]) for p in GRIDS}
             print("grid times: " + ", ".join(f"{p} points ({sizes[p]:,} poses) {s:.2f} s"

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from reliability.acceptance.prediction import (DEFAULT_PROFILE, acceptance, path_profile,
                                                profile_note)
+from reliability.acceptance.suggested_limits import check_machines, suggest_limits
 from reliability.basics.files import SIGNIFICANT, write_csv
 
 from . import options
@@ -35,6 +36,10 @@ def add_parser(subparsers):
                              f"(default {DEFAULT_PROFILE})")
     parser.add_argument("--seed", type=options.seed, default=0, metavar="S",
                         help="random seed (default 0)")
+    parser.add_argument("--suggest", type=options.probability, metavar="P",
+                        help="add to each result the limit that a share P of the built "
+                             "machines meet (its P-quantile, with a distribution-free 95 %% "
+                             "interval), and the probability of passing each test with them")
     parser.add_argument("--out", metavar="DIR", help=f"write {RESULT_FILE} into DIR")
     parser.add_argument("--overwrite", action="store_true",
                         help=f"replace an earlier {RESULT_FILE} in DIR")
@@ -49,6 +54,8 @@ def run(args) -> int:
     tolerances = None if args.tolerances is None else \
         options.read_tolerances(args.tolerances, machine)
     path_profile(args.profile, tests)
+    if args.suggest is not None:
+        check_machines(args.machines, args.suggest, name="--machines")
     options.say(f"{len(tests)} tests on {args.machines} built machines")
     result = acceptance(machine, tests, tolerances, machines=args.machines,
                         profile=args.profile, rng=args.seed)
@@ -59,9 +66,13 @@ def run(args) -> int:
           f"dynamic or thermal effects), plus each linear axis' repeatability and reversal "
           f"in positioning tests.\n")
     print(result.results_text())
+    suggestion = None if args.suggest is None else suggest_limits(result, args.suggest)
+    if suggestion is not None:
+        print(f"\n{suggestion.summary()}")
     if out is not None:
         out.mkdir(exist_ok=True)
-        path = write_csv(result.to_frame(), out / RESULT_FILE, overwrite=args.overwrite,
+        table = result.to_frame() if suggestion is None else suggestion.to_frame()
+        path = write_csv(table, out / RESULT_FILE, overwrite=args.overwrite,
                          index=False, float_format=f"%.{SIGNIFICANT}g")
         print(f"\nwritten {path}")
     return 0

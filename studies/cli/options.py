@@ -153,8 +153,8 @@ def add_workspace(parser) -> None:
     parser.add_argument("--workspace", choices=WORKSPACE_CHOICES, default=None,
                         help="where the targets hold: continuous = over the whole strokes, "
                              "certified to --rtol in sigma by adding the certificate's worst "
-                             "poses to the grid (default; not for --frame workpiece or "
-                             "correlated errors); grid = at the --points grid poses only "
+                             "poses to the grid (default; not for correlated errors); "
+                             "grid = at the --points grid poses only "
                              "(docs/continuous-allocation.md)")
     parser.add_argument("--rtol", type=probability, default=DEFAULT_RTOL, metavar="R",
                         help=f"relative tolerance in sigma of --workspace continuous "

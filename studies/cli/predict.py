@@ -37,8 +37,7 @@ def add_parser(subparsers):
 def run(args) -> int:
     machine = options.machine(args)
     if args.certify:
-        options.check_certifiable(machine, "--certify", "pass --frame tool to certify the "
-                                  "tool-frame outputs, or leave out --certify")
+        options.check_certifiable(machine, "--certify", "leave out --certify")
     t = machine.initial_allocation if args.tolerances is None else \
         options.read_tolerances(args.tolerances, machine)
     result = fosm(machine, t, workspace_grid(machine, args.points),

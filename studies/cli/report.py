@@ -3,9 +3,11 @@
 from __future__ import annotations
 
 from allocation import solve_catalogue
+from reliability.acceptance.suggested_limits import minimum_machines
+from reliability.basics.errors import InputError
 from reliability.basics.streams import extra_stream
 from studies.report import machine_sections
-from studies.report.acceptance_section import acceptance_section
+from studies.report.acceptance_section import BUILT_MACHINES, acceptance_section
 from studies.report.catalogue_section import catalogue_section
 from studies.report.extras import EXTRAS, allocations, builders
 from studies.report.sensitivity_section import study_sensitivity_section
@@ -40,6 +42,9 @@ def add_parser(subparsers):
     parser.add_argument("--tests", metavar="TESTS.toml",
                         help="add an 'Acceptance tests' section: these ISO 230 tests "
                              "predicted for the initial and the optimal allocation")
+    parser.add_argument("--suggest", type=options.probability, metavar="P",
+                        help="with --tests: add each result's suggested limit, the limit "
+                             "that a share P of the built machines meet")
     parser.add_argument("--catalogue", metavar="CAT.toml",
                         help="add a 'Component choice' section: the certified cheapest "
                              "choice of one class per component of this catalogue")
@@ -56,6 +61,8 @@ def run(args) -> int:
     out = options.destination(args.out, args.overwrite, folder=True, markers=REPORT_MARKERS)
     machine = options.machine(args)
     tests = None if args.tests is None else options.read_tests(args.tests, machine)
+    if args.suggest is not None:
+        _check_suggest(args.suggest, tests)
     catalogue = None if args.catalogue is None else \
         options.read_catalogue(args.catalogue, machine)
     study = machine_study.run(machine, points=args.points, side=args.side, bounds=bounds,
@@ -68,7 +75,8 @@ def run(args) -> int:
     extra = builders(included)
     if tests is not None:
         extra.append(lambda study: acceptance_section(
-            machine, tests, allocations(study), rng=extra_stream(study.seed, 2)))
+            machine, tests, allocations(study), suggest=args.suggest,
+            rng=extra_stream(study.seed, 2)))
     if catalogue is not None:
         options.say("choosing catalogue classes (HiGHS)")
         choice = solve_catalogue(study.problem, catalogue)
@@ -89,3 +97,16 @@ def run(args) -> int:
     print(machine_sections.answers(study))
     print(f"\n{len(written)} files written to {out}/ (open report.html)")
     return 0  # a report whose targets are out of reach is still a complete answer
+
+
+def _check_suggest(probability: float, tests) -> None:
+    """Refuse ``--suggest`` without ``--tests``, or with a quantile too far out for the
+    acceptance section's built machines."""
+    if tests is None:
+        raise InputError(f"--suggest {probability:g} needs --tests TESTS.toml: it suggests "
+                         f"limits for the results of those acceptance tests")
+    needed = minimum_machines(probability)
+    if needed > BUILT_MACHINES:
+        raise InputError(f"--suggest {probability:g} needs at least {needed} built machines "
+                         f"to bound the quantile at 95 % confidence; the acceptance section "
+                         f"draws {BUILT_MACHINES}: give a P closer to 0.5")

@@ -10,6 +10,7 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from reliability.acceptance.prediction import DEFAULT_PROFILE, acceptance, profile_note
+from reliability.acceptance.suggested_limits import suggest_limits
 from reliability.basics.streams import spawn
 
 from .markdown import markdown_table
@@ -17,10 +18,12 @@ from .section import Section
 
 TITLE = "Acceptance tests"
 FIGURE = "acceptance.png"
+#: Built machines per allocation unless told otherwise.
+BUILT_MACHINES = 2000
 
 
-def acceptance_section(machine, tests, allocations: dict, *, machines: int = 2000,
-                       profile=DEFAULT_PROFILE, rng=None) -> Section:
+def acceptance_section(machine, tests, allocations: dict, *, machines: int = BUILT_MACHINES,
+                       profile=DEFAULT_PROFILE, suggest=None, rng=None) -> Section:
     """Predicted acceptance-test results of machines built to each allocation.
 
     Parameters
@@ -34,6 +37,9 @@ def acceptance_section(machine, tests, allocations: dict, *, machines: int = 200
         Built machines per allocation.
     profile : str
         Error profile along travel.
+    suggest : float, optional
+        P: add each result's suggested limit, its P-quantile with its interval
+        (:func:`reliability.acceptance.suggested_limits.suggest_limits`).
     rng : seed or Generator
         One child stream per allocation (:func:`reliability.basics.streams.spawn`).
     """
@@ -51,11 +57,12 @@ def acceptance_section(machine, tests, allocations: dict, *, machines: int = 200
             f"the result's mean square, the item drawn alone."]
     tables, summary = {}, {}
     for label, result in results.items():
-        frame = result.to_frame()
+        suggestion = None if suggest is None else suggest_limits(result, suggest)
+        frame = result.to_frame() if suggestion is None else suggestion.to_frame()
         tables[f"acceptance_{label}.csv"] = frame
         text += ["", f"**{label}**: all tests passed with probability "
-                 f"{_interval(frame.iloc[-1])}.", "", markdown_table(_shown(result, frame),
-                                                                     index=False)]
+                 f"{_interval(frame.iloc[-1])}{_suggested_pass(suggestion)}.", "",
+                 markdown_table(_shown(result, frame), index=False)]
         summary[label] = {f"{row.test}/{row.quantity}": row.pass_probability
                           for row in frame.itertuples() if not math.isnan(row.pass_probability)}
     return Section(TITLE, "\n".join(text), figures={FIGURE: plot_results(results)},
@@ -66,6 +73,14 @@ def _interval(row) -> str:
     return f"{row.pass_probability:.4f} [{row.pass_low:.4f}, {row.pass_high:.4f}]"
 
 
+def _suggested_pass(suggestion) -> str:
+    if suggestion is None:
+        return ""
+    return (f"; with every limit at its suggested value (column \"suggested\": the "
+            f"{suggestion.probability:g}-quantile with its 95 % order-statistic interval) "
+            f"{_interval(suggestion.joint_pass().iloc[-1])}")
+
+
 def _shown(result, frame):
     rows = frame[frame["test"] != "all"].copy()
     for column in ("limit", "mean", "q95"):
@@ -73,8 +88,13 @@ def _shown(result, frame):
     rows["pass"] = [_interval(r) if not math.isnan(r.pass_probability) else "-"
                     for r in rows.itertuples()]
     rows["drivers"] = [result.top_drivers(r.test, r.quantity) or "-" for r in rows.itertuples()]
-    return rows[["test", "quantity", "limit", "mean", "q95", "pass", "drivers"]].rename(
-        columns={"limit": "limit µm", "mean": "mean µm", "q95": "q95 µm"})
+    suggested = ["suggested"] if "suggested_limit" in rows else []
+    if suggested:
+        rows["suggested"] = [f"{1000 * r.suggested_limit:.3g} [{1000 * r.suggested_low:.3g}, "
+                             f"{1000 * r.suggested_high:.3g}]" for r in rows.itertuples()]
+    return rows[["test", "quantity", "limit", "mean", "q95", "pass", *suggested,
+                 "drivers"]].rename(columns={"limit": "limit µm", "mean": "mean µm",
+                                             "q95": "q95 µm", "suggested": "suggested µm"})
 
 
 def plot_results(results: dict) -> Figure:

@@ -39,16 +39,35 @@ INSIDE_COLOR, OUTSIDE_COLOR = "tab:blue", "tab:red"
 # --------------------------------------------------------------------------- titles
 def fit_titles(figure) -> None:
     """Wrap the figure's suptitle and every axes' title that is wider than the room it has
-    (the figure's width, or its axes' width) onto more lines, and fit the layout again."""
+    (:data:`TITLE_ROOM` of the figure's width, or its axes' width) onto more lines, and fit
+    the layout again. Figures whose titles take less than :data:`CROWDED` of the room their
+    axes have before the layout are left alone without being drawn."""
+    renderer = figure._get_renderer()
+    if not _crowded(figure, renderer):
+        return
     for _ in range(3):
         figure.draw_without_rendering()
-        renderer = figure._get_renderer()
         texts = [(ax.title, ax.get_window_extent(renderer).width) for ax in figure.axes]
         if figure._suptitle is not None:
             texts.append((figure._suptitle, TITLE_ROOM * figure.bbox.width))
         wrapped = [_wrap(text, room, renderer) for text, room in texts if text.get_text()]
         if not any(wrapped):
             return
+
+
+#: Share of the room a title may take, judged before the layout, below which it surely fits.
+CROWDED = 0.5
+
+
+def _crowded(figure, renderer) -> bool:
+    """Whether any title may be too wide: wider than :data:`CROWDED` of its axes' width as
+    placed before the layout (or of :data:`TITLE_ROOM` of the figure's, for the suptitle)."""
+    width = figure.bbox.width
+    texts = [(ax.title, ax.get_position().width * width) for ax in figure.axes]
+    if figure._suptitle is not None:
+        texts.append((figure._suptitle, TITLE_ROOM * width))
+    return any(text.get_window_extent(renderer).width > CROWDED * room
+               for text, room in texts if text.get_text())
 
 
 #: Share of the figure's width a suptitle may take.

@@ -130,8 +130,8 @@ def run(machine, *, points: int = 5, side: str = "two_sided", bounds=None,
         Where the optimum's targets hold: over the continuous strokes, certified to
         ``rtol`` in σ by cutting planes from the ``points``-point grid
         (:func:`allocation.continuous.solve_continuous`), or at the grid poses only. The
-        continuous workspace is refused (InputError) for outputs in the workpiece frame
-        and for correlated errors; nothing switches to the grid silently.
+        continuous workspace is refused (InputError) for correlated errors; nothing
+        switches to the grid silently.
     rtol : float
         Relative tolerance in σ of the continuous workspace's certificate.
 
