@@ -193,17 +193,13 @@ def check_continuous(machine, side: str = "two_sided") -> None:
     Raises
     ------
     InputError
-        Naming the workspace and suggesting the grid: correlated errors, a work zone.
+        Naming the workspace and suggesting the grid: correlated errors.
     """
-    why = None
     if getattr(machine, "correlation", None) is not None:
-        why = "the certificate bounds σ of independent errors and this machine's are correlated"
-    elif getattr(machine, "work_zone", None) is not None:
-        why = ("the certificate bounds σ over the whole stroke box and this machine's "
-               "workspace is its work zone")
-    if why is not None:
-        raise InputError(f"workspace 'continuous' is not available: {why}; use workspace "
-                         f"'grid' (--workspace grid) for the allocation on the grid poses")
+        raise InputError("workspace 'continuous' is not available: the certificate bounds σ "
+                         "of independent errors and this machine's are correlated; use "
+                         "workspace 'grid' (--workspace grid) for the allocation on the grid "
+                         "poses")
 
 
 def solve_continuous(problem, *, rtol: float = DEFAULT_RTOL, max_solves: int = MAX_SOLVES,
