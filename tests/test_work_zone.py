@@ -13,7 +13,8 @@ import pytest
 import reliability
 from allocation import AllocationProblem
 from reliability.basics.errors import InputError, MachineDescriptionError
-from reliability.first_order.fosm import fosm
+from reliability.first_order.certificate import certified_worst
+from reliability.first_order.fosm import error_sigma, fosm, pose_sigma
 from reliability.first_order.zone_enclosure import ZoneEnclosure
 from reliability.model.machine import machine_from_dict, machine_from_toml
 from reliability.model.machine_checks import describe, likely_mistakes
@@ -257,3 +258,26 @@ def test_enclosure_keeps_a_box_around_a_pose_of_the_zone(zoned):
     assert not ZoneEnclosure(zoned).outside(pose - half, pose + half)[0]
     far = np.array([0.3, 0.0, 0.0, 450.0, 0.0])  # tool point 650 mm up
     assert ZoneEnclosure(zoned).outside(far - half, far + half)[0]
+
+
+MILL = Path(__file__).parent / "machines" / "mill3.toml"
+MILL_BOX = {"shape": "box", "min": [-200.0, 300.0, -50.0], "max": [100.0, 500.0, 150.0]}
+
+
+def test_certificate_in_the_zone_lies_between_a_dense_search_and_the_strokes():
+    """mill3 with a box cutting its tool points' range (x -325 … 275, y 265 … 665, z -100
+    … 250 mm) on every side: the certified σ in the zone is at most the strokes' and, with
+    its bound, at least the largest σ of 4000 poses drawn in the zone."""
+    table = tomllib.loads(MILL.read_text())
+    mill = machine_from_dict(table)
+    zoned_mill = machine_from_dict({**table, "workzone": MILL_BOX})
+    t, rtol = mill.initial_allocation, 1e-3
+    zone = certified_worst(zoned_mill, t, rtol=rtol)
+    strokes = certified_worst(mill, t, rtol=rtol)
+    poses = random_poses(zoned_mill, 4000, rng=4)
+    dense = pose_sigma(zoned_mill, poses, error_sigma(t, 3.0, "normal")).max(axis=0)
+    assert zone["certified"].all()
+    assert inside_zone(zoned_mill, zone[list(mill.axes)].to_numpy(dtype=float)).all()
+    assert np.all(zone["sigma_bound"].to_numpy() >= dense)
+    assert np.all(zone["sigma"].to_numpy() <= strokes["sigma_bound"].to_numpy())
+    assert np.any(zone["sigma"].to_numpy() < strokes["sigma"].to_numpy() * 0.99)
