@@ -10,7 +10,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-import reliability
 from allocation import AllocationProblem
 from reliability.basics.errors import InputError, MachineDescriptionError
 from reliability.first_order.certificate import certified_worst
@@ -232,24 +231,43 @@ def test_zone_section_compares_the_zone_with_the_strokes(zoned):
 
 
 # ----- boxes of poses against the zone (for the certificate) ---------------------------
-def test_enclosure_holds_every_tool_point_and_proves_outside_only_empty_boxes(zoned):
-    """Random boxes of swivel5's strokes: 300 poses drawn in each lie inside the enclosure
-    of (x, y, z, cos tilt), and no box proved outside holds a pose of the zone."""
-    enclosure = ZoneEnclosure(zoned)
+SWIVEL_BOX = {"shape": "box", "min": [-200.0, -150.0, 150.0], "max": [200.0, 150.0, 350.0],
+              "tilt": [10.0, 70.0]}
+
+
+def measures_by_hand(zone, poses) -> np.ndarray:
+    """swivel5's (x, y, z, cos tilt) (box) or (r², z, cos tilt) (cylinder) from the
+    hand-made tool point; the tilt is |B|."""
+    points = np.array([swivel_tool_point(*pose) for pose in poses])
+    cos = np.cos(poses[:, 4])
+    if zone["shape"] == "box":
+        return np.column_stack([points, cos])
+    r2 = np.square(points[:, 0] - zone["centre"][0]) + np.square(points[:, 1] - zone["centre"][1])
+    return np.column_stack([r2, points[:, 2], cos])
+
+
+@pytest.mark.parametrize("zone", [CYLINDER, SWIVEL_BOX], ids=["cylinder", "box"])
+def test_enclosure_holds_every_pose_and_proves_outside_only_empty_boxes(zone):
+    """Random boxes of swivel5's strokes: 100 poses drawn in each have their measures
+    inside the enclosure, a box proved outside holds none of the zone and a box proved
+    inside nothing else."""
+    machine = machine_from_dict(swivel_table(zone))
+    enclosure = ZoneEnclosure(machine)
     rng = np.random.default_rng(7)
-    low = np.array([a.stroke[0] for a in zoned.axis_specs])
-    span = np.array([a.stroke[1] for a in zoned.axis_specs]) - low
-    corner = low + span * rng.random((60, 5)) * 0.8
-    width = span * rng.random((60, 5)) * 0.2
+    low = np.array([a.stroke[0] for a in machine.axis_specs])
+    span = np.array([a.stroke[1] for a in machine.axis_specs]) - low
+    corner = low + span * rng.random((80, 5)) * 0.9
+    width = span * rng.random((80, 5)) * 0.1
     lo, hi = enclosure.ranges(corner, corner + width)
     outside = enclosure.outside(corner, corner + width)
+    inside = enclosure.inside(corner, corner + width)
     assert 0 < outside.sum() < len(outside)
     for b in range(len(corner)):
-        poses = corner[b] + width[b] * rng.random((300, 5))
-        points, tilts = tool_points(zoned, poses), tool_tilts(zoned, poses)
-        values = np.column_stack([points, np.cos(tilts)])
-        assert np.all((values >= lo[b] - 1e-9) & (values <= hi[b] + 1e-9))
-        assert not (outside[b] and inside_zone(zoned, poses).any())
+        poses = corner[b] + width[b] * rng.random((100, 5))
+        values = measures_by_hand(zone, poses)
+        assert np.all((values >= lo[b] - 1e-6) & (values <= hi[b] + 1e-6))
+        held = inside_zone(machine, poses)
+        assert not (outside[b] and held.any()) and not (inside[b] and not held.all())
 
 
 def test_enclosure_keeps_a_box_around_a_pose_of_the_zone(zoned):
