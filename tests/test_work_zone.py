@@ -274,6 +274,7 @@ def test_enclosure_keeps_a_box_around_a_pose_of_the_zone(zoned):
     pose = np.array([0.3, 0.0, 0.0, 0.0, 0.0])  # tool point (0, 0, 200), tilt 0
     half = np.array([0.01, 1.0, 1.0, 1.0, 0.01])
     assert not ZoneEnclosure(zoned).outside(pose - half, pose + half)[0]
+    assert ZoneEnclosure(zoned).inside(pose - half, pose + half)[0]
     far = np.array([0.3, 0.0, 0.0, 450.0, 0.0])  # tool point 650 mm up
     assert ZoneEnclosure(zoned).outside(far - half, far + half)[0]
 
