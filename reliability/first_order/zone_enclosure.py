@@ -75,15 +75,16 @@ class ZoneEnclosure:
 
 
     def inside(self, low, high) -> np.ndarray:
-        """Whether every pose of each box ``[low, high]`` is in the zone, proved by the
-        enclosure; ``(b,)`` bool."""
+        """Whether every pose of each box ``[low, high]`` is in the zone (closed, with its
+        rounding), proved by the enclosure; ``(b,)`` bool."""
         lo, hi = self.ranges(low, high)
         solid = _within_box(self.zone, lo, hi) if self.zone.shape == "box" else \
             _within_cylinder(self.zone, lo, hi)
         if self.zone.tilt is None:
             return solid
-        return solid & (lo[:, -1] >= math.cos(math.radians(self.zone.tilt[1]))) & \
-            (hi[:, -1] <= math.cos(math.radians(self.zone.tilt[0])))
+        lowest_cos = math.cos(math.radians(self.zone.tilt[1])) - COS_ROUNDING
+        highest_cos = math.cos(math.radians(self.zone.tilt[0])) + COS_ROUNDING
+        return solid & (lo[:, -1] >= lowest_cos) & (hi[:, -1] <= highest_cos)
 
     def split_shares(self, low, high) -> np.ndarray:
         """Each axis' share of the widest enclosure of a measure (``(x, y, z, cos tilt)`` or
@@ -124,13 +125,14 @@ def _misses_box(zone, lo, hi) -> np.ndarray:
 
 
 def _within_box(zone, lo, hi) -> np.ndarray:
-    return np.all((lo[:, :3] >= np.array(zone.low)) & (hi[:, :3] <= np.array(zone.high)),
-                  axis=1)
+    return np.all((lo[:, :3] >= np.array(zone.low) - LENGTH_ROUNDING)
+                  & (hi[:, :3] <= np.array(zone.high) + LENGTH_ROUNDING), axis=1)
 
 
 def _within_cylinder(zone, lo, hi) -> np.ndarray:
     """The enclosures of r² and z within the cylinder's."""
-    return (hi[:, 0] <= zone.radius ** 2) & (lo[:, 1] >= zone.z[0]) & (hi[:, 1] <= zone.z[1])
+    return (hi[:, 0] <= (zone.radius + LENGTH_ROUNDING) ** 2) & \
+        (lo[:, 1] >= zone.z[0] - LENGTH_ROUNDING) & (hi[:, 1] <= zone.z[1] + LENGTH_ROUNDING)
 
 
 def _misses_cylinder(zone, lo, hi) -> np.ndarray:
