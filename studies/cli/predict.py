@@ -10,7 +10,7 @@ from reliability.first_order.fosm import fosm, two_sided_probability
 from reliability.first_order.workspace_search import certified_worst
 from reliability.model.machine import OUTPUTS
 from reliability.model.poses import workspace_grid
-from reliability.model.work_zone import grid_text
+from reliability.model.work_zone import grid_text, zone_text
 
 from . import options
 
@@ -56,7 +56,7 @@ def run(args) -> int:
         options.say(f"certifying the worst pose over the continuous workspace (rtol "
                     f"{args.rtol:g})")
         table = certified_worst(machine, t, rtol=args.rtol)
-        print(f"\nWorst pose over the continuous workspace (every pose of the strokes), "
+        print(f"\nWorst pose over the continuous workspace ({zone_text(machine)}), "
               f"certified to {args.rtol:g} in sigma; {options.reading_text(machine)}:")
         print(certificate_table(machine, table, result).to_string())
     return 0
