@@ -49,15 +49,13 @@ import pandas as pd
 from reliability.basics import checks
 from reliability.basics.display import OUTPUT_UNITS, axis_units, pose_frame, pose_text
 from reliability.basics.errors import InputError
-from reliability.first_order.certificate import MAX_BOX_CALLS
+from reliability.first_order.certificate import DEFAULT_RTOL, MAX_BOX_CALLS, WORKSPACES
 from reliability.first_order.workspace_search import certified_worst, searched_worst
 
 from .result_files import gap_text
 
 #: The pose sets an allocation can be certified over: the continuous strokes or the grid.
-WORKSPACE_CHOICES = ("continuous", "grid")
-#: Relative tolerance in σ (or the stack) of the continuous certificate by default.
-DEFAULT_RTOL = 1e-3
+WORKSPACE_CHOICES = WORKSPACES
 #: Solves of the convex problem (the grid's included) before the loop stops uncertified.
 MAX_SOLVES = 30
 #: Share of ``rtol`` the certificate's own gap may take; the loop's cuts close the rest.
@@ -181,6 +179,14 @@ class ContinuousAllocation:
         return self.summary()
 
 
+def continuous_unavailable(machine) -> str | None:
+    """Why the continuous certificate cannot cover a study of ``machine`` (its frame and error
+    model), in words; None when it can."""
+    if getattr(machine, "correlation", None) is not None:
+        return "the certificate bounds σ of independent errors and this machine's are correlated"
+    return None
+
+
 def check_continuous(machine, side: str = "two_sided") -> None:
     """Refuse, before any work, a study the continuous certificate cannot cover.
 
@@ -193,13 +199,12 @@ def check_continuous(machine, side: str = "two_sided") -> None:
     Raises
     ------
     InputError
-        Naming the workspace and suggesting the grid: correlated errors.
+        Naming the workspace, why (:func:`continuous_unavailable`) and suggesting the grid.
     """
-    if getattr(machine, "correlation", None) is not None:
-        raise InputError("workspace 'continuous' is not available: the certificate bounds σ "
-                         "of independent errors and this machine's are correlated; use "
-                         "workspace 'grid' (--workspace grid) for the allocation on the grid "
-                         "poses")
+    why = continuous_unavailable(machine)
+    if why is not None:
+        raise InputError(f"workspace 'continuous' is not available: {why}; use workspace "
+                         f"'grid' (--workspace grid) for the allocation on the grid poses")
 
 
 def solve_continuous(problem, *, rtol: float = DEFAULT_RTOL, max_solves: int = MAX_SOLVES,

@@ -6,6 +6,12 @@ writer, :func:`allocation_to_csv` (its table: :func:`allocation_frame`), and one
 a number of significant digits, the allocated tolerances are rounded down
 (:func:`written_tolerances`), so the file meets every target the result meets.
 
+The drawing file ``drawing_tolerances.csv`` (columns ``error, iso, name, tolerance,
+unit``) gives the tolerances to write on drawings: each in µm or arcsec with its ISO 230-1
+symbol and plain name, rounded down to a resolution (0.1 µm and 0.1 arcsec by default,
+:func:`drawing_tolerances`). Its writer is :func:`drawing_to_csv`; :func:`read_allocation_csv`
+reads it as it reads an allocation CSV.
+
 The JSON file holds the allocation, its cost, feasibility, certificate, binding
 constraints, GWO history and per-requirement elasticities, and what is needed to read them
 without the machine: the error names, the reference allocation and the bounds, the cost
@@ -17,14 +23,17 @@ place of the :class:`~allocation.problem.AllocationProblem` unless the problem i
 from __future__ import annotations
 
 from dataclasses import dataclass
+from decimal import Decimal
 
 import numpy as np
 import pandas as pd
 
-from reliability.basics.display import axis_units, number_text, pose_columns
+from reliability.basics.display import (UNIT_SCALES, axis_units, error_units, number_text,
+                                        pose_columns, unit_symbol)
 from reliability.basics.errors import InputError, InputTypeError
 from reliability.basics.files import SIGNIFICANT, as_written, rounded_down, write_csv
 from reliability.basics.saved_results import check_count, encode_frame, load_payload, save_payload
+from reliability.model.iso_names import plain_names
 from reliability.model.machine import OUTPUTS
 
 from .cost import GROUPS, CostModel
@@ -44,6 +53,15 @@ MULTIPLIER_DIGITS = 3
 #: A relative duality gap below this is shown as "< GAP_SHOWN": its value is solver noise
 #: that differs between computers, while the bound is what the certificate guarantees.
 GAP_SHOWN = 1e-8
+#: The drawing file: its name, its columns, its units (lengths, angles) and the default
+#: resolution a tolerance is rounded down to, in those units.
+DRAWING_FILE = "drawing_tolerances.csv"
+DRAWING_COLUMNS = ("error", "iso", "name", "tolerance", "unit")
+DRAWING_UNITS = ("um", "arcsec")
+DRAWING_RESOLUTION = (0.1, 0.1)
+#: Units a tolerance file may give each kind of item in, and other spellings read as them.
+LENGTH_UNITS, ANGLE_UNITS = ("mm", "um"), ("rad", "urad", "arcsec")
+UNIT_SPELLINGS = {"µm": "um", "μm": "um", "µrad": "urad", "μrad": "urad"}
 
 
 def cost_units_text(cost) -> str:
@@ -289,27 +307,120 @@ def allocation_to_csv(result, path, overwrite: bool = False, *,
                      float_format=float_format)
 
 
+def drawing_tolerances(names, tolerances, resolution=DRAWING_RESOLUTION
+                       ) -> tuple[list[str], np.ndarray]:
+    """Tolerances as written on drawings: each rounded down to a multiple of the
+    resolution in µm (lengths) or arcsec (angles).
+
+    Parameters
+    ----------
+    names : sequence of str
+        Error names (``"<owner>.d*"`` lengths, ``"<owner>.e*"`` angles).
+    tolerances : array_like
+        Tolerances in mm and rad, aligned with ``names``.
+    resolution : (float, float)
+        Resolution of lengths in µm and of angles in arcsec.
+
+    Returns
+    -------
+    texts : list of str
+        Each tolerance as its drawing gives it, in µm or arcsec (``"3.4"``).
+    values : ndarray
+        The same in mm and rad, as :func:`read_allocation_csv` reads them back: never above
+        the given tolerance, so the drawing meets every target the allocation meets.
+
+    Raises
+    ------
+    InputError
+        A resolution that is not a finite number > 0, or a tolerance below its resolution.
+    """
+    steps = [_resolution_step(value, kind) for value, kind in
+             zip(resolution, ("length", "angle"))]
+    units = error_units(names, DRAWING_UNITS)
+    texts, values = [], []
+    for name, tolerance, unit in zip(names, np.asarray(tolerances, dtype=float), units):
+        step = steps[DRAWING_UNITS.index(unit)]
+        text = _drawn(float(tolerance), UNIT_SCALES[unit], step)
+        if text is None:
+            raise InputError(f"tolerance of {name!r} is {number_text(float(tolerance))} in "
+                             f"mm or rad, below the drawing resolution {step} "
+                             f"{unit_symbol(unit)}; give a finer resolution")
+        texts.append(text)
+        values.append(float(text) / UNIT_SCALES[unit])
+    return texts, np.array(values)
+
+
+def _resolution_step(value, kind: str) -> Decimal:
+    """A resolution as the exact decimal it is written as."""
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.number)) \
+            or not (np.isfinite(value) and value > 0):
+        raise InputError(f"resolution of {kind}s is {number_text(value)}; expected a number "
+                         f"> 0 (µm for lengths, arcsec for angles)")
+    return Decimal(repr(float(value)))
+
+
+def _drawn(tolerance: float, scale: float, step: Decimal) -> str | None:
+    """The largest multiple of ``step`` whose value read back (``float(text) / scale``) is
+    at most ``tolerance``, as text; None when there is none above 0."""
+    count = int(Decimal(tolerance * scale) / step) + 1
+    while count > 0 and float(str(count * step)) / scale > tolerance:
+        count -= 1
+    return str(count * step) if count > 0 else None
+
+
+def drawing_frame(machine, tolerances, resolution=DRAWING_RESOLUTION) -> pd.DataFrame:
+    """The drawing file's table (:data:`DRAWING_COLUMNS`), one row per error of
+    ``machine``: paper name, ISO 230-1 symbol, plain name, the tolerance rounded down
+    (:func:`drawing_tolerances`, text) and its unit (``um`` or ``arcsec``)."""
+    texts, _ = drawing_tolerances(machine.error_names, tolerances, resolution)
+    return pd.DataFrame({"error": machine.error_names, "iso": machine.iso_names,
+                         "name": plain_names(machine), "tolerance": texts,
+                         "unit": error_units(machine.error_names, DRAWING_UNITS)},
+                        columns=list(DRAWING_COLUMNS))
+
+
+def drawing_to_csv(machine, tolerances, path, overwrite: bool = False, *,
+                   resolution=DRAWING_RESOLUTION):
+    """Write :func:`drawing_frame` to ``path`` (refusing to replace a file unless
+    ``overwrite``)."""
+    return write_csv(drawing_frame(machine, tolerances, resolution), path, overwrite,
+                     index=False)
+
+
+def drawing_check_text(result, resolution=DRAWING_RESOLUTION, *, targets: bool = True) -> str:
+    """How the drawing tolerances were rounded, with ``targets`` whether they meet the
+    result's per-pose targets on its poses, and their cost beside the result's."""
+    problem = result.problem
+    _, drawn = drawing_tolerances(problem.names, result.tolerances, resolution)
+    cost = problem.cost.total(drawn)
+    check = (f"meets the targets at the {len(problem.poses)} poses of the problem: "
+             f"{'yes' if problem.meets_targets(drawn) else 'NO'}; " if targets else "")
+    return (f"rounded down to {float(resolution[0]):g} µm and "
+            f"{float(resolution[1]):g} arcsec, so every item is at most the "
+            f"allocation's; {check}cost {cost:.6g} ({cost / result.cost - 1:+.2g} relative "
+            f"to the allocation's {result.cost:.6g})")
+
+
 def read_allocation_csv(path, machine) -> np.ndarray:
-    """Tolerances from an allocation CSV (columns ``error`` and ``allocated``; what
-    :func:`allocation_to_csv` and ``precrel allocate`` write), aligned to the machine's error
-    names. Rows may come in any order and errors may be named by their ISO 230-1 symbols.
+    """Tolerances in mm and rad from an allocation CSV (columns ``error`` and
+    ``allocated``; what :func:`allocation_to_csv` and ``precrel allocate`` write) or a
+    drawing file (columns ``error``, ``tolerance`` and ``unit``; what :func:`drawing_to_csv`
+    writes), aligned to the machine's error names. Rows may come in any order and errors
+    may be named by their ISO 230-1 symbols; other columns are ignored.
 
     Raises
     ------
     InputError
         An unreadable table, a missing column, a name the machine does not have, a name
-        given twice, a missing name, or a value that is not a finite positive number; the
-        message names the file and the row's error.
+        given twice, a missing name, a value that is not a finite positive number or a unit
+        that does not fit its item; the message names the file and the row's error.
     """
     try:
         frame = pd.read_csv(path)
     except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as exc:
         raise InputError(f"{path}: not a readable CSV table "
                          f"({' '.join(str(exc).split())})") from None
-    missing_columns = [c for c in ("error", "allocated") if c not in frame.columns]
-    if missing_columns:
-        raise InputError(f"{path}: missing column(s) {missing_columns}; "
-                         f"expected columns 'error' and 'allocated'")
+    column = _value_column(frame, path)
     given = frame["error"].astype(str).str.strip()
     unknown = [n for n in given if not _known(machine, n)]
     if unknown:
@@ -324,12 +435,38 @@ def read_allocation_csv(path, machine) -> np.ndarray:
     if absent:
         raise InputError(f"{path}: {len(absent)} error(s) missing, e.g. "
                          f"{absent[:5]}; expected one row per error of the machine")
-    values = pd.to_numeric(frame["allocated"], errors="coerce").to_numpy(dtype=float)
+    values = pd.to_numeric(frame[column], errors="coerce").to_numpy(dtype=float)
     bad = np.flatnonzero(~(np.isfinite(values) & (values > 0)))
     if len(bad):
-        raise InputError(f"{path}: allocated value of {given[bad[0]]!r} is "
-                         f"{number_text(frame['allocated'][bad[0]])}; expected a number > 0")
+        raise InputError(f"{path}: {column} value of {given[bad[0]]!r} is "
+                         f"{number_text(frame[column][bad[0]])}; expected a number > 0")
+    if column == "tolerance":
+        values = values / _row_scales(frame["unit"], names, given, path)
     return pd.Series(values, index=names).reindex(list(machine.error_names)).to_numpy()
+
+
+def _value_column(frame: pd.DataFrame, path) -> str:
+    """``'allocated'`` (an allocation CSV) or ``'tolerance'`` (a drawing file)."""
+    for needed in (("error", "allocated"), ("error", "tolerance", "unit")):
+        if all(c in frame.columns for c in needed):
+            return needed[1]
+    missing_columns = [c for c in ("error", "allocated") if c not in frame.columns]
+    raise InputError(f"{path}: missing column(s) {missing_columns}; expected columns "
+                     f"'error' and 'allocated' (an allocation file) or 'error', "
+                     f"'tolerance' and 'unit' (a drawing file)")
+
+
+def _row_scales(units: pd.Series, names: pd.Series, given: pd.Series, path) -> np.ndarray:
+    """How many of its row's unit one mm or rad is, each unit checked against its item."""
+    scales = []
+    for row, (unit, name) in enumerate(zip(units.astype(str).str.strip(), names)):
+        unit = UNIT_SPELLINGS.get(unit, unit)
+        allowed = LENGTH_UNITS if name.rpartition(".")[2].startswith("d") else ANGLE_UNITS
+        if unit not in allowed:
+            raise InputError(f"{path}: unit of {given[row]!r} is {unit!r}; expected one of "
+                             f"{allowed} for a {'length' if allowed is LENGTH_UNITS else 'angle'}")
+        scales.append(UNIT_SCALES[unit])
+    return np.array(scales)
 
 
 def _known(machine, name: str) -> bool:

@@ -72,7 +72,7 @@ class ShapeResult:
 
 
 def shape_search(model, cost, lower, upper, start, design_target, u, *,
-                 iterations: int = 20) -> ShapeResult:
+                 iterations: int = 20, worst_ratios=None) -> ShapeResult:
     """Move every tolerance of ``start`` towards equal cost and failure shares.
 
     Parameters
@@ -90,6 +90,10 @@ def shape_search(model, cost, lower, upper, start, design_target, u, *,
         The design sample's standard normal draws (common random numbers).
     iterations : int
         Candidates evaluated at most.
+    worst_ratios : callable, optional
+        ``t -> (ratio, row)`` per machine of ``u``; ``model.worst_ratios(u, t)`` (the
+        whole grid) by default, or an evaluation on fewer poses that is exact where it
+        matters.
 
     Returns
     -------
@@ -98,8 +102,11 @@ def shape_search(model, cost, lower, upper, start, design_target, u, *,
     """
     level = int(np.ceil(design_target * len(u))) - 1  # machines below it must pass
     band = max(1, int(BAND * len(u)))
-    current = _scaled(model, cost, lower, upper, np.asarray(start, dtype=float), u, level,
-                      band)
+    if worst_ratios is None:
+        def worst_ratios(t):
+            return model.worst_ratios(u, t)
+    judge = (model, worst_ratios, u, level, band)
+    current = _scaled(judge, cost, lower, upper, np.asarray(start, dtype=float))
     if current is None:
         return None
     step, steps, evaluations = FIRST_STEP, 0, 1
@@ -110,8 +117,7 @@ def shape_search(model, cost, lower, upper, start, design_target, u, *,
         if not direction.any():
             break
         move = step * direction
-        trial = _scaled(model, cost, lower, upper, current["t"] * np.exp(move), u, level,
-                        band)
+        trial = _scaled(judge, cost, lower, upper, current["t"] * np.exp(move))
         evaluations += 1
         if trial is not None and trial["cost"] < current["cost"]:
             current, steps = trial, steps + 1
@@ -129,7 +135,7 @@ def _projected(direction, t, lower, upper) -> np.ndarray:
     return np.where(held, 0.0, direction)
 
 
-def _scaled(model, cost, lower, upper, shape, u, level, band) -> dict | None:
+def _scaled(judge, cost, lower, upper, shape) -> dict | None:
     """The shape scaled into the box until the exact chain meets the design yield on the
     design sample with at most :data:`SLACK` to spare, with its cost, its cost shares and
     the mean failure shares of the machines at the margin (None when the box cannot).
@@ -138,10 +144,12 @@ def _scaled(model, cost, lower, upper, shape, u, level, band) -> dict | None:
     steps ``t ← clip(t (1 − SLACK/2) / q(t))`` with ``q`` the sample quantile of the worst
     ratios (one step when no tolerance meets a bound: the ratios are homogeneous in t).
     Machines below the quantile pass (their ratio is below 1), so ``q < 1`` means the
-    design yield is met on the design sample."""
+    design yield is met on the design sample. ``judge`` is the model, the evaluation of
+    the worst ratios, the design draws, the quantile's rank and the band's half-width."""
+    model, worst_ratios, u, level, band = judge
     t = np.clip(shape, lower, upper)
     for attempt in range(RESCALES):
-        ratio, worst = model.worst_ratios(u, t)
+        ratio, worst = worst_ratios(t)
         order = np.argsort(ratio)
         quantile = ratio[order[level]]
         if 1.0 - SLACK <= quantile < 1.0:

@@ -416,14 +416,23 @@ class _Outcome:
 def _stages(search, yield_target, naive_steps, rounds, restore_steps, shape_steps):
     """The naive start, the per-output search and the shape search in ``search``'s box."""
     started = time.perf_counter()
-    naive = search.naive(naive_steps, yield_target)
-    best = search.improve(naive, rounds, restore_steps)
+    naive = _confirmed(lambda: search.naive(naive_steps, yield_target), search, "design")
+    best = _confirmed(lambda: search.improve(naive, rounds, restore_steps), search, "design")
     targets_found = time.perf_counter()
-    shaped = search.shape(best, shape_steps)
+    shaped = _confirmed(lambda: search.shape(best, shape_steps), search, "shape")
     chosen = best if shaped is None or shaped.cost >= best.cost else shaped
     return _Outcome(search=search, naive=naive, best=best, chosen=chosen,
                     seconds={"targets": targets_found - started,
                              "shape": time.perf_counter() - targets_found})
+
+
+def _confirmed(stage, search, sample):
+    """The point ``stage()`` ends at, run again until its screened verdicts on ``sample``
+    are the whole grid's (each failed check widens the screen, so this ends)."""
+    while True:
+        point = stage()
+        if point is None or search.confirm(point.t, sample):
+            return point
 
 
 class YieldUnreachableError(InfeasibleAllocationError):
@@ -611,6 +620,7 @@ class _Search:
         self.evaluations = 0
         self._start = None
         self._cache = {}
+        self._poses = {}
 
     def _caps(self) -> np.ndarray:
         """Largest required index of each output the box can hold (all items at their
@@ -656,13 +666,45 @@ class _Search:
 
     def verdicts(self, t, sample: str) -> np.ndarray:
         """Per-machine, per-output verdicts ``(machines, 6)`` of allocation ``t`` on
-        ``sample``: the output holds its limit at every grid pose (its worst ratio
-        ``|y_o|/I_o`` below 1, Eq. 19); the machine passes when all six do."""
-        return self.model.output_ratios(self.draws(sample), t) < 1.0
+        ``sample``: the output holds its limit at every screened pose of the machine (its
+        worst ratio ``|y_o|/I_o`` there below 1, Eq. 19); the machine passes when all six
+        do. Screened verdicts are never stricter than the full grid's (:meth:`confirm`)."""
+        return self.ratios(t, sample) < 1.0
+
+    def ratios(self, t, sample: str) -> np.ndarray:
+        """Per machine and output, the worst ratio of ``t`` over the machine's screened
+        poses: the first allocation judged on a sample is judged on the whole grid, and its
+        worst pose of every machine and output starts that machine's screened poses."""
+        u = self.draws(sample)
+        if sample not in self._poses:
+            ratios, where = self.model.output_ratios(u, t, with_poses=True)
+            self._poses[sample] = where
+            return ratios
+        return self.model.ratios_at(u, t, self._poses[sample])[0]
+
+    def worst_ratios(self, sample: str):
+        """``t -> (ratio, row)``: each machine's worst ratio of ``t`` over its screened
+        poses of ``sample`` and its row (the shape search's evaluation)."""
+        u = self.draws(sample)
+        return lambda t: self.model.worst_ratios_at(u, t, self._poses[sample])
+
+    def confirm(self, t, sample: str) -> bool:
+        """Whether the screened verdicts of ``t`` on ``sample`` are the whole grid's; when
+        not, the grid's worst poses of ``t`` join every machine's screened poses and every
+        cached verdict is dropped."""
+        u = self.draws(sample)
+        if np.array_equal(self.model.output_ratios(u, t) < 1.0, self.verdicts(t, sample)):
+            return True
+        where = self.model.output_ratios(u, t, with_poses=True)[1]
+        self._poses[sample] = np.concatenate([self._poses[sample], where], axis=1)
+        self._cache.clear()
+        return False
 
     def verification_sample(self):
-        """Per-machine verdicts of an allocation on the fresh sample (same draws for all)."""
-        return lambda t: self.verdicts(t, "verification").all(axis=1)
+        """Per-machine verdicts of an allocation on the fresh sample, on the whole grid
+        (same draws for all)."""
+        u = self.draws("verification")
+        return lambda t: (self.model.output_ratios(u, t) < 1.0).all(axis=1)
 
     def naive(self, steps, yield_target) -> _Point:
         """One common required index, bisected to the smallest meeting the design yield;
@@ -721,9 +763,11 @@ class _Search:
         cannot hold it."""
         if steps == 0:
             return None
+        self.ratios(start.t, "shape")
         found = shape_search(self.model, self.problem.cost, np.asarray(self.problem.lower),
                              np.asarray(self.problem.upper), start.t,
-                             self.design_target, self.draws("shape"), iterations=steps)
+                             self.design_target, self.draws("shape"), iterations=steps,
+                             worst_ratios=self.worst_ratios("shape"))
         if found is None:
             return None
         self.evaluations += found.evaluations

@@ -11,6 +11,8 @@ The package lives in rooms by idea, each importing only the rooms below it:
 - :mod:`reliability.sampling`: the grid experiment (Sec. 5.3), Monte-Carlo at poses, rare
   events, the machine yield and the verification of an allocation;
 - :mod:`reliability.acceptance`: ISO 230 acceptance tests on the model;
+- :mod:`reliability.measured`: measurement files, simulated measurements and the
+  identification of a built machine's errors;
 - :mod:`reliability.interop`: the machine as an OpenTURNS and a SALib model (the optional
   ``interop`` extra, imported only when used).
 
@@ -24,6 +26,8 @@ from .first_order.system_reliability import (SystemReliability, system_reliabili
                                              worst_system_reliability)
 from .model.machine import (COMPONENTS, OUTPUTS, Axis, CostCoefficients, Machine, hobbing_machine,
                             load_machine, machine_from_dict, machine_from_toml)
+from .measured.identification import Identification, identify
+from .measured.measurement_files import read_measurements
 from .model.poses import random_poses, workspace_grid
 from .sampling import rare_events as rare
 from .sampling.experiment_results import GridExperimentResult, RandomPoseResult
@@ -31,9 +35,11 @@ from .sampling.grid_experiment import GridExperiment
 from .sampling.pose_sampling import PoseSamplingResult, sample_at_poses, sample_random_poses
 
 __all__ = ["COMPONENTS", "OUTPUTS", "Axis", "CostCoefficients", "FosmResult",
-           "GridExperiment", "GridExperimentResult", "Machine", "MachineDescriptionError",
+           "GridExperiment", "GridExperimentResult", "Identification", "Machine",
+           "MachineDescriptionError",
            "PoseSamplingResult", "RandomPoseResult", "SystemReliability", "fosm",
-           "hobbing_machine", "load_machine", "machine_from_dict", "machine_from_toml",
-           "interop", "random_poses", "rare",
+           "hobbing_machine", "identify", "load_machine", "machine_from_dict",
+           "machine_from_toml",
+           "interop", "random_poses", "rare", "read_measurements",
            "sample_at_poses", "sample_random_poses", "system_reliability", "workspace_grid",
            "worst_system_reliability"]

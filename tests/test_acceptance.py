@@ -447,7 +447,7 @@ def test_report_section_has_a_figure_and_both_allocations(mill3):
     tests = [CircularTest("c", "xy", CENTRE, 100.0, 0.004), _x_test()]
     section = acceptance_section(mill3, tests, {"initial": mill3.initial_allocation,
                                                 "tight": mill3.initial_allocation / 2},
-                                 machines=100, rng=13)
+                                 machines=100, seed=13)
     assert section.title == "Acceptance tests" and FIGURE in section.figures
     assert set(section.tables) == {"acceptance_initial.csv", "acceptance_tight.csv"}
     tight = section.summary["acceptance"]["tight"]["c/G"]
@@ -462,7 +462,7 @@ def test_command_writes_the_csv_and_refuses_bad_files(tmp_path, capsys):
     code = cli.main(["acceptance", machine, "--tests", tests, "--machines", "40",
                      "--out", str(tmp_path / "out")])
     out = capsys.readouterr().out
-    assert code == 0 and "gp:300" in out and "rotary_C" in out
+    assert code == 0 and "error profile constant" in out and "rotary_C" in out
     frame = pd.read_csv(tmp_path / "out" / "acceptance.csv")
     assert list(frame.columns) == ["test", "quantity", "limit", "mean", "q95",
                                    "pass_probability", "pass_low", "pass_high"]
@@ -487,7 +487,8 @@ def test_command_csv_reads_back_as_the_results_table(tmp_path, capsys):
                      "3", "--out", str(tmp_path)]) == 0
     printed = capsys.readouterr().out
     loaded = load_machine(machine)
-    result = acceptance(loaded, read_tests(tests, loaded), machines=40, rng=3)
+    result = acceptance(loaded, read_tests(tests, loaded), machines=40, profile=loaded.profile,
+                        rng=3)
     assert result.results_text() in printed
     written = pd.read_csv(tmp_path / "acceptance.csv")
     expected = result.to_frame()

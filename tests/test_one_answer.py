@@ -90,3 +90,20 @@ def test_unreachable_advice_names_the_files_bounds_table(tmp_path, capsys):
     code = main(["allocate", str(strict), "--workspace", "grid", "--points", "3",
                  "--bounds", "0.5", "1.5", "--out", str(tmp_path / "b.csv")])
     assert code == 2 and "a wider box (--bounds LO HI" in capsys.readouterr().err
+
+
+def test_report_sensitivity_is_the_sensitivity_command(tmp_path):
+    """The report's "What each tolerance buys" table of an allocation is what ``precrel
+    sensitivity --yield`` writes for it at the same seed, grid and machine count."""
+    from reliability import load_machine
+    from reliability.basics.streams import sensitivity_stream
+    from studies.report.sensitivity_section import sensitivity_section
+
+    machine = load_machine(MILL3)
+    section = sensitivity_section(machine, machine.initial_allocation, label="initial",
+                                  points=3, machines=200, rng=sensitivity_stream(5))
+    assert main(["sensitivity", str(MILL3), "--yield", "--points", "3", "--machines", "200",
+                 "--samples", "64", "--seed", "5", "--out", str(tmp_path / "s")]) == 0
+    written = pd.read_csv(tmp_path / "s" / "yield_sensitivity.csv")
+    shown = section.tables["yield_sensitivity.csv"].reset_index(drop=True)
+    pd.testing.assert_frame_equal(written, shown, check_exact=False, rtol=1e-5)

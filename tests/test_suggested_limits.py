@@ -134,6 +134,6 @@ def test_report_refuses_a_suggestion_without_tests(tmp_path, capsys):
 def test_report_section_shows_the_suggested_limits(mill, position_x):
     from studies.report.acceptance_section import acceptance_section
     section = acceptance_section(mill, [position_x], {"initial": mill.initial_allocation},
-                                 machines=100, suggest=0.9, rng=3)
+                                 machines=100, suggest=0.9, seed=3)
     assert "suggested µm" in section.text and "0.9-quantile" in section.text
     assert "suggested_limit" in section.tables["acceptance_initial.csv"]

@@ -3,8 +3,12 @@ in degrees.
 
 Results hold rotary positions in rad (the model's unit); everything printed for people,
 and every pose column of a table meant for people, shows them in degrees, with the unit in
-the heading (``"A [deg]"``, or ``A_deg`` in a CSV column name). Output errors keep their
-model units (mm and rad), always named.
+the heading (``"A [deg]"``, or ``A_deg`` in a CSV column name).
+
+Tolerances, σ and limits are held in mm and rad too. A table for people shows them in the
+units the machine file states (``[cost] units``, e.g. µm and arcsec; mm and rad when it
+states none: :func:`people_units`), the unit in the heading (``"tolerance [µm]"``) or
+beside each number; machine-readable CSV files keep mm and rad.
 
 Every number is printed only to the digits the computation fixes: a position in a pose
 text to :data:`POSITION_RESOLUTION` (a search over the continuous workspace fixes no
@@ -28,6 +32,11 @@ POSITION_RESOLUTION = 1e-3
 SHOWN_FAILURE = 5e-7
 #: Below this failure probability double precision fixes only one significant digit of it.
 ONE_DIGIT_FAILURE = 1e-14
+#: How many of each unit one mm (lengths) or one rad (angles) is.
+UNIT_SCALES = {"mm": 1.0, "um": 1e3, "rad": 1.0, "urad": 1e6,
+               "arcsec": 180.0 * 3600.0 / math.pi}
+#: How a unit is written for people, where it differs from its ASCII name.
+UNIT_SYMBOLS = {"um": "µm", "urad": "µrad"}
 
 
 def axis_units(machine) -> tuple[str, ...]:
@@ -50,6 +59,44 @@ def pose_frame(poses, axes, units, *, style: str = "bracket") -> pd.DataFrame:
     heading = "{axis} [{unit}]" if style == "bracket" else "{axis}_{unit}"
     return pd.DataFrame({heading.format(axis=axis, unit=unit): shown[:, i]
                          for i, (axis, unit) in enumerate(zip(axes, shown_units))})
+
+
+def people_units(units) -> tuple[str, str]:
+    """The ``(length, angle)`` units tables for people use: the machine file's stated
+    units (``machine.cost_coefficients.units``), mm and rad when it states none."""
+    return tuple(units) if units else ("mm", "rad")
+
+
+def unit_symbol(unit: str) -> str:
+    """A unit as written for people: ``'um'`` as ``'µm'``, ``'urad'`` as ``'µrad'``."""
+    return UNIT_SYMBOLS.get(unit, unit)
+
+
+def error_units(names, units) -> tuple[str, ...]:
+    """The unit of each error (``"<owner>.d*"`` a length, ``"<owner>.e*"`` an angle) in
+    ``people_units(units)``, ASCII names."""
+    length, angle = people_units(units)
+    return tuple(length if name.rpartition(".")[2].startswith("d") else angle
+                 for name in names)
+
+
+def output_people_units(units) -> tuple[str, ...]:
+    """The unit of each comprehensive error (dx dy dz in the length unit, ex ey ez in the
+    angle unit) in ``people_units(units)``, ASCII names."""
+    length, angle = people_units(units)
+    return tuple(length if unit == "mm" else angle for unit in OUTPUT_UNITS)
+
+
+def in_units(values, units) -> np.ndarray:
+    """``values`` held in mm or rad converted element-wise to ``units`` (ASCII names)."""
+    scales = np.array([UNIT_SCALES[unit] for unit in units])
+    return np.asarray(values, dtype=float) * scales
+
+
+def quantity_text(value: float, unit: str, digits: int = 4) -> str:
+    """A length or an angle held in mm or rad, shown in ``unit`` with its symbol:
+    ``quantity_text(0.0034, "um")`` is ``"3.4 µm"``."""
+    return with_unit(float(value) * UNIT_SCALES[unit], unit_symbol(unit), digits)
 
 
 def target_text(target: float) -> str:

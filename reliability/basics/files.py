@@ -48,7 +48,7 @@ def rounded_down(values, digits: int = SIGNIFICANT) -> np.ndarray:
     values = np.asarray(values, dtype=float)
     bad = np.flatnonzero(~(np.isfinite(values) & (values > 0)))
     if len(bad):
-        raise InputError(f"values: entry {int(bad[0])} is {values.ravel()[bad[0]]!r}; "
+        raise InputError(f"values: entry {int(bad[0])} is {float(values.ravel()[bad[0]])!r}; "
                          f"expected a finite number > 0 to round down")
     return np.array([_cut(float(v), digits) for v in values.ravel()]).reshape(values.shape)
 

@@ -15,6 +15,12 @@ the call which draws a number depends on:
   of the earlier numbers (the optional report sections, ``precrel verify --precision`` and
   ``--rare``).
 
+Each quantity a report prints draws from one named stream of the report's seed, the same
+stream the command that computes that quantity alone draws from: :func:`machine_yield_stream`
+(the machine yield, ``precrel verify``), :func:`acceptance_stream` (acceptance tests, ``precrel
+acceptance``), :func:`system_stream`, :func:`rare_stream`, :func:`profiles_stream` and
+:func:`catalogue_stream` (docs/reproducibility.md has the whole mapping).
+
 The Monte-Carlo verification of an allocation with seed ``S`` draws from
 :func:`verification_streams` of ``S`` wherever it runs: ``precrel verify --seed S``, both
 allocations of ``precrel report --seed S``, a sweep task with seed ``S`` (its grid
@@ -70,12 +76,9 @@ def extra_stream(seed: int, index: int) -> np.random.Generator:
     """Stream ``index`` of the extra family of ``seed``: ``SeedSequence([seed, 1],
     spawn_key=(index,))``, independent of every stream :func:`spawn` derives from ``seed``.
 
-    The extra streams in use: 0, the system-reliability section of a report and
-    ``precrel verify --precision``; 1, the rare-event section and ``precrel verify --rare``;
-    2, the acceptance-test section (``precrel report --tests``); 3, the Monte-Carlo of
-    the component-choice section (``precrel report --catalogue``); 4, the sensitivity
-    section (``precrel report --sensitivity``); 5, the work-zone section of a machine with
-    a work zone.
+    The extra streams in use: 0, :func:`system_stream`; 1, :func:`rare_stream`; 2,
+    :func:`profiles_stream`; 3, :func:`catalogue_stream`; 4, :func:`sensitivity_stream`;
+    5, :func:`zone_stream`.
     """
     seed = _seed(seed)
     return np.random.default_rng(np.random.SeedSequence([seed, EXTRA_FAMILY],
@@ -88,6 +91,47 @@ def verification_streams(rng) -> list[np.random.Generator]:
     command runs it (the first three are ``spawn(rng, 3)``, as before the yield was
     added)."""
     return spawn(rng, 4)
+
+
+def machine_yield_stream(seed) -> np.random.Generator:
+    """The machine-yield stream of seed ``seed``: the fourth of :func:`verification_streams`,
+    drawn by the yield of ``precrel verify --seed S``, of both allocations of ``precrel report
+    --seed S`` and by :func:`reliability.sampling.machine_yield.machine_yield` with this
+    stream as ``rng``."""
+    return verification_streams(_seed(seed))[3]
+
+
+def acceptance_stream(seed) -> np.random.Generator:
+    """The acceptance-test stream of seed ``seed``: the seed's own generator, drawn by
+    ``precrel acceptance --seed S`` and, afresh for each allocation, by the acceptance-test
+    section of ``precrel report --seed S``, so that the report's numbers of an allocation
+    are those of the command given that allocation."""
+    return generator(_seed(seed), "seed")
+
+
+def system_stream(seed) -> np.random.Generator:
+    """The system-reliability stream of seed ``seed`` (extra stream 0): the report's
+    system-reliability section and ``precrel verify --precision``."""
+    return extra_stream(seed, 0)
+
+
+def rare_stream(seed) -> np.random.Generator:
+    """The rare-event stream of seed ``seed`` (extra stream 1): the report's rare-event
+    section and ``precrel verify --rare``."""
+    return extra_stream(seed, 1)
+
+
+def profiles_stream(seed) -> np.random.Generator:
+    """The stream of each grid experiment of the error-profile comparison with seed
+    ``seed`` (extra stream 2; :func:`studies.workflows.profile_comparison.profile_comparison`,
+    afresh for every allocation, profile and number of experiments)."""
+    return extra_stream(seed, 2)
+
+
+def catalogue_stream(seed) -> np.random.Generator:
+    """The stream of the component-choice section's Monte-Carlo with seed ``seed`` (extra
+    stream 3; :func:`studies.report.catalogue_section.catalogue_section`)."""
+    return extra_stream(seed, 3)
 
 
 def yield_allocation_streams(seed) -> list[np.random.Generator]:
@@ -110,3 +154,16 @@ def _seed(seed) -> int:
     if seed < 0:
         raise InputError(f"seed must be a non-negative integer; got {seed}")
     return int(seed)
+
+
+def sensitivity_stream(seed) -> np.random.Generator:
+    """The yield-sensitivity stream of seed ``seed`` (extra stream 4): the built machines of
+    ``precrel sensitivity --yield --seed S`` and of the report's "What each tolerance buys"
+    section (``report --sensitivity --seed S``)."""
+    return extra_stream(seed, 4)
+
+
+def zone_stream(seed) -> np.random.Generator:
+    """The work-zone stream of seed ``seed`` (extra stream 5): the built machines of the
+    report's "The work zone" section (``report --seed S`` on a machine with a work zone)."""
+    return extra_stream(seed, 5)

@@ -63,6 +63,10 @@ from .zone_enclosure import ZoneEnclosure
 
 #: The spreads the certificate can bound: σ (Eq. 20) or the first-order worst-case stack.
 READINGS = ("sigma", "stack")
+#: The pose sets a study can ask for: the continuous strokes (certified) or the grid.
+WORKSPACES = ("continuous", "grid")
+#: Relative tolerance in σ (or the stack) of the certificate when a study does not say.
+DEFAULT_RTOL = 1e-3
 #: Box evaluations one output may spend before the search stops uncertified.
 MAX_BOX_CALLS = 2_000_000
 #: Default bytes of temporary arrays per chunk of boxes: small enough to stay in cache,
@@ -81,7 +85,7 @@ START_SEARCHES = 3
 END_SNAP = 1e-12
 
 
-def certified_worst(machine, tolerances, *, rtol: float = 1e-3, k: float = 3.0,
+def certified_worst(machine, tolerances, *, rtol: float = DEFAULT_RTOL, k: float = 3.0,
                     distribution: str | None = None, reading: str = "sigma",
                     max_calls: int = MAX_BOX_CALLS, memory: int | None = None
                     ) -> pd.DataFrame:

@@ -49,17 +49,17 @@ def check_correlation_matrix(matrix, names) -> np.ndarray:
     if not np.all(np.isfinite(R)):
         i, j = np.argwhere(~np.isfinite(R))[0]
         raise MachineDescriptionError(f"correlation of {names[i]!r} and {names[j]!r} is "
-                                      f"not finite: {R[i, j]!r}")
+                                      f"not finite: {float(R[i, j])!r}")
     off = np.flatnonzero(np.abs(np.diag(R) - 1.0) > ROUNDING)
     if off.size:
         raise MachineDescriptionError(f"correlation of {names[off[0]]!r} with itself must be "
-                                      f"1; got {R[off[0], off[0]]!r}")
+                                      f"1; got {float(R[off[0], off[0]])!r}")
     for test, what in ((np.abs(R - R.T) > ROUNDING, "is not symmetric"),
                        (np.abs(R) > 1.0, "must lie in [-1, 1]")):
         if np.any(test):
             i, j = np.argwhere(test)[0]
             raise MachineDescriptionError(f"correlation of {names[i]!r} and {names[j]!r} "
-                                          f"{what}: {R[i, j]!r}")
+                                          f"{what}: {float(R[i, j])!r}")
     R = 0.5 * (R + R.T)
     values, vectors = np.linalg.eigh(R)
     if values[0] < -ROUNDING:

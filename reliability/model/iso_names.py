@@ -37,6 +37,14 @@ ISO 230-1 meaning but keep their symbol here so every error has one.
 
 Every function and file that takes an error name accepts either the paper's name or its
 ISO symbol (:meth:`reliability.model.machine.Machine.error_index`).
+
+Plain names (:func:`plain_names`) say the same in words for people: "X positioning",
+"X straightness in y", "X pitch", "C radial motion in x", "squareness between X and Y".
+A rotation of a linear axis about its own direction is its roll; about z (for an axis not
+along z) its yaw; about the third direction its pitch; a vertical axis has two tilts. A
+location error that turns axis ``b`` about a direction other than its own tilts ``b``
+toward the third direction, so it is named the squareness between ``b`` and the linear axis
+moving along that direction (or "squareness of b to y" when no axis moves along it).
 """
 
 from __future__ import annotations
@@ -45,6 +53,8 @@ from ..basics.errors import InputError
 
 #: ISO 230-1 direction letter of each error component.
 ISO_DIRECTIONS = {"dx": "X", "dy": "Y", "dz": "Z", "ex": "A", "ey": "B", "ez": "C"}
+#: The three frame directions, in the order of the components' last letter.
+DIRECTIONS = ("x", "y", "z")
 
 
 def iso_symbol(name: str) -> str:
@@ -111,3 +121,66 @@ def name_table(machine):
         "owner": owners,
         "kind": ["assembly" if "-" in o else "motion" for o in owners],
     }, index=pd.Index(names, name="error"))
+
+
+def plain_names(machine) -> tuple[str, ...]:
+    """A plain name of every error of ``machine``, aligned with ``machine.error_names``.
+
+    Examples
+    --------
+    >>> import reliability
+    >>> names = dict(zip(reliability.hobbing_machine().error_names,
+    ...                  plain_names(reliability.hobbing_machine())))
+    >>> names["X.dx"], names["X.ey"], names["C.ez"], names["C-X.ez"]
+    ('X positioning', 'X pitch', 'C angular positioning', 'squareness between X and Y')
+    """
+    specs = {axis.name: axis for axis in machine.axis_specs}
+    linear = {}
+    for axis in machine.axis_specs:
+        if axis.kind == "linear":
+            linear.setdefault(axis.direction, axis.name)
+    names = []
+    for name in machine.error_names:
+        owner, _, comp = name.rpartition(".")
+        if "-" in owner:
+            names.append(_location_name(specs[owner.split("-")[-1]], comp, linear))
+        else:
+            names.append(_motion_name(specs[owner], comp))
+    return tuple(names)
+
+
+def _motion_name(axis, comp: str) -> str:
+    """Plain name of the motion error ``comp`` of ``axis``."""
+    along, moved = comp[1], axis.direction
+    if axis.kind == "linear":
+        if comp[0] == "d":
+            return f"{axis.name} positioning" if along == moved else \
+                f"{axis.name} straightness in {along}"
+        if along == moved:
+            return f"{axis.name} roll"
+        if moved == "z":
+            return f"{axis.name} tilt about {along}"
+        return f"{axis.name} yaw" if along == "z" else f"{axis.name} pitch"
+    if comp[0] == "d":
+        return f"{axis.name} axial motion" if along == moved else \
+            f"{axis.name} radial motion in {along}"
+    return f"{axis.name} angular positioning" if along == moved else \
+        f"{axis.name} tilt about {along}"
+
+
+def _location_name(axis, comp: str, linear: dict) -> str:
+    """Plain name of the location error ``comp`` of ``axis`` (where its joint places it);
+    ``linear`` maps a direction to the first linear axis moving along it."""
+    along, own = comp[1], axis.direction
+    if comp[0] == "d":
+        if axis.kind == "rotary" and along != own:
+            return f"position of the {axis.name} axis line in {along}"
+        return f"offset of {axis.name} along {along}"
+    if along == own:
+        return f"zero position of {axis.name}" if axis.kind == "rotary" else \
+            f"roll of {axis.name} as mounted"
+    toward = next(d for d in DIRECTIONS if d not in (along, own))
+    other = linear.get(toward)
+    if other is None or other == axis.name:
+        return f"squareness of {axis.name} to {toward}"
+    return f"squareness between {axis.name} and {other}"

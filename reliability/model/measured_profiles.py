@@ -82,8 +82,8 @@ class MeasuredProfile:
             low, high = self.positions[0], self.positions[-1]
             bad = (x < low) | (x > high)
             if np.any(bad):
-                raise InputError(f"position {x[bad].flat[0]!r} of {self.error!r} lies outside "
-                                 f"the measured range [{low:g}, {high:g}]; pass outside='hold' "
+                raise InputError(f"position {float(x[bad].flat[0])!r} of {self.error!r} lies "
+                                 f"outside the measured range [{low:g}, {high:g}]; pass outside='hold' "
                                  f"to hold the end values")
         return np.interp(x, self.positions, self.values)
 
@@ -259,7 +259,7 @@ def _pairs(error, positions, values) -> tuple[np.ndarray, np.ndarray]:
         bad = ~np.isfinite(array)
         if np.any(bad):
             row = int(np.argmax(bad))
-            raise InputError(f"profile of {error!r}: {name}[{row}] = {array[row]!r} is not "
+            raise InputError(f"profile of {error!r}: {name}[{row}] = {float(array[row])!r} is not "
                              f"finite")
     return x, y
 

@@ -116,8 +116,11 @@ from ..basics.chunks import chunk_size, chunks, jacobian_bytes
 from ..basics.statistics import all_within_share, share_interval
 from ..first_order.fosm import error_sigma, pose_sigma, two_sided_failure
 from ..model.error_draws import check_reading, grid_factors, normal_to_marginal
+from ..model.kinematics import (chain_factors, deviation_from_transports, ideal_rotation,
+                                transports, vectors_in_frame)
 from ..model.machine import OUTPUTS
 from ..model.profiles import axis_profiles, travel_factors
+from ..model.transforms import read_pose_error
 from .grid_experiment import GridExperiment
 
 #: Built machines simulated when not told otherwise (the command line's ``--machines``).
@@ -417,10 +420,67 @@ class YieldModel:
         for start in range(0, len(u), self.batch):
             part = slice(start, start + self.batch)
             values = self.experiment.evaluate(*self.errors(u[part], tolerances))
-            rows = np.abs(values) / self.machine.limits  # (batch, n_poses, 6)
-            where[part] = np.argmax(rows, axis=1)
-            ratios[part] = np.take_along_axis(rows, where[part][:, None, :], axis=1)[:, 0]
+            rows = np.abs(values, out=values)
+            rows /= self.machine.limits  # (batch, n_poses, 6)
+            if with_poses:
+                by_output = np.ascontiguousarray(rows.transpose(0, 2, 1))
+                where[part] = np.argmax(by_output, axis=2)
+                ratios[part] = np.take_along_axis(by_output, where[part][..., None],
+                                                  axis=2)[..., 0]
+            else:
+                ratios[part] = _largest_over_poses(rows)
         return (ratios, where) if with_poses else ratios
+
+    def ratios_at(self, u, tolerances, poses):
+        """Each built machine's worst ratio per output over its own grid poses: ``max over
+        poses[m] |y_o|/I_o`` of the exact chain (Eq. 18, each pose evaluated on its own)
+        for draws ``u (R, dimension)``.
+
+        The same chain and errors as :meth:`output_ratios` on a subset of the grid, so each
+        ratio is at most the full grid's, and equal to it (to rounding) when ``poses[m]``
+        holds the pose where the full grid reaches it.
+
+        Parameters
+        ----------
+        u : ndarray (R, dimension)
+        tolerances : ndarray (n_errors,)
+        poses : ndarray (R, W) of int
+            Grid pose indices (into ``experiment.poses``) of each machine.
+
+        Returns
+        -------
+        ratios : ndarray (R, 6)
+        where : ndarray (R, 6) of int
+            The pose (grid index) of each ratio, the first of ``poses[m]`` on a tie.
+        """
+        u = np.asarray(u, dtype=float)
+        poses = np.asarray(poses, dtype=np.intp)
+        distinct, inverse = np.unique(poses, return_inverse=True)
+        inverse = inverse.reshape(poses.shape)
+        chain = _PoseChains(self.machine, self.experiment.poses[distinct])
+        ratios = np.empty((len(u), len(OUTPUTS)))
+        where = np.empty((len(u), len(OUTPUTS)), dtype=np.intp)
+        for part in chunks(len(u), 4 * 8 * 36 * poses.shape[1] * len(chain.adjoints),
+                           self.memory):
+            motion, assembly = self.errors(u[part], tolerances)
+            index = self._grid_index[poses[part]]  # (batch, W, n)
+            values = chain.evaluate(inverse[part], self._pose_errors(motion, assembly, index))
+            rows = np.abs(values) / self.machine.limits  # (batch, W, 6)
+            column = np.argmax(rows, axis=1)
+            ratios[part] = np.take_along_axis(rows, column[:, None, :], axis=1)[:, 0]
+            where[part] = np.take_along_axis(poses[part], column, axis=1)
+        return ratios, where
+
+    @staticmethod
+    def _pose_errors(motion, assembly, index) -> np.ndarray:
+        """``(batch, W, n_errors)`` error vectors at each machine's poses: every axis'
+        motion errors at the pose's grid point, then the assembly errors."""
+        batch, width, n = index.shape
+        machine_index = np.arange(batch)[:, None]
+        at_pose = [motion[machine_index, a, index[:, :, a]] for a in range(n)]  # (b, W, 6)
+        fixed = np.broadcast_to(assembly.reshape(batch, 1, -1),
+                                (batch, width, assembly[0].size))
+        return np.concatenate(at_pose + [fixed], axis=-1)
 
     def worst_rows(self, u, tolerances):
         """For each draw: whether the machine fails (``|y| ≥ I`` at some pose and output,
@@ -434,11 +494,12 @@ class YieldModel:
         output of the exact chain (the machine passes when it is below 1) and its row
         ``pose · 6 + output``; the largest of :meth:`output_ratios` (on a tie, the row
         that comes first)."""
-        ratios, poses = self.output_ratios(u, tolerances, with_poses=True)
-        ratio = ratios.max(axis=1)
-        rows = poses * len(OUTPUTS) + np.arange(len(OUTPUTS))
-        worst = np.where(ratios == ratio[:, None], rows, np.iinfo(np.intp).max).min(axis=1)
-        return ratio, worst
+        return _worst_of(*self.output_ratios(u, tolerances, with_poses=True))
+
+    def worst_ratios_at(self, u, tolerances, poses):
+        """:meth:`worst_ratios` over each machine's own grid poses ``poses (R, W)``
+        (:meth:`ratios_at`)."""
+        return _worst_of(*self.ratios_at(u, tolerances, poses))
 
     def row_contributions(self, u, tolerances, rows) -> np.ndarray:
         """``(R, n_errors)``: each error's term ``J_ri x_i`` of the linearised output of
@@ -704,6 +765,47 @@ def machine_yield(machine, tolerances, *, profile=None, distribution=None,
                        points_per_axis=points_per_axis, k=k, memory=memory)
     return model.estimate(tolerances, machines=machines, rng=rng, method=method,
                           confidence=confidence, target_cov=target_cov)
+
+
+def _largest_over_poses(rows) -> np.ndarray:
+    """``rows.max(axis=1)`` of ``(batch, n_poses, 6)``, by halving the poses in place: each
+    step takes the larger of two contiguous blocks, which runs at memory speed where a
+    reduction along the middle axis does not (``rows`` is overwritten)."""
+    count = rows.shape[1]
+    while count > 1:
+        half = count // 2
+        np.maximum(rows[:, :half], rows[:, count - half:count], out=rows[:, :half])
+        count -= half
+    return rows[:, 0].copy()
+
+
+def _worst_of(ratios, poses):
+    """The largest of each machine's output ratios and its row ``pose · 6 + output`` (on a
+    tie, the row that comes first)."""
+    ratio = ratios.max(axis=1)
+    rows = poses * len(OUTPUTS) + np.arange(len(OUTPUTS))
+    worst = np.where(ratios == ratio[:, None], rows, np.iinfo(np.intp).max).min(axis=1)
+    return ratio, worst
+
+
+class _PoseChains:
+    """The exact chain at a set of poses, with each pose's transports computed once, for
+    error vectors given per (machine, pose)."""
+
+    def __init__(self, machine, positions):
+        factors, self.blocks = chain_factors(machine, positions)
+        self.adjoints = transports(factors)  # per gap: (n_poses, 6, 6)
+        self.rotation = ideal_rotation(machine, positions) \
+            if machine.frame == "workpiece" else None
+
+    def evaluate(self, pose, x) -> np.ndarray:
+        """Outputs ``(R, W, 6)`` for errors ``x (R, W, n_errors)`` at poses ``pose (R, W)``
+        (indices into the positions)."""
+        twists = [x[..., 6 * b: 6 * b + 6] for b in self.blocks]
+        deviation = deviation_from_transports([adjoint[pose] for adjoint in self.adjoints],
+                                              twists)
+        out = read_pose_error(deviation)
+        return out if self.rotation is None else vectors_in_frame(out, self.rotation[pose])
 
 
 # ----- the importance proposal ------------------------------------------------------------

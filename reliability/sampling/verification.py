@@ -38,7 +38,7 @@ from scipy.stats import norm
 from ..basics import checks
 from ..basics.errors import InputError
 from ..basics.streams import spawn, verification_streams
-from ..first_order.certificate import certified_worst
+from ..first_order.certificate import DEFAULT_RTOL, WORKSPACES, certified_worst
 from ..first_order.fosm import fosm
 from ..model.machine import OUTPUTS
 from ..model.poses import workspace_grid
@@ -119,18 +119,12 @@ def reading_text(distribution: str) -> str:
             else "normal, σ = t/3 (not truncated)")
 
 
-#: Where :func:`verify` seeks each output's worst pose (``allocation.continuous``'s names).
-WORKSPACES = ("continuous", "grid")
-#: Relative tolerance in σ of the certified worst poses (as the continuous allocation's).
-WORKSPACE_RTOL = 1e-3
-
-
 def verify(machine, tolerances, *, points: int = 5, repeats: int = 20,
            samples: int = 20_000, rng=None, progress=None, bar=None,
            prediction=None, distribution: str | None = None,
            worst_poses=None, profile=None,
            machines: int = DEFAULT_MACHINES, workspace: str = "continuous",
-           rtol: float = WORKSPACE_RTOL) -> Verification:
+           rtol: float = DEFAULT_RTOL) -> Verification:
     """The machine yield of ``tolerances``, then the three Monte-Carlo checks.
 
     Parameters

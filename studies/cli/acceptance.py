@@ -3,10 +3,11 @@ ISO 230 acceptance tests?"""
 
 from __future__ import annotations
 
-from reliability.acceptance.prediction import (DEFAULT_PROFILE, acceptance, path_profile,
-                                               profile_note)
+from reliability.acceptance.prediction import acceptance, path_profile, profile_note
 from reliability.acceptance.suggested_limits import check_machines, suggest_limits
+from reliability.basics.errors import InputError
 from reliability.basics.files import SIGNIFICANT, write_csv
+from reliability.basics.streams import acceptance_stream
 
 from . import options
 
@@ -31,11 +32,13 @@ def add_parser(subparsers):
                              "machine file's initial allocation")
     parser.add_argument("--machines", type=options.positive_int, default=2000, metavar="N",
                         help="built machines drawn (default 2000)")
-    parser.add_argument("--profile", default=DEFAULT_PROFILE, metavar="P",
-                        help=f"error profile along travel: gp:<length mm> or constant "
-                             f"(default {DEFAULT_PROFILE})")
+    parser.add_argument("--profile", default=None, metavar="P",
+                        help="error profile along travel: gp:<length mm> or constant "
+                             "(default: the machine file's [requirements] profile, else "
+                             "constant, as precrel report)")
     parser.add_argument("--seed", type=options.seed, default=0, metavar="S",
-                        help="random seed (default 0)")
+                        help="random seed (default 0; the stream of precrel report --seed "
+                             "S --tests)")
     parser.add_argument("--suggest", type=options.probability, metavar="P",
                         help="add to each result the limit that a share P of the built "
                              "machines meet (its P-quantile, with a distribution-free 95 %% "
@@ -53,15 +56,20 @@ def run(args) -> int:
     tests = options.read_tests(args.tests, machine)
     tolerances = None if args.tolerances is None else \
         options.read_tolerances(args.tolerances, machine)
-    path_profile(args.profile, tests)
+    chosen = profile_source(args)
+    try:
+        path_profile(machine.profile, tests)
+    except InputError as error:
+        raise InputError(f"{chosen}: {error} (give it with --profile)") from None
     if args.suggest is not None:
         check_machines(args.machines, args.suggest, name="--machines")
     options.say(f"{len(tests)} tests on {args.machines} built machines")
     result = acceptance(machine, tests, tolerances, machines=args.machines,
-                        profile=args.profile, rng=args.seed)
+                        profile=machine.profile, rng=acceptance_stream(args.seed))
     source = "initial allocation" if args.tolerances is None else args.tolerances
     print(f"Acceptance tests of {machine.name!r}, {source}: {result.n_machines} built "
-          f"machines, seed {args.seed}; {profile_note(result.profile)}; tolerances read as "
+          f"machines, seed {args.seed}; {profile_note(result.profile)} ({chosen}); "
+          f"tolerances read as "
           f"{result.distribution} with σ = t/{result.k:g}; geometric errors only (no servo, "
           f"dynamic or thermal effects), plus each linear axis' repeatability and reversal "
           f"in positioning tests.\n")
@@ -77,3 +85,10 @@ def run(args) -> int:
         print(f"\nwritten {path}")
     return 0
 
+
+
+def profile_source(args) -> str:
+    """Where the error profile comes from, in words: ``--profile`` or the machine file."""
+    if args.profile is not None:
+        return "--profile"
+    return "the machine file's profile"

@@ -1,10 +1,13 @@
-"""``precrel allocate MACHINE.toml --out CSV``: the cheapest allocation meeting the targets;
-with ``--catalogue CAT.toml`` the cheapest choice of catalogue classes; with ``--yield Y``
-the cheapest allocation found whose machine yield reaches Y, with its cost bracket."""
+"""``precrel allocate MACHINE.toml --out CSV``: the cheapest allocation meeting the targets,
+and beside it the tolerances to write on drawings (``--drawing``, default
+``drawing_tolerances.csv`` in the folder of ``--out``); with ``--catalogue CAT.toml`` the
+cheapest choice of catalogue classes; with ``--yield Y`` the cheapest allocation found
+whose machine yield reaches Y, with its cost bracket."""
 
 from __future__ import annotations
 
 import dataclasses
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -12,12 +15,15 @@ import pandas as pd
 from allocation import AllocationProblem, allocate_for_yield, solve_catalogue
 from allocation.continuous import check_continuous, solve_continuous
 from allocation.elasticity import requirement_table
-from allocation.result_files import (allocation_to_csv, cost_shares_text, cost_units_text, gap_text,
-                                     nearly_free_text, written_cost_text)
+from allocation.result_files import (DRAWING_FILE, DRAWING_RESOLUTION, allocation_to_csv,
+                                     cost_shares_text, cost_units_text, drawing_check_text,
+                                     drawing_to_csv, gap_text, nearly_free_text,
+                                     written_cost_text)
 from reliability.basics import display
 from reliability.basics.errors import InputError
 from reliability.model.machine import OUTPUTS
 from reliability.model.poses import workspace_grid
+from studies.report.machine_sections import tolerance_table
 from studies.report.writer import SIGNIFICANT
 
 from . import options
@@ -75,8 +81,17 @@ def add_parser(subparsers):
     parser.add_argument("--tolerances-out", metavar="CSV",
                         help="with --catalogue: write the tolerances that follow from the "
                              "choice (columns error, reference, allocated)")
+    parser.add_argument("--drawing", metavar="CSV",
+                        help=f"tolerances to write on drawings (columns error, iso, name, "
+                             f"tolerance, unit; µm and arcsec, rounded down to the "
+                             f"resolution; --tolerances reads it as it is); default "
+                             f"{DRAWING_FILE} in the folder of --out; not with --catalogue")
+    parser.add_argument("--drawing-resolution", nargs=2, type=float, metavar=("UM", "ARCSEC"),
+                        default=DRAWING_RESOLUTION,
+                        help="resolution of the drawing tolerances in µm and arcsec "
+                             "(default 0.1 0.1)")
     parser.add_argument("--overwrite", action="store_true",
-                        help="replace existing --out / --tolerances-out files")
+                        help="replace existing --out / --drawing / --tolerances-out files")
     return parser
 
 
@@ -93,6 +108,7 @@ def run(args) -> int:
             raise InputError(f"{option} is used with --catalogue only")
     bounds = options.check_bounds(args.bounds)
     out = options.destination(args.out, args.overwrite)
+    drawing = drawing_destination(args, out)
     machine = options.machine(args)
     for name in args.lock:
         if name not in machine.error_names:
@@ -121,16 +137,52 @@ def run(args) -> int:
         print(describe(result, f"workspace: grid — the targets hold at the "
                                f"{len(problem.poses)} poses of the {args.points}-point grid "
                                f"(not certified between them)"))
+    print(changes_text(result))
+    write_files(args, result, out, drawing)
+    return 0
+
+
+def drawing_destination(args, out: Path) -> Path:
+    """Where the drawing file goes (``--drawing``, else beside ``--out``), checked before
+    any work: it must differ from ``--out``."""
+    path = Path(args.drawing) if args.drawing is not None else out.parent / DRAWING_FILE
+    drawing = options.destination(path, args.overwrite, "--drawing")
+    if drawing.resolve() == out.resolve():
+        raise InputError(f"--drawing {drawing} is also --out; give the drawing file another "
+                         f"name")
+    return drawing
+
+
+def write_files(args, result, out: Path, drawing: Path, *, targets: bool = True) -> None:
+    """The allocation CSV and the drawing file, each with a line on what it holds (with
+    ``targets``, whether the drawing meets the per-pose targets of the result's problem)."""
     allocation_to_csv(result, out, args.overwrite, significant=SIGNIFICANT)
     print(f"\nallocation written to {out}, {written_cost_text(result)}")
-    return 0
+    resolution = tuple(args.drawing_resolution)
+    drawing_to_csv(result.problem.machine, result.tolerances, drawing, args.overwrite,
+                   resolution=resolution)
+    print(f"drawing tolerances written to {drawing}, "
+          f"{drawing_check_text(result, resolution, targets=targets)}")
+
+
+def changes_text(result, top: int = 10) -> str:
+    """The ``top`` largest changes from the initial allocation, in the machine file's
+    units with ISO 230-1 symbols and plain names."""
+    problem = result.problem
+    table = tolerance_table(problem.machine, problem.reference, result.tolerances)
+    order = table["change"].abs().sort_values(ascending=False, kind="stable").index[:top]
+    shown = table.loc[order].copy()
+    shown["change"] = [f"{v:+.1%}" for v in shown["change"]]
+    return (f"\nlargest changes from the initial allocation ({top} of {len(table)}; "
+            f"tolerances in the machine file's units):\n{shown.to_string(index=False)}")
 
 
 def run_catalogue(args) -> int:
     """``--catalogue``: everything checked first, then the certified cheapest choice."""
     for option, given in (("--bounds", args.bounds is not None), ("--lock", bool(args.lock)),
                           ("--method gwo", args.method != "exact"),
-                          ("--workspace continuous", args.workspace == "continuous")):
+                          ("--workspace continuous", args.workspace == "continuous"),
+                          ("--drawing", args.drawing is not None)):
         if given:
             raise InputError(f"{option} does not apply with --catalogue: classes are used "
                              f"as given, items in no component keep their starting "
@@ -181,6 +233,7 @@ def run_yield(args) -> int:
                          "default with --yield)")
     bounds = options.check_bounds(args.bounds)
     out = options.destination(args.out, args.overwrite)
+    drawing = drawing_destination(args, out)
     machine = options.machine(args)
     options.say(f"allocating for machine yield {args.yield_target:g} on the {args.points}-point"
                 f" grid, {options.box_words(machine, bounds)}, profile {machine.profile}, "
@@ -188,8 +241,8 @@ def run_yield(args) -> int:
     result = allocate_for_yield(machine, args.yield_target, points=args.points, bounds=bounds,
                                 machines=args.machines, seed=args.seed)
     print(describe_yield(result))
-    allocation_to_csv(result, out, args.overwrite, significant=SIGNIFICANT)
-    print(f"\nallocation written to {out}, {written_cost_text(result)}")
+    print(changes_text(result))
+    write_files(args, result, out, drawing, targets=False)
     return 0
 
 

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from allocation.continuous import DEFAULT_RTOL, WORKSPACE_CHOICES, check_continuous
+from allocation.continuous import DEFAULT_RTOL, WORKSPACE_CHOICES, continuous_unavailable
 from allocation.problem import DEFAULT_FACTORS, bounds_source
 from allocation.result_files import read_allocation_csv
 from allocation.catalogue import load_catalogue, unit_warnings
@@ -226,14 +226,12 @@ def check_bounds(bounds) -> tuple[float, float] | None:
 
 def check_certifiable(machine, option: str, alternative: str) -> None:
     """Refuse ``option`` (``--certify`` or ``--workspace continuous``) before any work when
-    the continuous certificate cannot cover the study (:func:`allocation.continuous.
-    check_continuous`); ``alternative`` says what to pass instead."""
-    try:
-        check_continuous(machine)
-    except InputError as error:
-        why = str(error).split(": ", 1)[1].split("; use", 1)[0]
-        raise InputError(f"{option}: not available for this study: {why}; {alternative}") \
-            from None
+    the continuous certificate cannot cover the study
+    (:func:`allocation.continuous.continuous_unavailable`); ``alternative`` says what to pass
+    instead."""
+    why = continuous_unavailable(machine)
+    if why is not None:
+        raise InputError(f"{option}: not available for this study: {why}; {alternative}")
 
 
 def destination(path, overwrite: bool, option: str = "--out", *, folder: bool = False,

@@ -1,11 +1,13 @@
-"""``precrel predict MACHINE.toml``: FOSM reliability of an allocation over the grid."""
+"""``precrel predict MACHINE.toml``: FOSM reliability of an allocation over the grid; limits
+and σ in the machine file's units (mm and rad when it states none)."""
 
 from __future__ import annotations
 
 import numpy as np
 import pandas as pd
 
-from reliability.basics.display import OUTPUT_UNITS, target_text, top_contributors, with_unit
+from reliability.basics.display import (output_people_units, quantity_text, target_text,
+                                        top_contributors)
 from reliability.first_order.fosm import fosm, two_sided_probability
 from reliability.first_order.workspace_search import certified_worst
 from reliability.model.machine import OUTPUTS
@@ -64,9 +66,10 @@ def run(args) -> int:
 
 def certificate_table(machine, table, grid_result) -> pd.DataFrame:
     """One row per output: the certified worst pose (degrees and mm), σ there, the bound,
-    the grid's worst σ, the two-sided probability at the bound, boxes and time."""
+    the grid's worst σ (σ in the machine file's units), the two-sided probability at the bound, boxes and time."""
     rows = np.arange(len(OUTPUTS))
     grid_sigma = grid_result.sigma[grid_result.worst_pose, rows]
+    units = output_people_units(machine.cost_coefficients.units)
     out = []
     for i, output in enumerate(OUTPUTS):
         row = table.loc[output]
@@ -74,9 +77,9 @@ def certificate_table(machine, table, grid_result) -> pd.DataFrame:
         out.append({
             "output": output,
             "worst pose": options.pose_text(machine, pose),
-            "sigma": with_unit(row["sigma"], OUTPUT_UNITS[i], 6),
-            "sigma bound": with_unit(row["sigma_bound"], OUTPUT_UNITS[i], 6),
-            "grid sigma": with_unit(grid_sigma[i], OUTPUT_UNITS[i], 6),
+            "sigma": quantity_text(row["sigma"], units[i], 6),
+            "sigma bound": quantity_text(row["sigma_bound"], units[i], 6),
+            "grid sigma": quantity_text(grid_sigma[i], units[i], 6),
             "P two-sided at bound": options.percent(
                 two_sided_probability(machine.limits[i], row["sigma_bound"])),
             "certified": "yes" if row["certified"] else "NO",
@@ -87,16 +90,17 @@ def certificate_table(machine, table, grid_result) -> pd.DataFrame:
 
 
 def prediction_table(machine, result, side: str) -> pd.DataFrame:
-    """One row per output: limit with unit, target, worst pose, β, probabilities, top
-    contributors."""
+    """One row per output: limit in the machine file's units, target, worst pose, β,
+    probabilities, top contributors."""
     frame = result.to_frame()
+    units = output_people_units(machine.cost_coefficients.units)
     rows = []
     for i, output in enumerate(frame.index):
         row = frame.loc[output]
         pose = result.poses[result.worst_pose[i]]
         rows.append({
             "output": output,
-            "limit": f"{row['limit']:g} {OUTPUT_UNITS[i]}",
+            "limit": quantity_text(row["limit"], units[i], 6),
             "target": target_text(row["target"]),
             "worst pose": options.pose_text(machine, pose),
             "beta": f"{row['beta']:.4f}",

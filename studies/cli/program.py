@@ -18,6 +18,8 @@ from studies.workflows.timing import limit_blas_threads
 COMMANDS = ("check", "predict", "allocate", "verify", "report", "front", "sweep",
             "acceptance")
 COMMANDS += ("sensitivity",)
+COMMANDS += ("measure",)
+COMMANDS += ("identify",)
 PROG = "precrel"
 #: Exit code of bad input (argparse's own convention).
 USAGE_ERROR = 2

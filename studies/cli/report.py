@@ -2,14 +2,13 @@
 
 from __future__ import annotations
 
-from allocation import solve_catalogue
 from reliability.acceptance.suggested_limits import minimum_machines
 from reliability.basics.errors import InputError
-from reliability.basics.streams import extra_stream
+from reliability.basics.streams import sensitivity_stream, zone_stream
 from studies.report import machine_sections
-from studies.report.acceptance_section import BUILT_MACHINES, acceptance_section
-from studies.report.catalogue_section import catalogue_section
-from studies.report.extras import EXTRAS, allocations, builders
+from studies.report.acceptance_section import BUILT_MACHINES
+from studies.report.extras import (EXTRAS, TITLES, acceptance_builder, builders,
+                                   catalogue_builder, guarded, not_computed)
 from studies.report.sensitivity_section import study_sensitivity_section
 from studies.report.writer import REPORT_MARKERS, write_report
 from studies.report.zone_section import zone_section
@@ -26,7 +25,9 @@ def add_parser(subparsers):
                     "optimum (under --profile; the optimum over the continuous workspace by "
                     "default, --workspace), FOSM, Monte-Carlo verification, CSV tables, "
                     "figures, report.md, a self-contained report.html, summary.json and "
-                    "allocation.csv in DIR.")
+                    "allocation.csv in DIR. An optional section that cannot be computed "
+                    "(e.g. a catalogue that cannot meet the targets) says why in its place; "
+                    "the report is still written and the command exits 0.")
     options.add_machine(parser)
     parser.add_argument("--out", required=True, metavar="DIR", help="output folder")
     options.add_monte_carlo(parser)
@@ -48,6 +49,9 @@ def add_parser(subparsers):
     parser.add_argument("--catalogue", metavar="CAT.toml",
                         help="add a 'Component choice' section: the certified cheapest "
                              "choice of one class per component of this catalogue")
+    parser.add_argument("--tolerances", metavar="CSV",
+                        help="with --catalogue: tolerances of the items in no component "
+                             "(default the initial allocation)")
     parser.add_argument("--sensitivity", action="store_true",
                         help="add a 'What each tolerance buys' section: d yield / d ln t of "
                              "every item at the optimal (else the initial) allocation")
@@ -58,43 +62,48 @@ def add_parser(subparsers):
 
 def run(args) -> int:
     bounds = options.check_bounds(args.bounds)
+    if args.tolerances is not None and args.catalogue is None:
+        raise InputError("--tolerances is used with --catalogue only")
     out = options.destination(args.out, args.overwrite, folder=True, markers=REPORT_MARKERS)
     machine = options.machine(args)
     tests = None if args.tests is None else options.read_tests(args.tests, machine)
     if args.suggest is not None:
         _check_suggest(args.suggest, tests)
-    catalogue = None if args.catalogue is None else \
-        options.read_catalogue(args.catalogue, machine)
+    included = [name for name in EXTRAS if name not in args.skip]
+    extra = builders(included)
+    if tests is not None:
+        included.append("tests")
+        extra.append(guarded("tests", acceptance_builder(tests, suggest=args.suggest)))
+    if args.catalogue is not None:
+        included.append("catalogue")
+        start, start_text = start_tolerances(args, machine)
+        extra.append(guarded("catalogue", catalogue_builder(
+            options.read_catalogue(args.catalogue, machine), start, start_text=start_text,
+            samples=args.samples)))
+    if machine.work_zone is not None:
+        extra.append(lambda study: zone_section(zone_comparison(
+            machine, points=args.points, side=args.side, bounds=bounds,
+            machines=args.machines, rng=zone_stream(args.seed))))
+    if args.sensitivity:
+        included.append("sensitivity")
+        extra.append(guarded("sensitivity", lambda study: study_sensitivity_section(
+            study, machines=args.machines, rng=sensitivity_stream(study.seed))))
     study = machine_study.run(machine, points=args.points, side=args.side, bounds=bounds,
                               seed=args.seed, repeats=args.repeats, samples=args.samples,
                               progress=options.say, bar=options.progress_bar,
                               machines=args.machines, workspace=options.workspace(args),
                               rtol=args.rtol)
-    included = [name for name in EXTRAS if name not in args.skip]
     options.say("optional sections: " + (", ".join(included) or "none"))
-    extra = builders(included)
-    if tests is not None:
-        extra.append(lambda study: acceptance_section(
-            machine, tests, allocations(study), suggest=args.suggest,
-            rng=extra_stream(study.seed, 2)))
-    if catalogue is not None:
-        options.say("choosing catalogue classes (HiGHS)")
-        choice = solve_catalogue(study.problem, catalogue)
-        extra.append(lambda _: catalogue_section(choice, samples=args.samples,
-                                                 rng=extra_stream(args.seed, 3)))
-    if machine.work_zone is not None:
-        extra.append(lambda study: zone_section(zone_comparison(
-            machine, points=args.points, side=args.side, bounds=bounds,
-            machines=args.machines, rng=extra_stream(args.seed, 5))))
-    if args.sensitivity:
-        extra.append(lambda study: study_sensitivity_section(
-            study, machines=args.machines, rng=extra_stream(study.seed, 4)))
     sections = machine_sections.sections(study, extra=extra)
+    missing = not_computed(sections)
     options.say("drawing figures and writing the report")
-    written = write_report(out, sections, machine_study.summary(study),
+    written = write_report(out, sections,
+                           {**machine_study.summary(study), "not_computed": missing},
                            title=f"Precision allocation and reliability of {machine.name}",
                            overwrite=args.overwrite)
     print(machine_sections.answers(study))
+    for name, reason in missing.items():
+        print(f"\nsection {TITLES[name]!r} not computed: {reason}")
     print(f"\n{len(written)} files written to {out}/ (open report.html)")
     return 0  # a report whose targets are out of reach is still a complete answer
 
@@ -110,3 +119,12 @@ def _check_suggest(probability: float, tests) -> None:
         raise InputError(f"--suggest {probability:g} needs at least {needed} built machines "
                          f"to bound the quantile at 95 % confidence; the acceptance section "
                          f"draws {BUILT_MACHINES}: give a P closer to 0.5")
+
+
+def start_tolerances(args, machine) -> tuple:
+    """``--tolerances``: the starting tolerances of the items in no component, and their
+    source in words (none and the initial allocation when not given)."""
+    if args.tolerances is None:
+        return None, "the initial allocation"
+    return (options.read_tolerances(args.tolerances, machine),
+            f"the tolerances of {args.tolerances} (--tolerances)")

@@ -7,7 +7,7 @@ import numpy as np
 
 from reliability.basics.errors import InputError
 from reliability.basics.files import write_csv
-from reliability.basics.streams import spawn
+from reliability.basics.streams import sensitivity_stream, spawn
 from reliability.sampling.machine_yield import YieldModel
 from reliability.sampling.sobol import DEFAULT_SAMPLES, sobol_indices
 from reliability.sampling.yield_sensitivity import yield_sensitivity
@@ -58,7 +58,7 @@ def run(args) -> int:
     t = machine.initial_allocation if args.tolerances is None else \
         options.read_tolerances(args.tolerances, machine)
     pose = None if args.pose is None else parse_pose(machine, args.pose)
-    sobol_rng, yield_rng = spawn(args.seed, 2)
+    sobol_rng, yield_rng = spawn(args.seed, 1)[0], sensitivity_stream(args.seed)
     options.say("Sobol indices on the exact chain")
     sobol = sobol_indices(machine, t, pose, samples=args.samples,
                           points_per_axis=args.points, rng=sobol_rng)

@@ -30,7 +30,7 @@ import allocation
 import reliability
 from allocation.convex import solve_convex_allocation
 from allocation.result_files import gap_text
-from reliability.basics.display import bound_text
+from reliability.basics.display import axis_units, bound_text, pose_text
 from reliability.basics.streams import spawn
 from reliability.first_order.fosm import required_index
 from reliability.first_order.system_reliability import worst_system_reliability
@@ -112,7 +112,8 @@ def system_numbers(machine, rng):
         inside = np.all(np.abs(x @ jacobian[pose].T) < machine.limits, axis=1).mean()
         se = np.sqrt(inside * (1 - inside) / MC_SAMPLES)
         z = (inside - result.probability[w]) / np.hypot(se, result.error[w])
-        print(f"   {name:18s} pose {pose:5d}: system {result.probability[w]:.6f} ± "
+        where = pose_text(poses[pose], machine.axes, axis_units(machine), 6)
+        print(f"   {name:18s} at {where}: system {result.probability[w]:.6f} ± "
               f"{result.error[w]:.1g}; product {result.product[w]:.6f}; Bonferroni "
               f"{bound_text(result.bonferroni[w])}; least output {result.min_marginal[w]:.6f}; "
               f"{len(result.index)} poses evaluated exactly")

@@ -11,7 +11,7 @@ from matplotlib.figure import Figure
 
 from reliability.acceptance.prediction import DEFAULT_PROFILE, acceptance, profile_note
 from reliability.acceptance.suggested_limits import suggest_limits
-from reliability.basics.streams import spawn
+from reliability.basics.streams import acceptance_stream
 
 from .markdown import markdown_table
 from .section import Section
@@ -23,8 +23,11 @@ BUILT_MACHINES = 2000
 
 
 def acceptance_section(machine, tests, allocations: dict, *, machines: int = BUILT_MACHINES,
-                       profile=DEFAULT_PROFILE, suggest=None, rng=None) -> Section:
+                       profile=DEFAULT_PROFILE, suggest=None, seed: int = 0) -> Section:
     """Predicted acceptance-test results of machines built to each allocation.
+
+    Each allocation's numbers are those of ``precrel acceptance --tolerances CSV --profile
+    P --machines N --seed S`` for it.
 
     Parameters
     ----------
@@ -40,17 +43,21 @@ def acceptance_section(machine, tests, allocations: dict, *, machines: int = BUI
     suggest : float, optional
         P: add each result's suggested limit, its P-quantile with its interval
         (:func:`reliability.acceptance.suggested_limits.suggest_limits`).
-    rng : seed or Generator
-        One child stream per allocation (:func:`reliability.basics.streams.spawn`).
+    seed : int
+        Every allocation draws from a fresh
+        :func:`reliability.basics.streams.acceptance_stream` of ``seed``.
     """
-    streams = spawn(rng, len(allocations))
     results = {label: acceptance(machine, tests, t, machines=machines, profile=profile,
-                                 rng=stream)
-               for (label, t), stream in zip(allocations.items(), streams)}
+                                 rng=acceptance_stream(seed))
+               for label, t in allocations.items()}
     first = next(iter(results.values()))
-    text = [f"Machines built to each allocation ({first.n_machines} each) and put through "
-            f"the {len(tests)} tests of the test file: {profile_note(first.profile)}; "
-            f"tolerances read as {first.distribution} with σ = t/{first.k:g}; geometric "
+    setting = f"profile {first.profile}, {first.n_machines} machines, seed {seed}"
+    text = [f"Machines built to each allocation ({first.n_machines} each, seed {seed}, the "
+            f"same draws for every allocation: `precrel acceptance --seed {seed} --machines "
+            f"{first.n_machines} --profile {first.profile}` prints the same numbers, given "
+            f"`--tolerances allocation.csv` for the optimum) and put through the "
+            f"{len(tests)} tests of the test file: {profile_note(first.profile)}; tolerances "
+            f"read as {first.distribution} with σ = t/{first.k:g}; geometric "
             f"errors only (no servo, dynamic or thermal effects), plus each linear axis' "
             f"repeatability and reversal in positioning tests. Results in µm; pass "
             f"probabilities with Wilson 95 % intervals; drivers: each error item's share of "
@@ -60,13 +67,15 @@ def acceptance_section(machine, tests, allocations: dict, *, machines: int = BUI
         suggestion = None if suggest is None else suggest_limits(result, suggest)
         frame = result.to_frame() if suggestion is None else suggestion.to_frame()
         tables[f"acceptance_{label}.csv"] = frame
-        text += ["", f"**{label}**: all tests passed with probability "
+        text += ["", f"**{label}** ({setting}): all tests passed with probability "
                  f"{_interval(frame.iloc[-1])}{_suggested_pass(suggestion)}.", "",
                  markdown_table(_shown(result, frame), index=False)]
         summary[label] = {f"{row.test}/{row.quantity}": row.pass_probability
                           for row in frame.itertuples() if not math.isnan(row.pass_probability)}
     return Section(TITLE, "\n".join(text), figures={FIGURE: plot_results(results)},
-                   tables=tables, summary={"acceptance": summary})
+                   tables=tables, summary={"acceptance": summary,
+                                           "acceptance_profile": first.profile,
+                                           "acceptance_machines": first.n_machines})
 
 
 def _interval(row) -> str:

@@ -14,6 +14,7 @@ import pandas as pd
 from allocation.discrete import neighbour_table
 from allocation.result_files import allocation_frame
 
+from reliability.basics.display import axis_units, pose_text
 from reliability.basics.files import SIGNIFICANT
 from reliability.model.machine import OUTPUTS
 from reliability.sampling.pose_sampling import sample_at_poses
@@ -22,9 +23,11 @@ from .markdown import markdown_table
 from .section import Section
 
 PERCENT = "{:.3%}".format
+TITLE = "Component choice"
 
 
-def catalogue_section(result, *, samples: int = 20_000, rng=None) -> Section:
+def catalogue_section(result, *, samples: int = 20_000, rng=None,
+                      start_text: str = "the starting allocation") -> Section:
     """The "Component choice" section of ``result`` (a :class:`CatalogueResult`).
 
     Parameters
@@ -34,6 +37,8 @@ def catalogue_section(result, *, samples: int = 20_000, rng=None) -> Section:
         Monte-Carlo samples at each output's worst grid pose (normal errors, σ = t/k).
     rng : None, int or numpy.random.Generator
         Stream of the Monte-Carlo.
+    start_text : str
+        Where the tolerances of the items in no component come from, in words.
     """
     catalogue, problem = result.catalogue, result.problem
     currency = f" {catalogue.currency}" if catalogue.currency else ""
@@ -45,7 +50,7 @@ def catalogue_section(result, *, samples: int = 20_000, rng=None) -> Section:
             f"choices) that meets every target at every one of {len(problem.poses)} poses "
             f"(workspace 'grid': a choice of classes is made on the grid poses only; "
             f"{problem.side.replace('_', '-')} reading, tolerances ±{problem.k:g}σ). Items in "
-            f"no component keep the starting allocation; classes are used as given (no "
+            f"no component keep {start_text}; classes are used as given (no "
             f"search box). Solved by HiGHS (scipy.optimize.milp) to a proved relative gap of "
             f"**{result.gap:.1e}**: total price **{result.price:.6g}{currency}** "
             f"(dual bound {result.dual_bound:.6g}), re-checked on every row "
@@ -79,8 +84,9 @@ def catalogue_section(result, *, samples: int = 20_000, rng=None) -> Section:
                              "certified": result.certified, "feasible": result.feasible,
                              "choice": dict(result.choice), "currency": catalogue.currency,
                              "worst_pose_mc": dict(zip(checked["output"], checked["mc"]))}}
-    return Section(title="Component choice", text="\n".join(text),
-                   tables={"choice.csv": choice, "choice_tolerances.csv": allocation_frame(result, SIGNIFICANT),
+    return Section(title=TITLE, text="\n".join(text),
+                   tables={"choice.csv": choice,
+                           "choice_tolerances.csv": allocation_frame(result, SIGNIFICANT),
                            "choice_neighbours.csv": result.neighbours,
                            "choice_worst_poses.csv": worst, "choice_worst_pose_mc.csv": checked},
                    summary=summary)
@@ -95,8 +101,10 @@ def _monte_carlo(result, samples, rng):
                             rng=rng, k=problem.k, distribution="normal").to_frame()
     own = [f"pose {i}" for i in range(len(OUTPUTS))]
     frame = frame[frame["pose"].map(dict(zip(own, OUTPUTS))) == frame["event"]]
+    machine = problem.machine
+    positions = [pose_text(pose, machine.axes, axis_units(machine), digits=6) for pose in poses]
     return pd.DataFrame({
-        "output": frame["event"].to_numpy(), "pose": result.worst["pose"].to_numpy(),
+        "output": frame["event"].to_numpy(), "worst pose": positions,
         "samples": frame["samples"].to_numpy(), "mc": 1.0 - frame["mc_failure"].to_numpy(),
         "lower": 1.0 - frame["upper"].to_numpy(), "upper": 1.0 - frame["lower"].to_numpy(),
         "fosm": 1.0 - frame["fosm_failure"].to_numpy(), "target": problem.machine.targets})

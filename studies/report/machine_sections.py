@@ -13,15 +13,19 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 from matplotlib.figure import Figure
+from scipy.stats import norm
 
 from allocation.elasticity import requirement_table
-from allocation.result_files import (MULTIPLIER_DIGITS, allocation_frame, cost_shares_text,
-                                     cost_units_text, gap_text, nearly_free_text,
+from allocation.result_files import (DRAWING_FILE, MULTIPLIER_DIGITS, allocation_frame,
+                                     cost_shares_text, cost_units_text, drawing_check_text,
+                                     drawing_frame, gap_text, nearly_free_text,
                                      written_cost_text)
-from reliability.basics.display import (OUTPUT_UNITS, axis_units, pose_frame, shown_positions,
-                                        top_contributors)
+from reliability.basics.display import (OUTPUT_UNITS, axis_units, error_units, in_units,
+                                        output_people_units, pose_frame, shown_positions,
+                                        top_contributors, unit_symbol)
 from reliability.basics.files import SIGNIFICANT, as_written
 from reliability.model.identifiability import EQUAL_RTOL, indistinguishable_groups
+from reliability.model.iso_names import plain_names
 from reliability.model.machine import OUTPUTS
 from studies.workflows.machine_study import UNCHANGED, MachineStudy, summary
 
@@ -33,6 +37,8 @@ from .yield_section import yield_section, yield_sentence
 PERCENT = "{:.3%}".format
 #: How the advice names a group of errors that cannot be told apart.
 GROUP_WORD = "group"
+#: Entries of each advice list shown before "and K more".
+ADVICE_SHOWN = 10
 
 
 def answers(study: MachineStudy) -> str:
@@ -92,8 +98,17 @@ def answers(study: MachineStudy) -> str:
         *([free_note] if free_note else []),
         f"- Tighten: {tighten or 'none'}.",
         f"- May be relaxed: {relax or 'none'}.",
+        RANKING_NOTE,
         *([group_note] if group_note else []),
     ])
+
+
+RANKING_NOTE = (
+    "- Ranked by what each change buys at the initial allocation (FOSM at each output's "
+    "worst grid pose, initial tolerances → optimum in the machine file's units): the "
+    "failure probability, summed over the six outputs, removed per 1 % of the initial cost "
+    "spent tightening the item (tighten: largest first), or added per 1 % saved relaxing "
+    "it (relax: smallest first); the first ten of each list are shown.")
 
 
 def _sampled_pose(study: MachineStudy) -> str:
@@ -134,19 +149,49 @@ def unreachable_section(study: MachineStudy) -> Section:
     return Section("Targets out of reach", text, tables={"blocking.csv": blocking})
 
 
-def advice(study: MachineStudy, free=()) -> tuple[str, str]:
-    """The tighten and the relax advice of the answers, e.g. ``"X.dx (-50%); the dz group
-    1 (9 items: C.dz, Y.dz, X.dz, …; +58% in root-sum-square); ..."``.
+def advice(study: MachineStudy, free=(), n: int = ADVICE_SHOWN) -> tuple[str, str]:
+    """The tighten and the relax advice of the answers, ranked by what each change buys,
+    e.g. ``"X.ex (EAX X roll, 2.9 → 1.2 arcsec, -57%; 0.0031 per 1 % of cost); the dz group
+    1 (9 items: C.dz, Y.dz, X.dz, …; +58% in root-sum-square; 2e-06 per 1 % of cost); …
+    and K more"``.
 
     Errors that cannot be told apart (:func:`groups_table`) are one entry, changed by the
     root-sum-square of their tolerances, since only their summed variance reaches the
     outputs; errors in ``free`` are left out. Entries change by more than
-    :data:`~studies.workflows.machine_study.UNCHANGED`, largest change first.
+    :data:`~studies.workflows.machine_study.UNCHANGED`. Tightening is ranked by
+    :func:`buy_ratios` largest first (the most failure probability removed per unit of
+    cost), relaxing smallest first (the most cost saved per unit of failure probability
+    added); the first ``n`` of each are shown.
     """
     rates, groups = _advice_rates(study, free)
-    tighten = rates[rates < -UNCHANGED].sort_values(kind="stable")
-    relax = rates[rates > UNCHANGED].sort_values(ascending=False, kind="stable")
-    return _changes_text(tighten, groups), _changes_text(relax, groups)
+    ratios = buy_ratios(study, groups).reindex(rates.index)
+    tighten = ratios[rates < -UNCHANGED].sort_values(ascending=False, kind="stable")
+    relax = ratios[rates > UNCHANGED].sort_values(kind="stable")
+    return (_changes_text(study, tighten.index, rates, ratios, groups, n),
+            _changes_text(study, relax.index, rates, ratios, groups, n))
+
+
+def buy_ratios(study: MachineStudy, groups: dict) -> pd.Series:
+    """What changing each error (or group, scaled together) buys at the initial
+    allocation: the failure probability, summed over the six outputs at their worst grid
+    poses (FOSM), removed per 1 % of the initial cost spent on tightening it.
+
+    With σ_o² = Σ_i (J_oi t_i / 3)², ``∂σ_o/∂ln t_i = σ_o s_oi`` (``s_oi`` the item's share
+    of the variance), so ``∂(1 − P_o)/∂ln t_i = c φ(β_o) β_o s_oi`` (``c`` = 2 two-sided, 1
+    one-sided), while the cost ``w_i/t_i²`` changes by ``−2 w_i/t_i²``. The same ratio read
+    the other way is the failure probability added per 1 % of cost saved by relaxing.
+    """
+    initial = study.initial_fosm
+    beta = initial.to_frame()["beta"].to_numpy()
+    sides = 2.0 if study.side == "two_sided" else 1.0
+    shares = initial.contributions[list(OUTPUTS)].to_numpy() / 100.0
+    gain = pd.Series(sides * shares @ (norm.pdf(beta) * beta), index=study.machine.error_names)
+    costs = pd.Series(study.problem.cost.item_costs(study.problem.reference),
+                      index=study.machine.error_names)
+    per_percent = study.problem.cost.total(study.problem.reference) / 100.0
+    for name, members in groups.items():
+        gain[name], costs[name] = gain[members].sum(), costs[members].sum()
+    return gain / (2.0 * costs) * per_percent
 
 
 def _advice_rates(study: MachineStudy, free) -> tuple[pd.Series, dict]:
@@ -177,20 +222,42 @@ def _group_name(number: int, members) -> str:
     return f"{kind}{GROUP_WORD} {number}"
 
 
-def _changes_text(changes: pd.Series, groups: dict, n: int = 6) -> str:
-    """The first ``n`` relative changes as ``"X.dx (-50%); the dz group 1 (9 items: C.dz,
-    Y.dz, X.dz, …; +58% in root-sum-square); ..."``, and how many more."""
+def _changes_text(study: MachineStudy, order, rates: pd.Series, ratios: pd.Series,
+                  groups: dict, n: int) -> str:
+    """The first ``n`` entries of ``order`` as ``"X.ex (EAX X roll, 2.9 → 1.2 arcsec,
+    -57%; 0.0031 per 1 % of cost); the dz group 1 (9 items: C.dz, Y.dz, X.dz, …; +58% in
+    root-sum-square; 2e-06 per 1 % of cost)"``, and how many more."""
+    table = tolerance_table(study.machine, study.problem.reference,
+                            study.optimum.tolerances).set_index("error")
     entries = []
-    for name, value in changes.head(n).items():
+    for name in list(order)[:n]:
+        buys = f"{ratios[name]:.2g} per 1 % of cost"
         if name in groups:
             members = groups[name]
             shown = ", ".join(members[:3]) + (", …" if len(members) > 3 else "")
-            entries.append(f"{name} ({len(members)} items: {shown}; {value:+.0%} in "
-                           f"root-sum-square)")
+            entries.append(f"{name} ({len(members)} items: {shown}; {rates[name]:+.0%} in "
+                           f"root-sum-square; {buys})")
         else:
-            entries.append(f"{name} ({value:+.0%})")
-    more = f" and {len(changes) - n} more" if len(changes) > n else ""
+            row = table.loc[name]
+            entries.append(f"{name} ({row.iso} {row['name']}, {row.initial:.3g} → "
+                           f"{row.allocated:.3g} {row.unit}, {rates[name]:+.0%}; {buys})")
+    more = f" and {len(order) - n} more" if len(order) > n else ""
     return "; ".join(entries) + more
+
+
+def tolerance_table(machine, reference, tolerances) -> pd.DataFrame:
+    """Tolerances for people: error, ISO 230-1 symbol, plain name, unit (the machine
+    file's: :func:`~reliability.basics.display.people_units`), the reference and the given
+    tolerance in that unit, and the relative change (``change`` = tolerance / reference −
+    1)."""
+    names = machine.error_names
+    units = error_units(names, machine.cost_coefficients.units)
+    return pd.DataFrame({"error": names, "iso": machine.iso_names,
+                         "name": plain_names(machine),
+                         "unit": [unit_symbol(u) for u in units],
+                         "initial": in_units(reference, units),
+                         "allocated": in_units(tolerances, units),
+                         "change": np.asarray(tolerances) / np.asarray(reference) - 1.0})
 
 
 def sections(study: MachineStudy, extra=()) -> list[Section]:
@@ -267,7 +334,7 @@ def machine_section(study: MachineStudy) -> Section:
             f"({6 * len(machine.axes)} motion, {machine.n_errors - 6 * len(machine.axes)} "
             f"assembly).\n\n{markdown_table(axes, index=False)}\n\nRequirements: "
             f"|output| < limit with probability ≥ target, {study.side.replace('_', '-')}."
-            f"\n\n{markdown_table(requirements, index=False)}")
+            f"\n\n{markdown_table(in_people_units(machine, requirements, 'limit'), index=False)}")
     return Section("Machine and requirements", text,
                    tables={"axes.csv": axes, "requirements.csv": requirements})
 
@@ -303,13 +370,15 @@ def fosm_section(study: MachineStudy) -> Section:
     text = (f"First-order second-moment reliability (Eqs. 19–23; tolerances read as "
             f"{_reading(study.machine.distribution)}) at each "
             f"output's worst pose of the {study.points}-point grid, given as axis positions "
-            f"(mm, rotary axes in degrees); `sigma` in the output's `unit`; "
+            f"(mm, rotary axes in degrees); `sigma` in the output's `unit` (the machine "
+            f"file's units here, mm and rad in the CSV files); "
             f"`top_contributors` are the errors with the largest share of the output's "
             f"variance there.")
     for name, heading in (("fosm_initial.csv", "Initial allocation"),
                           ("fosm_optimum.csv", "Cheapest certified allocation")):
         if name in tables:
-            text += f"\n\n### {heading}\n\n{markdown_table(tables[name], formats, index=False)}"
+            shown = in_people_units(study.machine, tables[name], "sigma")
+            text += f"\n\n### {heading}\n\n{markdown_table(shown, formats, index=False)}"
     return Section("FOSM reliability", text, tables=tables)
 
 
@@ -317,6 +386,8 @@ def allocation_section(study: MachineStudy) -> Section:
     optimum, machine = study.optimum, study.machine
     groups = groups_table(machine, study.problem.poses)
     detail = optimum.to_frame().reset_index()
+    people = tolerance_table(machine, study.problem.reference, optimum.tolerances)
+    people["status"] = detail["status"].to_numpy()
     requirements = requirement_table(optimum).reset_index()
     for column in ("dlncost/dln_limit", "dlncost/dln_target"):
         requirements[column] = as_written(requirements[column], MULTIPLIER_DIGITS)
@@ -332,9 +403,12 @@ def allocation_section(study: MachineStudy) -> Section:
             f"multipliers; {MULTIPLIER_DIGITS} significant digits, what the dual solve "
             f"fixes), `dlncost/dln_target` the same for the target probability.\n\n"
             f"{markdown_table(requirements, index=False)}\n\n"
-            f"Allocation (`rate` = allocated / initial − 1; `status` says which bound "
-            f"holds):\n\n{markdown_table(detail, {'rate': '{:+.1%}'.format}, index=False)}"
-            f"\n\n{cost_text(study)}\n\n{groups_text(machine, groups)}")
+            f"Allocation in the machine file's units (`change` = allocated / initial − 1; "
+            f"`status` says which bound holds; `allocation.csv` and `allocation_detail.csv` "
+            f"hold mm and rad):\n\n"
+            f"{markdown_table(people, {'change': '{:+.1%}'.format}, index=False)}"
+            f"\n\n{cost_text(study)}\n\n{drawing_text(study)}\n\n"
+            f"{groups_text(machine, groups)}")
     figures = {}
     n_motion = 6 * len(machine.axes)
     shown = {"initial": study.problem.reference, "certified optimum": study.allocated}
@@ -350,7 +424,26 @@ def allocation_section(study: MachineStudy) -> Section:
                    tables={"allocation.csv": allocation_frame(optimum, SIGNIFICANT),
                            "allocation_detail.csv": detail,
                            "requirements_elasticity.csv": requirements,
-                           "indistinguishable_groups.csv": groups})
+                           "indistinguishable_groups.csv": groups,
+                           DRAWING_FILE: drawing_frame(machine, optimum.tolerances)})
+
+
+def drawing_text(study: MachineStudy) -> str:
+    """What ``drawing_tolerances.csv`` holds and how it was checked."""
+    return (f"**Tolerances for drawings**: `{DRAWING_FILE}` gives every item with its ISO "
+            f"230-1 symbol and plain name in µm or arcsec, "
+            f"{drawing_check_text(study.optimum)}. `precrel predict`, `verify` and "
+            f"`--tolerances` read it as it is.")
+
+
+def in_people_units(machine, table: pd.DataFrame, column: str) -> pd.DataFrame:
+    """A copy of a per-output table (one row per output, a ``unit`` column in mm or rad)
+    with ``column`` and ``unit`` in the machine file's units."""
+    units = output_people_units(machine.cost_coefficients.units)
+    shown = table.copy()
+    shown[column] = in_units(table[column].to_numpy(dtype=float), units)
+    shown["unit"] = [unit_symbol(unit) for unit in units]
+    return shown
 
 
 def cost_text(study: MachineStudy) -> str:

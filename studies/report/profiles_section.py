@@ -64,10 +64,11 @@ def profiles_section(study) -> Section:
     longest = int(comparison["repeats"].max())
     figure = plot_yield_against_length(comparison).figure
     tables = {"profiles_comparison.csv": comparison}
-    text = [_comparison_text(comparison, longest)]
+    text = [_comparison_text(comparison, longest, study.study_profile)]
     rows = comparison[comparison["repeats"] == longest]
     summary = {"profiles_yield": {f"{a}/{p}": float(y) for a, p, y
-                                  in zip(rows["allocation"], rows["profile"], rows["yield"])}}
+                                  in zip(rows["allocation"], rows["profile"], rows["yield"])},
+               "profiles_experiments": longest}
     if study.paper_check is not None:
         tables["profiles_paper_check.csv"] = study.paper_check
         verdict = consistent_profiles(study.paper_check)
@@ -90,18 +91,31 @@ def consistent_profiles(check) -> list[str]:
     return [profile for profile, ok in inside.items() if ok]
 
 
-def _comparison_text(comparison, longest) -> str:
+def _comparison_text(comparison, longest, study_profile=None) -> str:
     rows = comparison[comparison["repeats"] == longest]
-    table = rows[["allocation", "profile", "yield", "yield_lower", "yield_upper",
-                  "std_dx", "std_ex", "std_ey", "mean_dx", "mean_ex", "mean_ey"]]
+    columns = ["allocation", "profile", "yield", "yield_lower", "yield_upper",
+               *(["machines"] if "machines" in rows else []),
+               "std_dx", "std_ex", "std_ey", "mean_dx", "mean_ex", "mean_ey"]
     return (
         "The paper's grid experiment draws each axis' motion errors independently at each "
         "of its grid points. Real motion errors are smooth along travel. Here they are also "
         "drawn as Gaussian-process profiles of a given correlation length, and as constant "
         "along travel, with the same marginal distribution at every point. The per-pose "
         "reliability (the mean fractions) does not change; the machine-level yield and the "
-        f"spread between experiments do. {longest} experiments per row:\n\n"
-        + markdown_table(table, index=False) + "\n\n" + _findings(rows))
+        f"spread between experiments do. {longest} experiments per row"
+        + _study_rows_text(study_profile, longest) + ":\n\n"
+        + markdown_table(rows[columns], index=False) + "\n\n" + _findings(rows))
+
+
+def _study_rows_text(study_profile, longest) -> str:
+    """What the rows of a report's own profile hold, when there is one."""
+    if study_profile is None:
+        return ""
+    return (f"; the yield of the rows under **{study_profile}**, the study's profile, is "
+            f"the study's machine yield (section \"Machine yield\": the same estimate, "
+            f"stream and `machines`), the other rows' yield the share of their {longest} "
+            f"experiments entirely within every limit (`machines` = experiments), and the "
+            f"spread and mean fractions of every row come from its {longest} experiments")
 
 
 def _findings(rows) -> str:

@@ -2,7 +2,8 @@
 
 The folder receives every section's tables as CSV and figures as PNG, ``report.md``,
 ``report.html`` (self-contained: figures embedded as base64 PNG, no network access
-needed) and ``summary.json`` (the sections' summary entries merged). Numbers in the CSV,
+needed) and ``summary.json`` (the sections' summary entries merged,
+:func:`merged_summary`). Numbers in the CSV,
 markdown and JSON files are written to :data:`SIGNIFICANT` significant digits, so that a
 rerun with the same seed, on this or another computer, gives the same files.
 """
@@ -88,9 +89,8 @@ def write_report(out, sections, summary: dict, *, title: str, overwrite: bool = 
 
 def _assemble(folder: Path, sections, summary: dict, title: str) -> list[str]:
     """Write every file of the report into the empty ``folder``; return their names."""
-    names, merged, images = [], dict(summary), {}
+    names, merged, images = [], merged_summary(summary, sections), {}
     for section in sections:
-        merged.update(section.summary)
         for name, frame in section.tables.items():
             index = frame.index.name is not None or any(frame.index.names)
             write_csv(frame, folder / name, index=index, float_format=f"%.{SIGNIFICANT}g")
@@ -104,6 +104,17 @@ def _assemble(folder: Path, sections, summary: dict, title: str) -> list[str]:
     atomic_write_text(folder / "report.html", render_html(title, sections, images))
     atomic_write_text(folder / "summary.json", json.dumps(rounded(merged), indent=2) + "\n")
     return names + ["report.md", "report.html", "summary.json"]
+
+
+def merged_summary(summary: dict, sections) -> dict:
+    """``summary`` with every section's entries added in report order; an entry that is a
+    dict in both (e.g. ``not_computed``) holds the keys of both."""
+    merged = dict(summary)
+    for section in sections:
+        for key, value in section.summary.items():
+            both = isinstance(value, dict) and isinstance(merged.get(key), dict)
+            merged[key] = {**merged[key], **value} if both else value
+    return merged
 
 
 def write_section(out, section, *, overwrite: bool = False) -> list[Path]:

@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
+from reliability.basics.streams import profiles_stream
 from reliability.first_order.fosm import fosm
 from reliability.model.machine import OUTPUTS
 from reliability.model.poses import workspace_grid
@@ -35,6 +36,7 @@ class ProfilesStudy:
     paper_check: pd.DataFrame | None = None
     systematic: pd.DataFrame | None = None
     timings: dict = field(default_factory=dict)
+    study_profile: str | None = None  # a report's profile, whose rows hold its machine yield
 
 
 def profile_length(spec) -> float:
@@ -48,7 +50,9 @@ def profile_length(spec) -> float:
 
 
 def profile_comparison(machine, allocations: dict, profiles=PROFILES, repeats=(20, 2000),
-                       seed: int = 2023, keep=None, log=lambda message: None) -> pd.DataFrame:
+                       seed: int = 2023, keep=None, log=lambda message: None, *,
+                       points_per_axis: int = 5, distribution: str = "truncated"
+                       ) -> pd.DataFrame:
     """Yield, Table 9's spread and mean fractions for every allocation, profile and count.
 
     Parameters
@@ -61,9 +65,15 @@ def profile_comparison(machine, allocations: dict, profiles=PROFILES, repeats=(2
     repeats : sequence of int
         Numbers of experiments; each count is its own run from the same seed.
     seed : int
+        Every run draws from a fresh :func:`reliability.basics.streams.profiles_stream` of
+        ``seed`` (common random numbers across allocations, profiles and counts).
     keep : dict, optional
         Filled with ``(label, profile, repeats) → GridExperimentResult``.
     log : callable
+    points_per_axis : int
+        Grid points per axis.
+    distribution : {'truncated', 'normal'}
+        The reading of a tolerance the experiments draw under.
 
     Returns
     -------
@@ -72,11 +82,12 @@ def profile_comparison(machine, allocations: dict, profiles=PROFILES, repeats=(2
     """
     rows = []
     for spec in profiles:
-        experiment = GridExperiment(machine, profile=spec)
+        experiment = GridExperiment(machine, points_per_axis, profile=spec)
         for label, t in allocations.items():
             for count in repeats:
                 start = time.perf_counter()
-                result = experiment.run(t, repeats=int(count), rng=seed, keep_values="none")
+                result = experiment.run(t, repeats=int(count), rng=profiles_stream(seed),
+                                        keep_values="none", distribution=distribution)
                 seconds = time.perf_counter() - start
                 log(f"  {label:>10} {str(spec):>11} x {count}: {seconds:.2f} s")
                 if keep is not None:

@@ -1,0 +1,68 @@
+"""``precrel identify MACHINE.toml --measurements meas.csv``: a built machine's errors from its
+measurements, with their posterior uncertainty."""
+
+from __future__ import annotations
+
+import json
+
+from reliability.basics.files import SIGNIFICANT, atomic_write_text, write_csv
+from reliability.measured.identification import identify
+from reliability.measured.measurement_files import read_measurements
+
+from . import options
+
+#: The files written into ``--out DIR``.
+RESULT_FILES = ("errors.csv", "setup.csv", "residuals.csv", "summary.json")
+
+
+def add_parser(subparsers):
+    parser = subparsers.add_parser(
+        "identify", help="identify a built machine's errors from its measurements",
+        description="A linear-Gaussian Bayesian update of every geometric error (prior mean "
+                    "0, sigma = t/3 of the allocation in force) from the readings of a "
+                    "measurement file (docs/measurements.md), each run's set-up estimated "
+                    "with a flat prior. Prints the rank and condition of the information "
+                    "about the errors, the combinations the readings cannot tell apart and "
+                    "a chi2 check of the readings against the model.")
+    options.add_machine(parser)
+    parser.add_argument("--measurements", required=True, metavar="meas.csv",
+                        help="the measurement file")
+    parser.add_argument("--tolerances", metavar="CSV",
+                        help="allocation in force (columns error, allocated); default the "
+                             "machine file's initial allocation")
+    parser.add_argument("--profile", default="constant", metavar="P",
+                        help="motion errors along travel: constant (one value per machine)")
+    parser.add_argument("--out", metavar="DIR",
+                        help=f"write {', '.join(RESULT_FILES)} into DIR")
+    parser.add_argument("--overwrite", action="store_true",
+                        help="replace earlier results in DIR")
+    return parser
+
+
+def run(args) -> int:
+    out = None if args.out is None else options.destination(
+        args.out, args.overwrite, folder=True, markers=RESULT_FILES)
+    machine = options.machine(args)
+    measurements = read_measurements(args.measurements, machine)
+    tolerances = None if args.tolerances is None else \
+        options.read_tolerances(args.tolerances, machine)
+    result = identify(machine, measurements, tolerances=tolerances, profile=args.profile)
+    source = "initial allocation" if args.tolerances is None else args.tolerances
+    print(f"Identification of {machine.name!r} from {args.measurements}, prior sigma = t/3 "
+          f"of the {source}; first order at zero errors.\n")
+    print(result.summary())
+    if out is not None:
+        _write(result, out, args.overwrite)
+    return 0
+
+
+def _write(result, out, overwrite) -> None:
+    out.mkdir(exist_ok=True)
+    digits = f"%.{SIGNIFICANT}g"
+    tables = {"errors.csv": result.errors, "setup.csv": result.setup,
+              "residuals.csv": result.residuals}
+    for name, table in tables.items():
+        write_csv(table, out / name, overwrite=overwrite, index=False, float_format=digits)
+    atomic_write_text(out / "summary.json", json.dumps(result.summary_dict(), indent=2) + "\n",
+                      overwrite)
+    print(f"\nwritten {', '.join(RESULT_FILES)} into {out}")
