@@ -33,13 +33,16 @@ def task_key(parameters, version: str | None = None) -> str:
 
 def machine_fingerprint(machine) -> str:
     """Hex SHA-256 of everything that defines a machine's model (axes, offsets,
-    requirements, cost coefficients, initial allocation)."""
+    requirements, cost coefficients, initial allocation, and the work zone when it has
+    one)."""
     description = {"name": machine.name,
                    "axes": [dataclasses.asdict(axis) for axis in machine.axis_specs],
                    "tool_offset": machine.tool_offset, "limits": machine.limits,
                    "targets": machine.targets, "initial": machine.initial_allocation,
                    "cost": {field.name: _mapping(getattr(machine.cost_coefficients, field.name))
                             for field in dataclasses.fields(machine.cost_coefficients)}}
+    if getattr(machine, "work_zone", None) is not None:
+        description["work_zone"] = dataclasses.asdict(machine.work_zone)
     return hashlib.sha256(canonical_json(description).encode("utf-8")).hexdigest()
 
 

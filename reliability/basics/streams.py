@@ -77,7 +77,8 @@ def extra_stream(seed: int, index: int) -> np.random.Generator:
     spawn_key=(index,))``, independent of every stream :func:`spawn` derives from ``seed``.
 
     The extra streams in use: 0, :func:`system_stream`; 1, :func:`rare_stream`; 2,
-    :func:`profiles_stream`; 3, :func:`catalogue_stream`; 4, :func:`sensitivity_stream`.
+    :func:`profiles_stream`; 3, :func:`catalogue_stream`; 4, :func:`sensitivity_stream`;
+    5, :func:`zone_stream`.
     """
     seed = _seed(seed)
     return np.random.default_rng(np.random.SeedSequence([seed, EXTRA_FAMILY],
@@ -160,3 +161,9 @@ def sensitivity_stream(seed) -> np.random.Generator:
     ``precrel sensitivity --yield --seed S`` and of the report's "What each tolerance buys"
     section (``report --sensitivity --seed S``)."""
     return extra_stream(seed, 4)
+
+
+def zone_stream(seed) -> np.random.Generator:
+    """The work-zone stream of seed ``seed`` (extra stream 5): the built machines of the
+    report's "The work zone" section (``report --seed S`` on a machine with a work zone)."""
+    return extra_stream(seed, 5)

@@ -31,6 +31,15 @@ closed; the others are halved along the axis contributing most to their bound. A
 spread does not depend on contributes exactly nothing and is never split. The first
 candidate is the best point of a coarse grid (:data:`START_POINTS`), improved for σ by a
 bounded local search on the expansion (L-BFGS-B), which also polishes the final candidate.
+
+**A work zone.** On a machine with a work zone (:mod:`reliability.model.work_zone`) the
+workspace is the zone's poses. Each open box is classified by the enclosure of its tool
+point and tilt (:class:`reliability.first_order.zone_enclosure.ZoneEnclosure`): a box proved
+outside the zone is dropped, a box proved inside is searched as above, and a box across the
+boundary is kept whole (its bound holds over its zone part too), never replaced by a face
+(the face may lie outside the zone) and halved along its widest axis relative to the
+stroke, so that the boundary is resolved. Only candidates inside the zone count, and every
+axis keeps the position its candidate was found at.
 """
 
 from __future__ import annotations
@@ -50,6 +59,7 @@ from ..model.kinematics import jacobian, output_variance
 from ..model.machine import OUTPUTS
 from .fosm import error_sigma
 from .pose_expansion import interval_tree, jacobian_expansion, point_tree, variance_expansion
+from .zone_enclosure import ZoneEnclosure
 
 #: The spreads the certificate can bound: σ (Eq. 20) or the first-order worst-case stack.
 READINGS = ("sigma", "stack")
@@ -107,7 +117,8 @@ def certified_worst(machine, tolerances, *, rtol: float = DEFAULT_RTOL, k: float
     -------
     pandas.DataFrame
         Indexed by output: the pose (one column per axis, mm or rad); ``sigma`` there and
-        ``sigma_bound`` (an upper bound of σ over every pose of the strokes), or ``stack``
+        ``sigma_bound`` (an upper bound of σ over every pose of the strokes, or of the
+        machine's work zone when it has one), or ``stack``
         and ``stack_bound`` under ``reading='stack'``; ``gap`` (``bound/value − 1``),
         ``certified`` (gap ≤ rtol), ``calls`` (boxes evaluated), ``seconds`` (the search
         and a sixth of the expansion's time, so the column sums to the total). The value
@@ -149,22 +160,25 @@ def certified_worst(machine, tolerances, *, rtol: float = DEFAULT_RTOL, k: float
 
         def direct(q, o):
             return np.abs(jacobian(machine, q, machine.frame)[:, o, :]) @ t
+    zone = None if machine.work_zone is None else ZoneEnclosure(machine)
     shared = (time.perf_counter() - started) / len(OUTPUTS)  # the expansion, per output
     rows = [_certify(machine, models[o], lambda q, o=o: direct(q, o), rtol, max_calls,
-                     memory, reading, shared) for o in range(len(OUTPUTS))]
+                     memory, reading, shared, zone) for o in range(len(OUTPUTS))]
     frame = pd.DataFrame(rows, index=pd.Index(OUTPUTS, name="output"))
     frame.attrs.update(rtol=rtol, distribution=distribution, reading=reading)
     return frame
 
 
-def _certify(machine, model, direct, rtol, max_calls, memory, reading, shared) -> dict:
-    """One output's row: branch and bound on the model, the value at the reported pose
-    from the chain itself; ``shared`` seconds (its share of the expansion) added to its
-    time."""
+def _certify(machine, model, direct, rtol, max_calls, memory, reading, shared,
+             zone=None) -> dict:
+    """One output's row: branch and bound on the model (in the work zone ``zone``, if
+    any), the value at the reported pose from the chain itself; ``shared`` seconds (its
+    share of the expansion) added to its time."""
     started = time.perf_counter() - shared
     low, high = model.local_strokes(machine)
-    tied, bound, calls = branch_and_bound(model, low, high, rtol, max_calls, memory)
-    tied[:, model.fixed] = low[model.fixed]  # axes the spread does not depend on
+    tied, bound, calls = branch_and_bound(model, low, high, rtol, max_calls, memory, zone)
+    if zone is None:
+        tied[:, model.fixed] = low[model.fixed]  # axes the spread does not depend on
     tied = _onto_ends(tied, low, high)
     poses = model.expansion.pose(np.unique(tied, axis=0))
     values = direct(poses)
@@ -187,8 +201,9 @@ def _onto_ends(points, low, high):
     return np.where(high - points <= near, high, points)
 
 
-def branch_and_bound(model, low, high, rtol, max_calls, memory=None):
-    """Branch and bound of one model over the box ``[low, high]`` of local coordinates.
+def branch_and_bound(model, low, high, rtol, max_calls, memory=None, zone=None):
+    """Branch and bound of one model over the box ``[low, high]`` of local coordinates, or
+    over its poses in a work zone.
 
     Parameters
     ----------
@@ -200,25 +215,33 @@ def branch_and_bound(model, low, high, rtol, max_calls, memory=None):
         Relative tolerance on the spread (``model.spread`` of the function).
     max_calls : int
     memory : int, optional
+    zone : ZoneEnclosure, optional
+        The machine's work zone (module docstring); None for the whole box.
 
     Returns
     -------
     tied : ndarray (n_tied, n_axes)
         Candidates within :data:`reliability.basics.ties.TIE_RTOL` of the best function value.
     bound : float
-        Upper bound of the function over the whole box.
+        Upper bound of the function over the whole box (over its poses in the zone).
     calls : int
         Boxes evaluated.
     """
-    tied, best = model.start(low, high)
+    inside = _zone_test(model, zone)
+    tied, best = model.start(low, high, inside)
     limit = model.closing_factor(rtol) * (1 - CLOSING_MARGIN)
     box_low, box_high = low[None, :], high[None, :]
     closed_bound = -np.inf
     calls = 0
     while len(box_low) and calls < max_calls:
+        across = _across_zone(model, zone, box_low, box_high)
+        box_low, box_high, across = box_low[~across[0]], box_high[~across[0]], across[1]
+        if not len(box_low):
+            break
         bound, contribution, points, values, slope = _evaluate(model, box_low, box_high,
                                                                memory)
         calls += len(box_low)
+        values = np.where(inside(points), values, -np.inf)
         top = values.max()
         if top > best * (1 + TIE_RTOL):
             tied = tied[:0]
@@ -229,16 +252,51 @@ def branch_and_bound(model, low, high, rtol, max_calls, memory=None):
         if done.any():
             closed_bound = max(closed_bound, bound[done].max())
         keep = ~done
+        slope = np.where(across[:, None], 0.0, slope)  # a face may leave the zone
+        if across.any():
+            contribution[across] = _across_split(model, zone, contribution[across],
+                                                 box_low[across], box_high[across],
+                                                 high - low)
         box_low, box_high = _narrow(box_low[keep], box_high[keep], contribution[keep],
                                     slope[keep])
     if len(box_low):  # stopped by max_calls: the open boxes still count
         closed_bound = max(closed_bound, _evaluate(model, box_low, box_high, memory)[0].max())
         calls += len(box_low)
     polished = model.polish(tied[:1], low, high)  # the last digits of the best candidate
+    polished = polished[inside(polished)]
     top = float(model.values(polished).max()) if len(polished) else -np.inf
     if top > best * (1 + TIE_RTOL):
         tied, best = polished, top
     return tied, max(closed_bound, best), calls
+
+
+def _zone_test(model, zone):
+    """Which points of local coordinates ``(b, n_axes)`` are in the work zone (all
+    without one)."""
+    if zone is None:
+        return lambda points: np.ones(len(points), dtype=bool)
+    return lambda points: zone.contains(model.expansion.pose(points))
+
+
+def _across_zone(model, zone, low, high):
+    """Boxes proved outside the work zone, and boxes across its boundary (proved neither
+    outside nor inside); none of either without a zone."""
+    if zone is None:
+        return np.zeros((2, len(low)), dtype=bool)
+    pose_low, pose_high = model.expansion.pose(low), model.expansion.pose(high)
+    outside = zone.outside(pose_low, pose_high)
+    return outside, ~outside[~outside] & ~zone.inside(pose_low[~outside],
+                                                        pose_high[~outside])
+
+
+def _across_split(model, zone, contribution, low, high, span):
+    """What boxes across the zone's boundary are halved by: each axis' share of the bound
+    plus its share of the tool point's enclosure (:meth:`ZoneEnclosure.split_shares`), so
+    that the axes the boundary depends on are split too."""
+    total = contribution.sum(axis=1, keepdims=True)
+    share = np.divide(contribution, total, out=np.zeros_like(contribution), where=total > 0)
+    return (share + zone.split_shares(model.expansion.pose(low), model.expansion.pose(high))
+            + (high - low) / span)
 
 
 def _evaluate(model, low, high, memory):
@@ -291,9 +349,10 @@ class _Model:
         high = np.array([axis.stroke[1] for axis in machine.axis_specs], dtype=float)
         return self.expansion.local(low), self.expansion.local(high)
 
-    def start(self, low, high):
-        """The best points of the :data:`START_POINTS` grid and their value."""
-        grid = _grid(low, high, START_POINTS[self.reading])
+    def start(self, low, high, inside):
+        """The best points of the :data:`START_POINTS` grid inside the work zone (``inside``
+        of points) and their value."""
+        grid = _start_grid(low, high, START_POINTS[self.reading], inside)
         values = self.grid_values(grid)
         return grid[values >= values.max() * (1 - TIE_RTOL)], float(values.max())
 
@@ -302,6 +361,16 @@ class _Model:
         per_point = 8 * 2 * self.expansion.coefficients.size
         return np.concatenate([self.values(points[part])
                                for part in chunks(len(points), per_point, BOX_MEMORY)])
+
+
+def _start_grid(low, high, points, inside) -> np.ndarray:
+    """The ``points``-point grid's points inside the work zone, or an InputError."""
+    grid = _grid(low, high, points)
+    grid = grid[inside(grid)]
+    if not len(grid):
+        raise InputError(f"machine: no pose of the {points}-point grid of the strokes lies in "
+                         f"its work zone, so the certificate has no pose to start from")
+    return grid
 
 
 def _grid(low, high, points) -> np.ndarray:
@@ -324,12 +393,14 @@ class _SigmaModel(_Model):
     def closing_factor(self, rtol):
         return (1 + rtol) ** 2
 
-    def start(self, low, high):
-        """The grid's best points improved by L-BFGS-B on σ² from the best few."""
-        grid = _grid(low, high, START_POINTS[self.reading])
+    def start(self, low, high, inside):
+        """The grid's best points (inside the work zone: ``inside`` of points) improved by
+        L-BFGS-B on σ² from the best few, where it stays in the zone."""
+        grid = _start_grid(low, high, START_POINTS[self.reading], inside)
         values = self.grid_values(grid)
         found = self.polish(grid[np.argsort(-values, kind="stable")[:START_SEARCHES]],
                             low, high)
+        found = found[inside(found)]
         candidates = np.vstack([grid, found])
         values = np.concatenate([values, self.values(found)])
         best = float(values.max())

@@ -25,6 +25,7 @@ from ..basics.errors import InputError
 from ..basics.ties import SEARCH_RTOL, worst_rows
 from ..model.kinematics import jacobian_and_derivative
 from ..model.machine import OUTPUTS
+from ..model.work_zone import inside_zone
 from .certificate import certified_worst
 from .fosm import error_sigma, one_sided_probability, pose_sigma, two_sided_probability
 
@@ -95,7 +96,8 @@ def searched_worst(machine, tolerances, grid, *, k: float = 3.0,
     first in lexicographic order among those within
     :data:`reliability.basics.ties.SEARCH_RTOL` of the largest σ
     (:func:`reliability.basics.ties.worst_rows`), so that the same inputs give the same pose
-    on every computer and under every SciPy version that finds the same maximum. Local: it
+    on every computer and under every SciPy version that finds the same maximum. On a machine
+    with a work zone, poses found outside it are dropped. Local: it
     proves nothing (:func:`certified_worst` bounds σ over the strokes rigorously).
 
     Parameters
@@ -163,6 +165,7 @@ def searched_worst(machine, tolerances, grid, *, k: float = 3.0,
         found = [minimize(negative, start, jac=True, method="L-BFGS-B", bounds=bounds).x
                  for start in grid[worst_first(grid_sigma[:, o], grid, starts)]]
         found = snap_to_resolution(machine, np.array(found))
+        found = found[inside_zone(machine, found)]
         found_sigma = -np.array([_negative_sigma_and_gradient(machine, q, sigma_x, o)[0]
                                  for q in found])
         best = grid_sigma[:, o].max()

@@ -36,6 +36,7 @@ from .correlation import (check_correlation_matrix, correlation_to_toml, parse_c
 from .error_draws import DISTRIBUTIONS
 from .iso_names import iso_names
 from .profiles import profile_model
+from .work_zone import SHAPES, WorkZone
 
 COMPONENTS = ("dx", "dy", "dz", "ex", "ey", "ez")
 OUTPUTS = COMPONENTS
@@ -159,6 +160,7 @@ class Machine:
     frame: str = "tool"
     distribution: str = "normal"
     profile: str = "constant"
+    work_zone: WorkZone | None = None
     _index: Mapping[str, int] = field(init=False, repr=False, compare=False)
 
     def __post_init__(self):
@@ -180,6 +182,9 @@ class Machine:
         if self.tolerance_bounds is not None:
             object.__setattr__(self, "tolerance_bounds",
                                _checked_bounds(self.tolerance_bounds, self.error_names))
+        if self.work_zone is not None and not isinstance(self.work_zone, WorkZone):
+            raise InputTypeError(f"work_zone must be a WorkZone or None; got "
+                                 f"{type(self.work_zone).__name__}")
 
     def __reduce__(self):
         """Pickle and copy through the constructor (the name index is rebuilt)."""
@@ -418,7 +423,7 @@ def machine_from_toml(text: str, source: str = "machine") -> Machine:
 def machine_from_dict(data: Mapping, source: str = "machine") -> Machine:
     """Validate a parsed description (the TOML layout) and build a :class:`Machine`."""
     _only_keys(data, {"name", "axes", "requirements", "initial_allocation", "cost",
-                      "tool_offset", "correlation", "bounds"}, source)
+                      "tool_offset", "correlation", "bounds", "workzone"}, source)
     axes = _parse_axes(_require(data, "axes", source), source)
     names = tuple(a.name for a in axes)
     requirements = _require(data, "requirements", source)
@@ -438,6 +443,8 @@ def machine_from_dict(data: Mapping, source: str = "machine") -> Machine:
         frame=_parse_frame(requirements.get("frame", "tool"), f"{source}: requirements.frame"),
         distribution=_parse_distribution(requirements, source),
         profile=_parse_profile(requirements, source),
+        work_zone=None if "workzone" not in data else
+        _parse_work_zone(data["workzone"], f"{source}: workzone"),
     )
     if "correlation" in data:
         machine = parse_correlation(machine, data["correlation"], source)
@@ -699,6 +706,43 @@ def _per_error(table, axes: tuple[str, ...], where: str, read) -> np.ndarray:
     return values
 
 
+ZONE_KEYS = {"box": {"shape", "min", "max", "tilt"},
+             "cylinder": {"shape", "centre", "radius", "z", "tilt"}}
+
+
+def _parse_work_zone(table, where: str) -> WorkZone:
+    """``[workzone]``: ``shape = "box"`` with ``min``, ``max`` (mm), or ``shape =
+    "cylinder"`` with ``centre``, ``radius``, ``z`` (mm); optional ``tilt = [lo, hi]``
+    (degrees)."""
+    _only_keys(table, set().union(*ZONE_KEYS.values()), where)
+    shape = _require(table, "shape", where)
+    if shape not in SHAPES:
+        raise MachineDescriptionError(f"{where}.shape: expected \"box\" or \"cylinder\"; "
+                                      f"got {shape!r}")
+    _only_keys(table, ZONE_KEYS[shape], f"{where} (shape {shape!r})")
+    if shape == "box":
+        values = {"low": _vector3(_require(table, "min", where), f"{where}.min"),
+                  "high": _vector3(_require(table, "max", where), f"{where}.max")}
+    else:
+        values = {"centre": _lengths(_require(table, "centre", where), 2, f"{where}.centre"),
+                  "radius": _number(_require(table, "radius", where), f"{where}.radius",
+                                    positive=True, largest=LARGEST_LENGTH),
+                  "z": _lengths(_require(table, "z", where), 2, f"{where}.z")}
+    if "tilt" in table:
+        values["tilt"] = _lengths(table["tilt"], 2, f"{where}.tilt")
+    try:
+        return WorkZone(shape, **values)
+    except InputError as error:
+        raise MachineDescriptionError(f"{where}: {error}") from None
+
+
+def _lengths(value, count: int, where: str) -> tuple[float, ...]:
+    """``count`` finite numbers, or a MachineDescriptionError naming ``where``."""
+    if not isinstance(value, (list, tuple)) or len(value) != count:
+        raise MachineDescriptionError(f"{where}: expected {count} numbers; got {value!r}")
+    return tuple(_number(v, where, largest=LARGEST_LENGTH) for v in value)
+
+
 def _pair(value, where: str) -> tuple[float, float]:
     """``[lo, hi]`` with 0 < lo <= hi, or a MachineDescriptionError naming ``where``."""
     if isinstance(value, (str, bytes)) or not hasattr(value, "__len__") or len(value) != 2:
@@ -748,6 +792,8 @@ def machine_to_dict(machine: Machine) -> dict:
         table["bounds"] = _bounds_to_dict(machine)
     if machine.frame != "tool":
         table["requirements"]["frame"] = machine.frame
+    if machine.work_zone is not None:
+        table["workzone"] = machine.work_zone.to_dict()
     return table
 
 

@@ -23,6 +23,8 @@ import pandas as pd
 from ..basics.display import OUTPUT_UNITS, output_limits_text
 from ..basics.errors import InputTypeError
 from .machine import OUTPUTS, Machine
+from .poses import full_grid
+from .work_zone import inside_zone, zone_text
 
 LARGEST_SIZE_M = 20.0  # a guide length or rotation diameter beyond this is taken for mm
 SMALLEST_LINEAR_STROKE_MM = 1.0  # a linear stroke shorter than this is taken for metres
@@ -49,7 +51,7 @@ def likely_mistakes(machine) -> list[str]:
     _check_machine(machine)
     warnings = []
     for check in (_first_offset, *UNIT_CHECKS[:3], _parallel_linear_axes, *UNIT_CHECKS[3:],
-                  _cost_units):
+                  _cost_units, _empty_zone):
         warnings.extend(check(machine))
     return warnings
 
@@ -181,6 +183,16 @@ def _cost_units(machine) -> list[str]:
             "\"rad\" to keep these), see docs/cost-units.md"]
 
 
+def _empty_zone(machine) -> list[str]:
+    """A work zone that holds no pose of the 5-point grid leaves the grid's studies
+    nothing to judge."""
+    if machine.work_zone is None or inside_zone(machine, full_grid(machine)).any():
+        return []
+    return [f"no pose of the 5-point grid lies in the {zone_text(machine)}: the grid's "
+            f"studies (predict, allocate, report) will refuse it; check the zone against "
+            f"the strokes and tool_offset (mm, workpiece frame), or use more points per axis"]
+
+
 def _linear_strokes(machine) -> list[str]:
     return [f"linear axis {axis.name!r} has a stroke of only {_width(axis):g} mm: metres "
             f"given for millimetres? Strokes of linear axes are in mm"
@@ -268,11 +280,21 @@ def describe(machine) -> str:
              f"{machine.n_errors} geometric errors ({6 * n_axes} motion, "
              f"{6 * (n_axes - 1)} assembly)", "",
              _axis_table(machine).to_string(index=False),
-             f"Tool offset: {_vector(machine.tool_offset)} mm", "",
+             f"Tool offset: {_vector(machine.tool_offset)} mm",
+             f"Workspace: {_workspace_line(machine)}", "",
              "Requirements (|error| < limit with probability ≥ target)",
              _requirement_table(machine).to_string(), _distribution_line(machine), _profile_line(machine), "",
              _initial_line(machine), _cost_line(machine)]
     return "\n".join(lines)
+
+
+def _workspace_line(machine) -> str:
+    """The work zone and how many poses of the 5-point grid it holds."""
+    if machine.work_zone is None:
+        return zone_text(machine)
+    grid = full_grid(machine)
+    return f"{zone_text(machine)}; {int(inside_zone(machine, grid).sum())} of the " \
+           f"{len(grid)} poses of the 5-point grid inside"
 
 
 def _distribution_line(machine) -> str:

@@ -15,6 +15,10 @@ ideal transforms ``A``, ``B`` and actual ones ``A (I + D_h)``, ``B (I + D_t)``. 
 which is linear in the twelve non-zero entries of ``D_h``. ``D_h`` has only ``P^h`` values
 per experiment and ``D_t`` only ``P^(n−h)``, so the ``P^n`` poses come from one matrix
 product ``(P^h × 12) · (12 × 6 P^(n−h))`` instead of a 17-matrix chain per pose.
+
+On a machine with a work zone (:mod:`reliability.model.work_zone`) the experiment keeps the
+grid poses inside the zone only: the whole grid is evaluated as above and the poses
+outside are dropped before anything is counted.
 """
 
 from __future__ import annotations
@@ -29,7 +33,7 @@ from ..model.error_draws import check_reading, draw_errors, draw_grid_errors
 from ..model.kinematics import (deviation_from_transports, ideal_motion, ideal_rotation,
                                 offset_transform, transports, vectors_in_frame)
 from ..model.measured_profiles import grid_means
-from ..model.poses import grid_axis_points
+from ..model.poses import grid_axis_points, grid_inside_zone
 from ..model.profiles import IndependentProfile, axis_profiles, draw_motion_errors, travel_factors
 from ..model.transforms import read_pose_error, rigid_inverse
 from .experiment_results import GridExperimentResult
@@ -94,19 +98,40 @@ class GridExperiment:
         self._tail_transports = transports(tail_factors)
         self._tail_ideal = self._product(tail_factors, n - self.n_head)
         self._tail_ideal_inverse = rigid_inverse(self._tail_ideal)
+        self._zone_rows = self._rows_in_zone()
         self._rotation = ideal_rotation(machine, self.poses) \
             if machine.frame == "workpiece" else None  # outputs in the workpiece frame
 
     @property
-    def n_poses(self) -> int:
-        """``P^n``: 15 625 for the paper's machine."""
+    def n_grid(self) -> int:
+        """``P^n``, the whole grid: 15 625 for the paper's machine."""
         return self.points_per_axis ** len(self.machine.axis_specs)
 
     @property
+    def n_poses(self) -> int:
+        """The poses evaluated: ``P^n``, or those inside the machine's work zone."""
+        return self.n_grid if self._zone_rows is None else len(self._zone_rows)
+
+    @property
     def poses(self) -> np.ndarray:
-        """``(P^n, n_axes)`` grid poses, first axis slowest (as ``workspace_grid``)."""
+        """``(n_poses, n_axes)`` grid poses, first axis slowest (as ``workspace_grid``)."""
+        grid = self._whole_grid()
+        return grid if self._zone_rows is None else grid[self._zone_rows]
+
+    def pose_rows(self) -> np.ndarray:
+        """The row of each of :attr:`poses` in the whole grid, ``(n_poses,)``."""
+        return np.arange(self.n_grid) if self._zone_rows is None else self._zone_rows
+
+    def _whole_grid(self) -> np.ndarray:
         mesh = np.meshgrid(*self.points, indexing="ij")
         return np.stack([m.ravel() for m in mesh], axis=-1)
+
+    def _rows_in_zone(self) -> np.ndarray | None:
+        """Rows of the whole grid inside the work zone; None without a zone (all rows)."""
+        if self.machine.work_zone is None:
+            return None
+        return np.flatnonzero(grid_inside_zone(self.machine, self._whole_grid(),
+                                               self.points_per_axis))
 
     # ----- set-up ------------------------------------------------------------------
     def _segment(self, first: int, stop: int):
@@ -154,7 +179,7 @@ class GridExperiment:
         Returns
         -------
         numpy.ndarray
-            ``(R, P^n, 6)``, poses in the order of :attr:`poses`.
+            ``(R, n_poses, 6)``, poses in the order of :attr:`poses`.
         """
         motion, assembly = self._check_draws(motion_errors, assembly_errors)
         repeats = motion.shape[0]
@@ -172,6 +197,8 @@ class GridExperiment:
         out = through_head.reshape(repeats, head.shape[1], tail.shape[1], 6)
         out += read_pose_error(tail)[:, None, :, :]
         out = out.reshape(repeats, -1, 6)
+        if self._zone_rows is not None:
+            out = out[:, self._zone_rows]
         return out if self._rotation is None else vectors_in_frame(out, self._rotation)
 
     def _deviation(self, adjoints, gaps, first: int, motion, assembly) -> np.ndarray:
@@ -192,11 +219,12 @@ class GridExperiment:
         """Same as :meth:`evaluate`, by the straightforward per-pose exact model.
 
         Builds each pose's full error vector and calls ``machine.comprehensive_error`` on
-        all ``P^n`` poses at once: the simple reference the benchmark compares against.
+        all the poses at once: the simple reference the benchmark compares against.
         """
         motion, assembly = self._check_draws(motion_errors, assembly_errors)
         index = np.stack(np.meshgrid(*[np.arange(self.points_per_axis)] * motion.shape[1],
                                      indexing="ij"), axis=-1).reshape(-1, motion.shape[1])
+        index = index[self.pose_rows()]
         per_pose = motion[:, np.arange(motion.shape[1]), index]  # (R, P^n, n_axes, 6)
         x = np.concatenate([per_pose.reshape(motion.shape[0], len(index), -1),
                             np.broadcast_to(assembly.reshape(motion.shape[0], 1, -1),
@@ -260,9 +288,9 @@ class GridExperiment:
         repeats, batch = _check_run_options(repeats, keep_values, batch, distribution, k)
         checks.callback(progress, "progress")
         rng = streams.generator(rng)
-        batch = min(batch, chunk_size(4 * 6 * 8 * self.n_poses, memory))
+        batch = min(batch, chunk_size(4 * 6 * 8 * self.n_grid, memory))
         values_kept = {"all": repeats, "first": 1, "none": 0}[keep_values]
-        checks.require_size(min(batch, repeats) * self.n_poses, 6 * 8 * 4, self.budget,
+        checks.require_size(min(batch, repeats) * self.n_grid, 6 * 8 * 4, self.budget,
                             f"a batch of {min(batch, repeats)} experiments",
                             "pass a smaller batch")
         checks.require_size(repeats * 6 + values_kept * self.n_poses * 6, 8, self.budget,

@@ -322,7 +322,7 @@ class YieldModel:
         self.distribution = distribution
         self.experiment = GridExperiment(machine, points_per_axis, profile)
         self.memory = memory
-        self.batch = chunk_size(4 * 6 * 8 * self.experiment.n_poses, memory)
+        self.batch = chunk_size(4 * 6 * 8 * self.experiment.n_grid, memory)
         n, points = len(machine.axis_specs), self.experiment.points_per_axis
         self._travel = travel_factors(machine, self.profiles, self.experiment.points)
         if machine.correlation is None:
@@ -333,7 +333,7 @@ class YieldModel:
         self._motion_size = n * points * 6
         self.dimension = self._motion_size + 6 * (n - 1)
         self._grid_index = np.stack(np.unravel_index(
-            np.arange(self.experiment.n_poses), (points,) * n), axis=-1)
+            self.experiment.pose_rows(), (points,) * n), axis=-1)
 
     # ----- descriptions -------------------------------------------------------------
     @property
@@ -346,9 +346,14 @@ class YieldModel:
 
     @property
     def workspace(self) -> str:
-        """E.g. ``'5-point grid (15 625 poses)'``."""
-        count = f"{self.experiment.n_poses:,}".replace(",", " ")
-        return f"{self.experiment.points_per_axis}-point grid ({count} poses)"
+        """E.g. ``'5-point grid (15 625 poses)'``, or with a work zone
+        ``'5-point grid, 105 of its 3 125 poses in the work zone'``."""
+        count, whole = (f"{n:,}".replace(",", " ") for n in (self.experiment.n_poses,
+                                                               self.experiment.n_grid))
+        if self.machine.work_zone is None:
+            return f"{self.experiment.points_per_axis}-point grid ({count} poses)"
+        return (f"{self.experiment.points_per_axis}-point grid, {count} of its {whole} poses "
+                f"in the work zone")
 
     # ----- the machine as drawn -----------------------------------------------------
     def errors(self, u, tolerances):
@@ -650,17 +655,27 @@ class YieldModel:
         """``(6, n_axes)`` bool: for each output, the (at most :data:`MAX_REGION_AXES`)
         axes along which its mean σ² over the grid changes most, by more than
         :data:`REGION_SPREAD`."""
-        n, points = len(self.machine.axis_specs), self.experiment.points_per_axis
-        variance = np.square(sigma).reshape((points,) * n + (len(OUTPUTS),))
+        n = len(self.machine.axis_specs)
+        variance = np.square(sigma)
         spread = np.zeros((len(OUTPUTS), n))
         for a in range(n):
-            others = tuple(i for i in range(n) if i != a)
-            profile = variance.mean(axis=others)  # (P, 6)
+            profile = self._mean_along(a, variance)  # (points of axis a in use, 6)
             with np.errstate(divide="ignore", invalid="ignore"):
                 spread[:, a] = np.where(profile.min(axis=0) > 0,
                                         profile.max(axis=0) / profile.min(axis=0) - 1.0, 0.0)
         rank = np.argsort(np.argsort(-spread, axis=1, kind="stable"), axis=1, kind="stable")
         return (spread > REGION_SPREAD) & (rank < MAX_REGION_AXES)
+
+    def _mean_along(self, a: int, values) -> np.ndarray:
+        """Mean of per-pose ``values (n_poses, 6)`` at each grid point of axis ``a`` that
+        some pose uses, ``(used points, 6)``."""
+        points = self.experiment.points_per_axis
+        index = self._grid_index[:, a]
+        counts = np.bincount(index, minlength=points)
+        sums = np.stack([np.bincount(index, weights=column, minlength=points)
+                         for column in values.T], axis=-1)
+        used = counts > 0
+        return sums[used] / counts[used, None]
 
     def region_texts(self, rows, deciding) -> list[str]:
         """The worst pose of each row as its stroke thirds along the deciding axes; for an

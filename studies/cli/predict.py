@@ -12,6 +12,7 @@ from reliability.first_order.fosm import fosm, two_sided_probability
 from reliability.first_order.workspace_search import certified_worst
 from reliability.model.machine import OUTPUTS
 from reliability.model.poses import workspace_grid
+from reliability.model.work_zone import grid_text, zone_text
 
 from . import options
 
@@ -44,8 +45,9 @@ def run(args) -> int:
     result = fosm(machine, t, workspace_grid(machine, args.points),
                   distribution=machine.distribution)
     source = "initial allocation" if args.tolerances is None else args.tolerances
-    print(f"FOSM of the {source} of {machine.name!r} over the {args.points}-point grid "
-          f"({len(result.poses)} poses); target judged {args.side.replace('_', '-')}; "
+    print(f"FOSM of the {source} of {machine.name!r} over the "
+          f"{grid_text(machine, args.points, len(result.poses))}; target judged "
+          f"{args.side.replace('_', '-')}; "
           f"outputs in the {machine.frame} frame; {options.reading_text(machine)}\n")
     print(prediction_table(machine, result, args.side).to_string())
     failing = [o for o, met in zip(OUTPUTS, result.meets_targets(args.side))
@@ -56,7 +58,7 @@ def run(args) -> int:
         options.say(f"certifying the worst pose over the continuous workspace (rtol "
                     f"{args.rtol:g})")
         table = certified_worst(machine, t, rtol=args.rtol)
-        print(f"\nWorst pose over the continuous workspace (every pose of the strokes), "
+        print(f"\nWorst pose over the continuous workspace ({zone_text(machine)}), "
               f"certified to {args.rtol:g} in sigma; {options.reading_text(machine)}:")
         print(certificate_table(machine, table, result).to_string())
     return 0

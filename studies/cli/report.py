@@ -4,14 +4,16 @@ from __future__ import annotations
 
 from reliability.acceptance.suggested_limits import minimum_machines
 from reliability.basics.errors import InputError
-from reliability.basics.streams import sensitivity_stream
+from reliability.basics.streams import sensitivity_stream, zone_stream
 from studies.report import machine_sections
 from studies.report.acceptance_section import BUILT_MACHINES
 from studies.report.extras import (EXTRAS, TITLES, acceptance_builder, builders,
                                    catalogue_builder, guarded, not_computed)
 from studies.report.sensitivity_section import study_sensitivity_section
 from studies.report.writer import REPORT_MARKERS, write_report
+from studies.report.zone_section import zone_section
 from studies.workflows import machine_study
+from studies.workflows.zone_comparison import zone_comparison
 
 from . import options
 
@@ -78,6 +80,10 @@ def run(args) -> int:
         extra.append(guarded("catalogue", catalogue_builder(
             options.read_catalogue(args.catalogue, machine), start, start_text=start_text,
             samples=args.samples)))
+    if machine.work_zone is not None:
+        extra.append(lambda study: zone_section(zone_comparison(
+            machine, points=args.points, side=args.side, bounds=bounds,
+            machines=args.machines, rng=zone_stream(args.seed))))
     if args.sensitivity:
         included.append("sensitivity")
         extra.append(guarded("sensitivity", lambda study: study_sensitivity_section(
