@@ -505,7 +505,8 @@ def test_report_with_tests_adds_the_section(tmp_path, capsys):
                      'limit = 0.004\n')
     code = cli.main(["report", str(MACHINES / "mill3.toml"), "--out", str(tmp_path / "r"),
                      "--tests", str(tests), "--skip", "front", "system", "rare", "profiles",
-                     "--repeats", "2", "--samples", "500", "--points", "3", "--suggest", "0.95"])
+                     "--repeats", "2", "--samples", "500", "--points", "3", "--machines", "400",
+                     "--suggest", "0.95"])
     capsys.readouterr()
     assert code == 0
     assert "## Acceptance tests" in (tmp_path / "r" / "report.md").read_text()

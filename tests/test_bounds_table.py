@@ -80,14 +80,14 @@ def test_the_file_box_is_the_default_box_and_certified(bounded):
 def test_report_names_the_box_and_its_source(bounded, tmp_path, capsys):
     out = tmp_path / "report"
     assert cli.main(["report", str(bounded), "--out", str(out), "--repeats", "2",
-                     "--samples", "500", "--points", "3", "--skip", "front", "system",
+                     "--samples", "500", "--points", "3", "--machines", "400", "--skip", "front", "system",
                      "rare", "profiles"]) == 0
     summary = json.loads((out / "summary.json").read_text())
     assert summary["bounds_source"] == "machine file" and summary["bounds"] is None
     assert "machine file's [bounds]" in (out / "report.md").read_text()
     again = tmp_path / "again"
     assert cli.main(["report", str(bounded), "--out", str(again), "--repeats", "2",
-                     "--samples", "500", "--points", "3", "--bounds", "0.5", "1.5",
+                     "--samples", "500", "--points", "3", "--machines", "400", "--bounds", "0.5", "1.5",
                      "--skip", "front", "system", "rare", "profiles"]) == 0
     assert json.loads((again / "summary.json").read_text())["bounds_source"] == "command line"
     capsys.readouterr()

@@ -280,7 +280,8 @@ def test_unreachable_catalogue_exits_2(tmp_path, capsys):
 def test_report_adds_a_component_choice_section(tmp_path, capsys):
     out = tmp_path / "report"
     code = cli.main(["report", MILL, "--out", str(out), "--catalogue", MILL_CATALOGUE,
-                     "--repeats", "2", "--samples", "500", "--points", "3", "--skip",
+                     "--repeats", "2", "--samples", "500", "--points", "3", "--machines", "400",
+                     "--skip",
                      "front", "system", "rare", "profiles"])
     assert code == 0
     text = (out / "report.md").read_text()

@@ -20,7 +20,7 @@ from studies.report.markdown import markdown_to_html
 from studies.report.writer import rounded
 
 MILL = str(Path(__file__).parent / "machines" / "mill3.toml")
-QUICK = ["--repeats", "3", "--samples", "1000", "--points", "3"]
+QUICK = ["--repeats", "3", "--samples", "1000", "--points", "3", "--machines", "400"]
 
 
 def run(capsys, *argv):

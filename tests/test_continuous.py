@@ -24,7 +24,7 @@ from studies.report.extras import EXTRAS
 from studies.workflows.sweep import SweepSpec
 
 MILL = str(Path(__file__).parent / "machines" / "mill3.toml")
-QUICK = ["--repeats", "2", "--samples", "500", "--points", "3"]
+QUICK = ["--repeats", "2", "--samples", "500", "--points", "3", "--machines", "400"]
 BOX = (0.05, 1.5)  # wide enough below that a common rescaling stays inside it
 
 

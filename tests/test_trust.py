@@ -26,7 +26,7 @@ from studies.report import writer
 MACHINES = Path(__file__).parent / "machines"
 MILL = str(MACHINES / "mill3.toml")
 TRUNNION = str(MACHINES / "trunnion5.toml")
-QUICK = ["--repeats", "3", "--samples", "1000", "--points", "3"]
+QUICK = ["--repeats", "3", "--samples", "1000", "--points", "3", "--machines", "400"]
 SKIP_EXTRAS = ["--skip", "front", "system", "rare", "profiles"]
 
 
