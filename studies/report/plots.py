@@ -56,7 +56,7 @@ def fit_titles(figure) -> None:
 
 
 #: Share of the room a title may take, judged before the layout, below which it surely fits.
-CROWDED = 0.5
+CROWDED = 0.8
 
 
 def _crowded(figure, renderer) -> bool:
