@@ -19,7 +19,6 @@ The package lives in rooms by idea, each importing only the rooms below it:
 The names most users need are exported here.
 """
 
-from . import interop
 from .basics.errors import MachineDescriptionError
 from .first_order.fosm import FosmResult, fosm
 from .first_order.system_reliability import (SystemReliability, system_reliability,
@@ -43,3 +42,12 @@ __all__ = ["COMPONENTS", "OUTPUTS", "Axis", "CostCoefficients", "FosmResult",
            "interop", "random_poses", "rare", "read_measurements",
            "sample_at_poses", "sample_random_poses", "system_reliability", "workspace_grid",
            "worst_system_reliability"]
+
+
+def __getattr__(name):
+    """``reliability.interop`` on first use: it brings scipy.stats, which plain use of the
+    toolkit does not need at import."""
+    if name == "interop":
+        import importlib
+        return importlib.import_module(".interop", __name__)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -188,7 +188,7 @@ def all_cells() -> list[Cell]:
 #: Reports kept in the suite's covering set (a report runs the whole study, the slowest
 #: cell by far); the others run with ``--full``, and the paper's report at full settings in
 #: ``tests/test_reproduce.py``.
-SUITE_REPORTS = {("swivel5", "workpiece")}
+SUITE_REPORTS = {("mill3", "workpiece")}
 
 
 def covering_cells(suite: bool = False) -> list[Cell]:

@@ -88,6 +88,7 @@ def test_report_names_the_box_and_its_source(bounded, tmp_path, capsys):
     again = tmp_path / "again"
     assert cli.main(["report", str(bounded), "--out", str(again), "--repeats", "2",
                      "--samples", "500", "--points", "3", "--machines", "400", "--bounds", "0.5", "1.5",
+                     "--workspace", "grid",
                      "--skip", "front", "system", "rare", "profiles"]) == 0
     assert json.loads((again / "summary.json").read_text())["bounds_source"] == "command line"
     capsys.readouterr()
