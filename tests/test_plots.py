@@ -527,7 +527,7 @@ def test_every_report_figure_is_readable_and_draws_the_tables_interval(mill3):
 
 def test_every_figure_of_the_paper_study_is_readable():
     from studies.paper import reproduce
-    study = reproduce.run_study(seed=7, repeats=3, wolves=12, iterations=30,
+    study = reproduce.run_study(seed=7, repeats=2, wolves=8, iterations=10,
                                 random_samples=2000)
     figures = reproduce.figures(study, reproduce.tables(study))
     assert {f"fig{n:02d}.png" for n in range(8, 16)} <= set(figures)
