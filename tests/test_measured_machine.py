@@ -190,3 +190,16 @@ def test_a_reading_the_model_cannot_explain_is_named(mill):
     result = reliability.identify(mill, replace(meas, value=value))
     assert result.chi2_p_value < 1e-3
     assert f"run {meas.run[17]!r}, row 18" in result.summary()
+
+
+def test_errors_at_poses_agree_with_the_posterior(mill):
+    result = reliability.identify(mill, simulate_measurements(mill, mill_plan(mill), rng=2)
+                                  .measurements)
+    poses = np.array([[[100.0, 50.0, -200.0], [300.0, -250.0, -10.0], [0.0, 0.0, -50.0]]])
+    np.testing.assert_array_equal(result.mean_at(poses)[0, 1], result.mean)
+    draws = result.sample_at(poses, 4000, np.random.default_rng(5))
+    assert draws.shape == (4000, 1, 3, mill.n_errors)
+    z, sd = 4.0, result.errors["posterior_sd"].to_numpy()
+    assert np.all(np.abs(draws[:, 0, 2].mean(axis=0) - result.mean) <= z * sd / np.sqrt(4000)
+                  + 1e-15)
+    np.testing.assert_array_equal(draws[:, 0, 0], draws[:, 0, 1])

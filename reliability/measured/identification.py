@@ -124,6 +124,21 @@ class Identification:
         factor = _psd_factor(self.covariance)
         return self.mean + rng.standard_normal((n, len(self.mean))) @ factor.T
 
+    def mean_at(self, poses) -> np.ndarray:
+        """``(..., n_errors)``: the posterior mean of every error as it acts at each pose
+        ``(..., n_axes)`` (under ``constant`` the same at every pose)."""
+        poses = np.asarray(poses, dtype=float)
+        return np.broadcast_to(self.mean, poses.shape[:-1] + self.mean.shape).copy()
+
+    def sample_at(self, poses, n: int, rng) -> np.ndarray:
+        """``(n, ..., n_errors)``: machines drawn from the posterior, each error's value as it
+        acts at each pose ``(..., n_axes)`` (under ``constant`` the same at every pose)."""
+        poses = np.asarray(poses, dtype=float)
+        drawn = self.sample(n, rng)
+        shape = (n,) + (1,) * (poses.ndim - 1) + drawn.shape[1:]
+        return np.broadcast_to(drawn.reshape(shape),
+                               (n,) + poses.shape[:-1] + drawn.shape[1:]).copy()
+
     def worst_residual(self) -> pd.Series:
         """The reading with the largest normalised residual."""
         return self.residuals.iloc[int(np.argmax(np.abs(self.residuals["normalised"])))]
