@@ -13,6 +13,8 @@ The package lives in rooms by idea, each importing only the rooms below it:
 - :mod:`reliability.acceptance`: ISO 230 acceptance tests on the model;
 - :mod:`reliability.measured`: measurement files, simulated measurements and the
   identification of a built machine's errors;
+- :mod:`reliability.compensation`: compensation tables, their files and the error a
+  compensated machine keeps;
 - :mod:`reliability.interop`: the machine as an OpenTURNS and a SALib model (the optional
   ``interop`` extra, imported only when used).
 
@@ -20,6 +22,8 @@ The names most users need are exported here.
 """
 
 from .basics.errors import MachineDescriptionError
+from .compensation.compensation_files import read_compensation, write_compensation
+from .compensation.tables import CompensationTables, compensation_tables
 from .first_order.fosm import FosmResult, fosm
 from .first_order.system_reliability import (SystemReliability, system_reliability,
                                              worst_system_reliability)
@@ -33,15 +37,16 @@ from .sampling.experiment_results import GridExperimentResult, RandomPoseResult
 from .sampling.grid_experiment import GridExperiment
 from .sampling.pose_sampling import PoseSamplingResult, sample_at_poses, sample_random_poses
 
-__all__ = ["COMPONENTS", "OUTPUTS", "Axis", "CostCoefficients", "FosmResult",
+__all__ = ["COMPONENTS", "OUTPUTS", "Axis", "CompensationTables", "CostCoefficients",
+           "FosmResult",
            "GridExperiment", "GridExperimentResult", "Identification", "Machine",
            "MachineDescriptionError",
            "PoseSamplingResult", "RandomPoseResult", "SystemReliability", "fosm",
            "hobbing_machine", "identify", "load_machine", "machine_from_dict",
            "machine_from_toml",
-           "interop", "random_poses", "rare", "read_measurements",
-           "sample_at_poses", "sample_random_poses", "system_reliability", "workspace_grid",
-           "worst_system_reliability"]
+           "interop", "random_poses", "rare", "read_compensation", "read_measurements",
+           "compensation_tables", "sample_at_poses", "sample_random_poses", "system_reliability", "workspace_grid",
+           "worst_system_reliability", "write_compensation"]
 
 
 def __getattr__(name):

@@ -139,6 +139,8 @@ RELIABILITY_ROOMS = {
     "reliability.sampling": {"reliability.first_order", "reliability.measured",
                              "reliability.acceptance", "reliability.model",
                              "reliability.basics"},
+    "reliability.compensation": {"reliability.measured", "reliability.model",
+                                 "reliability.basics"},
     "reliability.interop": {"reliability.sampling", "reliability.first_order",
                             "reliability.model", "reliability.basics"},
 }
