@@ -16,8 +16,8 @@ from ..basics.errors import InputError
 from ..measured.plans import parse_plan
 from .residual import (output_sigma, plan_information, positioning_variance,
                        residual_covariance, two_sided)
-from .tables import (DEFAULT_SPACING_DEG, DEFAULT_SPACING_MM, correction_limits,
-                     tabled_mask)
+from .tables import (DEFAULT_SPACING_DEG, DEFAULT_SPACING_MM, compensation_tables,
+                     correction_limits, tabled_mask)
 
 #: Keys of the ``[compensation]`` table.
 PLAN_KEYS = ("spacing_mm", "spacing_deg", "items", "max_correction_mm", "max_correction_rad")
@@ -41,8 +41,8 @@ class CompensationPlan:
     tabled : ndarray of bool (n_errors,)
         Items the table corrects.
     spacing_mm, spacing_deg : float
-    max_correction : ndarray (n_errors,)
-        The table's range per item (mm, rad; inf: none).
+    max_correction_mm, max_correction_rad : float or None
+        The table's range (None: none).
     """
 
     machine: object
@@ -51,7 +51,22 @@ class CompensationPlan:
     tabled: np.ndarray
     spacing_mm: float
     spacing_deg: float
-    max_correction: np.ndarray
+    max_correction_mm: float | None = None
+    max_correction_rad: float | None = None
+
+    @property
+    def max_correction(self) -> np.ndarray:
+        """``(n_errors,)``: the table's range per item (mm, rad; inf: none)."""
+        return correction_limits(self.machine, self.max_correction_mm,
+                                 self.max_correction_rad)
+
+    def tables(self, identification):
+        """The compensation tables this plan writes from an identification."""
+        return compensation_tables(
+            identification, spacing_mm=self.spacing_mm, spacing_deg=self.spacing_deg,
+            items=tuple(np.array(self.machine.error_names)[self.tabled]),
+            max_correction_mm=self.max_correction_mm,
+            max_correction_rad=self.max_correction_rad)
 
     @property
     def seen(self) -> np.ndarray:
@@ -102,18 +117,16 @@ def parse_compensation_plan(data: Mapping, machine, source: str = "plan") -> Com
     information = plan_information(machine, runs)
     where = f"{source}, [compensation]"
     try:
-        limits = correction_limits(machine, table.get("max_correction_mm"),
-                                   table.get("max_correction_rad"))
+        ranges = {key: table.get(key) for key in ("max_correction_mm", "max_correction_rad")}
+        correction_limits(machine, *ranges.values())
         spacing = {key: _spacing(table, key) for key in ("spacing_mm", "spacing_deg")}
         plan = CompensationPlan(machine, runs, information,
-                                np.ones(machine.n_errors, dtype=bool), max_correction=limits,
-                                **spacing)
+                                np.ones(machine.n_errors, dtype=bool), **spacing, **ranges)
         tabled = plan.seen if table.get("items") is None else \
             tabled_mask(machine, _items(table["items"], where))
     except InputError as exc:
         raise InputError(f"{where}: {exc}") from None
-    return CompensationPlan(machine, runs, information, tabled, max_correction=limits,
-                            **spacing)
+    return CompensationPlan(machine, runs, information, tabled, **spacing, **ranges)
 
 
 def _spacing(table, key) -> float:

@@ -26,7 +26,7 @@ from reliability.model.poses import workspace_grid
 from studies.report.machine_sections import tolerance_table
 from studies.report.writer import SIGNIFICANT
 
-from . import options
+from . import compensate, options
 
 
 def add_parser(subparsers):
@@ -92,10 +92,13 @@ def add_parser(subparsers):
                              "(default 0.1 0.1)")
     parser.add_argument("--overwrite", action="store_true",
                         help="replace existing --out / --drawing / --tolerances-out files")
+    compensate.add_allocation_option(parser)
     return parser
 
 
 def run(args) -> int:
+    if args.compensation is not None:
+        return compensate.run_allocation(args)
     if args.yield_target is not None:
         return run_yield(args)
     if args.profile is not None:

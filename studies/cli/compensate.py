@@ -1,0 +1,204 @@
+"""``precrel compensate MACHINE.toml --identification DIR --out DIR``: compensation tables of a
+measured machine (one CSV per axis and ``assembly.csv``, docs/compensation.md), and what the
+machine keeps after compensation."""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+
+from allocation import AllocationProblem
+from allocation.compensated import allocate_compensated
+from allocation.result_files import allocation_to_csv
+from reliability.basics.errors import InputError
+from reliability.compensation.compensation_plans import read_compensation_plan
+from reliability.compensation.compensation_files import table_file_names, write_compensation
+from reliability.compensation.residual import measured_residual
+from reliability.compensation.tables import (DEFAULT_SPACING_DEG, DEFAULT_SPACING_MM,
+                                             compensation_tables)
+from reliability.measured.identification import identify
+from reliability.measured.measurement_files import read_measurements
+from reliability.model.poses import workspace_grid
+from studies.report.writer import SIGNIFICANT
+
+from . import options
+
+#: Columns ``errors.csv`` of ``precrel identify --out`` must have for the tables.
+ERRORS_COLUMNS = ("error", "posterior_mean")
+#: Grid of the residual printed for a machine identified here.
+RESIDUAL_GRID = 3
+
+
+def add_parser(subparsers):
+    parser = subparsers.add_parser(
+        "compensate", help="compensation tables of a measured machine",
+        description="Write the compensation tables of a measured machine: per axis a CSV "
+                    "with position_mm or position_deg at the spacing over the stroke and "
+                    "one column per motion error named by its ISO 230-1 symbol (mm, rad), "
+                    "and assembly.csv (error, iso, value) of the constant errors; each value "
+                    "is the identified error, the correction its negative "
+                    "(docs/compensation.md). From --identification DIR (the errors.csv of "
+                    "precrel identify --out) or --measurements meas.csv (identified here, "
+                    "and then the outputs after compensation are printed beside those "
+                    "before).")
+    options.add_machine(parser)
+    source = parser.add_mutually_exclusive_group(required=True)
+    source.add_argument("--identification", metavar="DIR",
+                        help="folder written by precrel identify --out")
+    source.add_argument("--measurements", metavar="meas.csv",
+                        help="measurement file, identified here under the constant profile")
+    parser.add_argument("--tolerances", metavar="CSV",
+                        help="with --measurements: allocation in force (default the "
+                             "initial allocation)")
+    parser.add_argument("--out", required=True, metavar="DIR", help="folder of the tables")
+    parser.add_argument("--spacing-mm", type=float, default=DEFAULT_SPACING_MM, metavar="H",
+                        help=f"spacing along linear axes (default {DEFAULT_SPACING_MM:g} mm)")
+    parser.add_argument("--spacing-deg", type=float, default=DEFAULT_SPACING_DEG,
+                        metavar="H",
+                        help=f"spacing about rotary axes (default {DEFAULT_SPACING_DEG:g} "
+                             f"degrees)")
+    parser.add_argument("--items", nargs="+", metavar="NAME",
+                        help="errors to table (names or ISO symbols; default all)")
+    parser.add_argument("--max-correction-mm", type=float, metavar="X",
+                        help="the table's range for translations (mm)")
+    parser.add_argument("--max-correction-rad", type=float, metavar="X",
+                        help="the table's range for rotations (rad)")
+    parser.add_argument("--overwrite", action="store_true",
+                        help="replace earlier tables in DIR")
+    return parser
+
+
+def run(args) -> int:
+    machine = options.machine(args)
+    out = options.destination(args.out, args.overwrite, folder=True,
+                              markers=table_file_names(machine))
+    if args.tolerances is not None and args.measurements is None:
+        raise InputError("--tolerances is used with --measurements only (an identification "
+                         "folder already holds its prior)")
+    identification = _identification(args, machine)
+    tables = compensation_tables(identification, spacing_mm=args.spacing_mm,
+                                 spacing_deg=args.spacing_deg, items=args.items,
+                                 max_correction_mm=args.max_correction_mm,
+                                 max_correction_rad=args.max_correction_rad)
+    write_compensation(tables, out, args.overwrite)
+    print(f"compensation tables of {machine.name!r}: {len(tables.items)} of "
+          f"{machine.n_errors} errors tabled, every {args.spacing_mm:g} mm and "
+          f"{args.spacing_deg:g} degrees; written {', '.join(table_file_names(machine))} "
+          f"into {out}")
+    if args.measurements is not None:
+        print("\n" + residual_text(identification, tables))
+    return 0
+
+
+def _identification(args, machine):
+    if args.measurements is not None:
+        tolerances = None if args.tolerances is None else \
+            options.read_tolerances(args.tolerances, machine)
+        return identify(machine, read_measurements(args.measurements, machine),
+                        tolerances=tolerances)
+    return read_posterior_means(args.identification, machine)
+
+
+@dataclass(frozen=True, eq=False)
+class PosteriorMeans:
+    """The posterior means of an identification folder's ``errors.csv`` (the ``constant``
+    profile: one value per error along the whole travel)."""
+
+    machine: object
+    mean: np.ndarray
+
+    def mean_at(self, poses) -> np.ndarray:
+        poses = np.asarray(poses, dtype=float)
+        return np.broadcast_to(self.mean, poses.shape[:-1] + self.mean.shape).copy()
+
+
+def read_posterior_means(folder, machine) -> PosteriorMeans:
+    """``--identification DIR``: the posterior means of ``DIR/errors.csv``, every error of
+    the machine once."""
+    path = f"{folder}/errors.csv"
+    try:
+        table = pd.read_csv(path)
+    except (OSError, pd.errors.ParserError, pd.errors.EmptyDataError) as exc:
+        raise InputError(f"--identification {folder}: cannot read errors.csv: {exc}") from None
+    missing = [c for c in ERRORS_COLUMNS if c not in table.columns]
+    if missing:
+        raise InputError(f"--identification {path}: no column {missing[0]!r}")
+    names = tuple(table["error"])
+    if sorted(names) != sorted(machine.error_names):
+        unknown = sorted(set(names) ^ set(machine.error_names))
+        raise InputError(f"--identification {path}: its errors are not this machine's "
+                         f"(first difference: {unknown[0]!r})")
+    values = pd.to_numeric(table["posterior_mean"], errors="coerce").to_numpy()
+    if not np.all(np.isfinite(values)):
+        row = int(np.argmax(~np.isfinite(values))) + 1
+        raise InputError(f"--identification {path}, row {row}, column 'posterior_mean': "
+                         f"expected a finite number")
+    return PosteriorMeans(machine, machine.error_vector(dict(zip(names, values)),
+                                                        default=None))
+
+
+def residual_text(identification, tables) -> str:
+    """Worst mean and σ of each output before and after compensation on the grid."""
+    machine = identification.machine
+    poses = workspace_grid(machine, RESIDUAL_GRID)
+    jac = machine.jacobian(poses, frame=machine.frame)
+    before = np.abs(jac @ identification.mean).max(axis=0)
+    before_sd = np.sqrt(np.einsum("poi,ij,poj->po", jac, identification.covariance,
+                                  jac)).max(axis=0)
+    mean, sigma = measured_residual(identification, tables, poses)
+    frame = pd.DataFrame({"limit": machine.limits, "|mean| before": before,
+                          "sd before": before_sd, "|mean| after": np.abs(mean).max(axis=0),
+                          "sd after": sigma.max(axis=0)},
+                         index=pd.Index(machine.outputs, name="output"))
+    return (f"this machine's outputs ({machine.frame} frame) on the {RESIDUAL_GRID}-point "
+            f"grid, worst over the poses: posterior mean and sd before compensation, and "
+            f"what the tables leave (the sd after adds repeatability and reversal)\n"
+            f"{frame.to_string(float_format=lambda v: f'{v:.3g}')}")
+
+
+def add_allocation_option(parser) -> None:
+    """``precrel allocate --compensation PLAN.toml``."""
+    parser.add_argument("--compensation", metavar="PLAN.toml",
+                        help="allocate for machines measured under this plan and compensated "
+                             "(a measurement plan with a [compensation] table, "
+                             "docs/compensation.md), on the --points grid; prints the cost "
+                             "with and without compensation, its bracket and the items that "
+                             "stay tight (not with --yield, --catalogue, --method gwo or "
+                             "--workspace continuous)")
+
+
+def run_allocation(args) -> int:
+    """``allocate --compensation``: the cheapest allocation found after compensation, with
+    its certified bracket, written as the allocation CSV."""
+    for option, given in (("--yield", args.yield_target is not None),
+                          ("--catalogue", args.catalogue is not None),
+                          ("--method gwo", args.method != "exact"),
+                          ("--workspace continuous", args.workspace == "continuous"),
+                          ("--profile", args.profile is not None),
+                          ("--drawing", args.drawing is not None)):
+        if given:
+            raise InputError(f"{option} does not apply with --compensation: the allocation "
+                             f"after compensation holds at the --points grid poses")
+    bounds = options.check_bounds(args.bounds)
+    out = options.destination(args.out, args.overwrite)
+    machine = options.machine(args)
+    if args.target is not None:
+        machine = dataclasses.replace(machine, targets=np.full(6, args.target))
+    plan = read_compensation_plan(args.compensation, machine)
+    options.say(f"building the problem on the {args.points}-point grid, "
+                f"{options.box_words(machine, bounds)}")
+    problem = AllocationProblem.build(machine, workspace_grid(machine, args.points),
+                                      side=args.side, bounds=bounds, locked=tuple(args.lock))
+    found = allocate_compensated(problem, plan)
+    print(f"allocation for {machine.name!r} measured under {args.compensation} "
+          f"({len(plan.runs)} runs) and compensated ({int(plan.tabled.sum())} items tabled, "
+          f"every {plan.spacing_mm:g} mm and {plan.spacing_deg:g} degrees); targets at the "
+          f"{len(problem.poses)} poses of the {args.points}-point grid, {args.side}\n")
+    print(found.summary())
+    allocation_to_csv(found.result, out, args.overwrite, significant=SIGNIFICANT)
+    print(f"\nallocation written to {out} (no drawing file: its check is of the machine "
+          f"without compensation)")
+    return 0
