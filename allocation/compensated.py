@@ -232,7 +232,7 @@ def _solve(problem, coefficients, room, lower, upper):
 def _lower_bound(model, lower, upper) -> float:
     """Dual bound of the relaxation: informed items at their posterior of the tightest
     tolerances, the others exactly."""
-    plan, jac = model.plan, model.jacobian
+    plan = model.plan
     seen = plan.seen
     posterior = posterior_covariance(np.where(seen, lower / K, 0.0), plan.information)
     gain = np.diag((~seen).astype(float))
