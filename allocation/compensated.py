@@ -122,7 +122,7 @@ class CompensatedAllocation:
         return "\n".join(lines)
 
 
-def allocate_compensated(problem, plan, *, max_rounds: int = MAX_ROUNDS,
+def allocate_compensated(problem, plan, *, without=None, max_rounds: int = MAX_ROUNDS,
                          tolerance: float = ROUND_TOLERANCE) -> CompensatedAllocation:
     """The cheapest allocation found whose machines meet the targets after compensation.
 
@@ -132,6 +132,8 @@ def allocate_compensated(problem, plan, *, max_rounds: int = MAX_ROUNDS,
         Poses, box, costs and targets (``side='two_sided'`` or ``'one_sided'``, worst case).
     plan : CompensationPlan
         How the machines will be measured and compensated.
+    without : AllocationResult, optional
+        The problem's certified optimum without compensation, when already solved.
     max_rounds : int
     tolerance : float
         Stop when a round lowers the cost by less than this fraction.
@@ -140,7 +142,7 @@ def allocate_compensated(problem, plan, *, max_rounds: int = MAX_ROUNDS,
     -------
     CompensatedAllocation
     """
-    without = problem.solve_exact()
+    without = problem.solve_exact() if without is None else without
     upper = np.where(plan.tabled, np.minimum(problem.upper, plan.max_correction),
                      problem.upper)
     upper = np.maximum(upper, problem.lower)
@@ -172,9 +174,10 @@ class _Residual:
         self.allowed = np.square(problem.allowed_sigma)
         self.floor = np.square(self.jacobian) @ positioning_variance(problem.machine)
 
-    def rows(self, gain, noise, sigma_scale=1.0 / K):
-        """Normalised rows ``(n_poses, 6, n)`` and the room left ``(n_poses, 6)``."""
-        coefficients = np.square(self.jacobian @ gain * sigma_scale)
+    def rows(self, gain, noise):
+        """Coefficients ``(n_poses, 6, n)`` of ``u`` in the residual variance with the rule
+        held fixed (``gain``, ``noise``), and the variance left for them ``(n_poses, 6)``."""
+        coefficients = np.square(self.jacobian @ gain / K)
         constant = np.einsum("poi,ij,poj->po", self.jacobian, noise, self.jacobian)
         room = self.allowed - constant - self.floor
         return coefficients, room
@@ -209,11 +212,12 @@ def _start(model, candidate, lower, upper) -> np.ndarray:
 
 
 def _round(model, t, lower, upper) -> np.ndarray:
-    """One convex solve on the rows linearised at ``t``; ``t`` is feasible for them."""
+    """One convex solve on the rows linearised at ``t``; ``t`` is feasible for them. When no
+    row can bind in the box, the box's upper bounds are the optimum."""
     gain, noise = fixed_rule_terms(t / K, model.plan.information, model.plan.tabled)
     coefficients, room = model.rows(gain, noise)
     solved = _solve(model.problem, coefficients, room, lower, upper)
-    return t if solved is None else solved.t
+    return upper.copy() if solved is None else solved.t
 
 
 def _solve(problem, coefficients, room, lower, upper):

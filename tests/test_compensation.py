@@ -182,6 +182,16 @@ def test_compensated_allocation_is_feasible_cheaper_and_bracketed(swivel5_machin
     assert np.all(np.diff(found.rounds["cost"]) <= 1e-12 * found.rounds["cost"].iloc[0])
 
 
+def test_when_no_row_can_bind_after_compensation_every_item_is_at_its_upper_bound(hobbing):
+    plan = read_compensation_plan(ROOT / "docs" / "examples" / "paper_plan.toml", hobbing)
+    problem = AllocationProblem.build(hobbing, workspace_grid(hobbing, 2), side="two_sided")
+    upper_loads = plan.sigma(problem.upper, problem.poses) / problem.allowed_sigma
+    assert upper_loads.max() < 1.0  # the whole box meets the targets after compensation
+    found = allocate_compensated(problem, plan)
+    assert np.array_equal(found.tolerances, problem.upper)
+    assert found.cost == pytest.approx(found.lower_bound, rel=1e-12)
+
+
 def test_table_range_caps_a_tabled_tolerance(mill3):
     plan = parse_compensation_plan(mill3_plan(max_correction_rad=8e-6), mill3)
     problem = AllocationProblem.build(mill3, workspace_grid(mill3, 2), side="two_sided")

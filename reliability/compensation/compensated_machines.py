@@ -39,16 +39,22 @@ def simulate_compensated(plan, tolerances, poses, machines: int, rng=None) -> np
     return out
 
 
-def linear_residual_draws(plan, tolerances, poses, draws: int, rng=None) -> np.ndarray:
-    """``(draws, n_poses, 6)``: outputs of the residual model, first order: residual errors
-    drawn from their covariance plus each pose's repeatability and reversal."""
+def residual_model_passes(plan, tolerances, poses, draws: int, rng=None,
+                          chunk: int = 256) -> np.ndarray:
+    """``(draws,)``: whether machines of the residual model, first order, hold every limit at
+    every pose: residual errors drawn from their covariance plus each pose's repeatability
+    and reversal; ``chunk`` machines at a time."""
     machine = plan.machine
     rng = streams.generator(rng)
     poses = machine.check_positions(poses)
-    covariance = plan.residual_covariance(tolerances)
-    values, vectors = np.linalg.eigh(covariance)
+    values, vectors = np.linalg.eigh(plan.residual_covariance(tolerances))
     factor = vectors * np.sqrt(np.maximum(values, 0.0))
-    residual = rng.standard_normal((draws, len(covariance))) @ factor.T
-    residual = residual[:, None, :] + positioning_draws(machine, (draws, len(poses)), rng)
     jac = machine.jacobian(poses, frame=machine.frame)
-    return np.einsum("poi,npi->npo", jac, residual)
+    out = np.empty(draws, dtype=bool)
+    for first in range(0, draws, chunk):
+        count = min(chunk, draws - first)
+        residual = rng.standard_normal((count, len(values))) @ factor.T
+        residual = residual[:, None, :] + positioning_draws(machine, (count, len(poses)), rng)
+        outputs = np.einsum("poi,npi->npo", jac, residual)
+        out[first:first + count] = np.all(np.abs(outputs) <= machine.limits, axis=(1, 2))
+    return out

@@ -29,7 +29,7 @@ from allocation import AllocationProblem
 from allocation.compensated import allocate_compensated
 from reliability.basics.statistics import binomial_interval
 from reliability.basics.streams import spawn
-from reliability.compensation.compensated_machines import (linear_residual_draws,
+from reliability.compensation.compensated_machines import (residual_model_passes,
                                                            simulate_compensated)
 from reliability.compensation.compensation_plans import read_compensation_plan
 from reliability.model.poses import workspace_grid
@@ -61,9 +61,8 @@ def check(machine, plan, *, machines: int, grid: int, seed: int) -> dict:
     started = time.perf_counter()
     simulated = simulate_compensated(plan, t, poses, machines, streams[0])
     seconds = time.perf_counter() - started
-    model = linear_residual_draws(plan, t, poses, MODEL_DRAWS, streams[1])
+    predicted = residual_model_passes(plan, t, poses, MODEL_DRAWS, streams[1])
     inside = np.abs(simulated) <= machine.limits
-    predicted = np.abs(model) <= machine.limits
     return {"allocation": allocation, "seconds": seconds,
             "yield": yield_rows(inside, predicted),
             "worst": worst_rows(machine, plan.probability(t, poses), inside, poses)}
@@ -72,7 +71,7 @@ def check(machine, plan, *, machines: int, grid: int, seed: int) -> dict:
 def yield_rows(inside, predicted) -> pd.DataFrame:
     rows = []
     for name, passes in (("residual model", predicted), ("simulated", inside)):
-        count = int(passes.all(axis=(1, 2)).sum())
+        count = int(passes.reshape(len(passes), -1).all(axis=1).sum())
         low, high = binomial_interval(count, len(passes))
         rows.append((name, len(passes), count / len(passes), float(low), float(high)))
     return pd.DataFrame(rows, columns=["yield of", "machines", "yield", "lower", "upper"])
