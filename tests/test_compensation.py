@@ -216,6 +216,31 @@ def test_compensate_writes_the_tables_of_an_identification_folder(tmp_path, mill
     assert np.array_equal(back.values_at(workspace_grid(mill3, 2))[0], values)
 
 
+def test_verify_text_sets_results_after_compensation_beside_before(mill3, tmp_path):
+    from argparse import Namespace
+    from studies.cli.compensate import verification_text
+    lines = "".join(
+        f'[[tests]]\nname = "laser_{axis}"\nkind = "line"\naxis = "{axis}"\n'
+        f'line = {{ {line} }}\nquantities = ["dx", "dy", "dz", "ex", "ey", "ez"]\n'
+        f'u = 0.0005\nu_angle = 1e-6\n\n'
+        for axis, line in (("X", "Y = 200.0, Z = -100.0"), ("Y", "X = 0.0, Z = -100.0"),
+                           ("Z", "X = 0.0, Y = 200.0")))
+    path = tmp_path / "plan.toml"
+    path.write_text(lines + "[compensation]\nspacing_mm = 100.0\n")
+    args = Namespace(compensation=str(path), points=2, seed=0, compensated_machines=2)
+    text = verification_text(mill3, mill3.initial_allocation, args)
+    rows = {line.split()[0]: line.split()[1:] for line in text.splitlines()[2:9]}
+    # no repeatability or reversal on this machine: the posterior is never wider than the prior
+    assert all(float(rows[o][2]) >= float(rows[o][1]) for o in mill3.outputs)
+    assert any(float(rows[o][2]) > float(rows[o][1]) + 1e-3 for o in mill3.outputs)
+    assert "predicted by the residual model" in text and "(2 machines)" in text
+
+
+def _swivel5():
+    from reliability import load_machine
+    return load_machine(ROOT / "tests" / "machines" / "swivel5.toml")
+
+
 def _frame(columns):
     import pandas as pd
     return pd.DataFrame(columns)
@@ -223,5 +248,4 @@ def _frame(columns):
 
 @pytest.fixture(scope="module")
 def swivel5_machine():
-    from reliability import load_machine
-    return load_machine(ROOT / "tests" / "machines" / "swivel5.toml")
+    return _swivel5()

@@ -14,9 +14,14 @@ from allocation import AllocationProblem
 from allocation.compensated import allocate_compensated
 from allocation.result_files import allocation_to_csv
 from reliability.basics.errors import InputError
+from reliability.basics.statistics import binomial_interval
+from reliability.basics.streams import extra_stream
+from reliability.compensation.compensated_machines import (residual_model_passes,
+                                                           simulate_compensated)
 from reliability.compensation.compensation_plans import read_compensation_plan
 from reliability.compensation.compensation_files import table_file_names, write_compensation
 from reliability.compensation.residual import measured_residual
+from reliability.first_order.fosm import fosm
 from reliability.compensation.tables import (DEFAULT_SPACING_DEG, DEFAULT_SPACING_MM,
                                              compensation_tables)
 from reliability.measured.identification import identify
@@ -202,3 +207,58 @@ def run_allocation(args) -> int:
     print(f"\nallocation written to {out} (no drawing file: its check is of the machine "
           f"without compensation)")
     return 0
+
+
+#: Extra stream of the compensated machines of ``verify --compensation``.
+VERIFY_STREAM = 6
+#: Machines of the residual model behind the predicted yield after compensation.
+MODEL_MACHINES = 20_000
+
+
+def add_verification_option(parser) -> None:
+    """``precrel verify --compensation PLAN.toml [--compensated-machines N]``."""
+    parser.add_argument("--compensation", metavar="PLAN.toml",
+                        help="also the results after compensation, for machines measured "
+                             "under this plan and compensated (docs/compensation.md): FOSM "
+                             "beside FOSM before, on the --points grid, and the yield "
+                             "predicted by the residual model beside the yield of "
+                             "--compensated-machines machines measured, identified and "
+                             "compensated on the exact chain")
+    parser.add_argument("--compensated-machines", type=options.positive_int, default=100,
+                        metavar="N",
+                        help="machines simulated end to end with --compensation (default 100)")
+
+
+def verification_text(machine, tolerances, args) -> str:
+    """``verify --compensation``: per output the worst FOSM before and after compensation on
+    the grid, and the machine yield after compensation, predicted and simulated."""
+    plan = read_compensation_plan(args.compensation, machine)
+    poses = workspace_grid(machine, args.points)
+    rng = extra_stream(args.seed, VERIFY_STREAM)
+    options.say(f"{args.compensated_machines} machines measured under {args.compensation}, "
+                f"identified and compensated")
+    simulated = simulate_compensated(plan, tolerances, poses, args.compensated_machines, rng)
+    predicted = residual_model_passes(plan, tolerances, poses, MODEL_MACHINES, rng)
+    inside = np.all(np.abs(simulated) <= machine.limits, axis=(1, 2))
+    before = fosm(machine, tolerances, poses).to_frame()["worst_two_sided"].to_numpy()
+    after = plan.probability(tolerances, poses)
+    shares = np.mean(np.abs(simulated) <= machine.limits, axis=0)
+    worst = np.argmin(after, axis=0)
+    frame = pd.DataFrame({"target": machine.targets, "FOSM before": before,
+                          "FOSM after": after.min(axis=0),
+                          "simulated after": shares[worst, np.arange(6)]},
+                         index=pd.Index(machine.outputs, name="output"))
+    rows = [_yield_line("predicted by the residual model", predicted),
+            _yield_line("simulated end to end on the exact chain", inside)]
+    return (f"after compensation ({args.compensation}: {len(plan.runs)} runs, "
+            f"{int(plan.tabled.sum())} items tabled; repeatability and reversal included), "
+            f"two-sided, worst over the {len(poses)} poses of the {args.points}-point grid "
+            f"(simulated: at the worst pose after compensation, {len(inside)} machines)\n"
+            f"{frame.to_string(float_format=lambda v: f'{v:.6g}')}\n"
+            f"machine yield after compensation:\n" + "\n".join(rows))
+
+
+def _yield_line(what, passes) -> str:
+    low, high = binomial_interval(int(passes.sum()), len(passes))
+    return (f"  {what}: {passes.mean():.4f} [{float(low):.4f}, {float(high):.4f}] "
+            f"({len(passes)} machines)")

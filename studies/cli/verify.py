@@ -10,7 +10,7 @@ from reliability.basics.streams import extra_stream
 from reliability.sampling.pose_sampling import EVENTS, sample_at_poses
 from reliability.sampling.verification import rare_event_table, reachable_events, verify
 
-from . import options
+from . import compensate, options
 
 
 def add_parser(subparsers):
@@ -60,6 +60,7 @@ def add_parser(subparsers):
     parser.add_argument("--rtol", type=options.probability, default=DEFAULT_RTOL,
                         metavar="R", help=f"relative tolerance in sigma of the continuous "
                                           f"workspace's certificate (default {DEFAULT_RTOL:g})")
+    compensate.add_verification_option(parser)
     return parser
 
 
@@ -103,6 +104,8 @@ def run(args) -> int:
     if args.rare:
         options.say(f"rare-event estimates at the worst poses ({args.rare_method})")
         print("\n" + rare_text(machine, t, args, rng=extra_stream(args.seed, 1)))
+    if args.compensation is not None:
+        print("\n" + compensate.verification_text(machine, t, args))
     return 0
 
 
