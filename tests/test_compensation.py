@@ -236,6 +236,23 @@ def test_verify_text_sets_results_after_compensation_beside_before(mill3, tmp_pa
     assert "predicted by the residual model" in text and "(2 machines)" in text
 
 
+def test_report_section_names_what_stays_tight_and_why(swivel5_machine):
+    from types import SimpleNamespace
+    from studies.report.compensation_section import compensation_section
+    machine = swivel5_machine
+    plan = read_compensation_plan(ROOT / "docs" / "examples" / "swivel5_plan.toml", machine)
+    study = SimpleNamespace(problem=AllocationProblem.build(
+        machine, workspace_grid(machine, 2), side="two_sided"), optimum=None)
+    section = compensation_section(study, plan, "swivel5_plan.toml")
+    table = section.tables["compensation.csv"]
+    assert len(table) == machine.n_errors
+    assert 0 < section.summary["compensation_lower_bound_ratio"] <= \
+        section.summary["compensation_cost_ratio"] < 1
+    tight = table[table["limited_by"] == "targets"]
+    assert len(tight) and not tight["seen"].any()  # what no run's zeros let the plan see
+    assert f"{len(tight)} of them are not seen by the plan" in section.text
+
+
 def _swivel5():
     from reliability import load_machine
     return load_machine(ROOT / "tests" / "machines" / "swivel5.toml")

@@ -1,9 +1,9 @@
 """Monte-Carlo check of the residual model of compensated machines, end to end.
 
 Run as ``python -m studies.benchmarks.compensation_check [--machine swivel5|paper|PATH]
-[--plan PLAN.toml] [--machines N] [--grid P] [--seed S]``. The machine's cheapest allocation
-after compensation (two-sided targets of its file, on the ``P``-point grid, box of the file)
-is found; ``N`` machines are built to it, each measured under the plan (its readings simulated
+[--plan PLAN.toml] [--machines N] [--grid P] [--seed S] [--bounds LO HI]``. The machine's
+cheapest allocation after compensation (two-sided targets of its file, on the ``P``-point
+grid, box of the file or ``LO``–``HI`` × the initial allocation) is found; ``N`` machines are built to it, each measured under the plan (its readings simulated
 on the exact chain with their set-ups and noise), identified, given its compensation tables,
 and evaluated compensated on the exact chain at every grid pose, each approach drawing its
 repeatability and reversal. Printed beside each other:
@@ -51,10 +51,10 @@ def load(name: str, plan_path: str | None):
     return machine, read_compensation_plan(plan_path or default_plan, machine)
 
 
-def check(machine, plan, *, machines: int, grid: int, seed: int) -> dict:
+def check(machine, plan, *, machines: int, grid: int, seed: int, bounds=None) -> dict:
     """The allocation, the predicted and simulated yield and the worst pairs."""
     poses = workspace_grid(machine, grid)
-    problem = AllocationProblem.build(machine, poses, side="two_sided")
+    problem = AllocationProblem.build(machine, poses, side="two_sided", bounds=bounds)
     allocation = allocate_compensated(problem, plan)
     t = allocation.tolerances
     streams = spawn(seed, 2)
@@ -99,9 +99,11 @@ def main(argv=None) -> int:
     parser.add_argument("--machines", type=int, default=200)
     parser.add_argument("--grid", type=int, default=3)
     parser.add_argument("--seed", type=int, default=2026)
+    parser.add_argument("--bounds", type=float, nargs=2, metavar=("LO", "HI"))
     args = parser.parse_args(argv)
     machine, plan = load(args.machine, args.plan)
-    result = check(machine, plan, machines=args.machines, grid=args.grid, seed=args.seed)
+    result = check(machine, plan, machines=args.machines, grid=args.grid, seed=args.seed,
+                   bounds=args.bounds)
     print(f"{machine.name}: {args.machines} machines built to the cheapest allocation after "
           f"compensation, measured, identified, compensated, on the {args.grid}-point grid "
           f"({result['seconds']:.0f} s)\n")

@@ -27,6 +27,7 @@ from reliability.compensation.tables import (DEFAULT_SPACING_DEG, DEFAULT_SPACIN
 from reliability.measured.identification import identify
 from reliability.measured.measurement_files import read_measurements
 from reliability.model.poses import workspace_grid
+from studies.report.compensation_section import compensation_section
 from studies.report.writer import SIGNIFICANT
 
 from . import options
@@ -262,3 +263,19 @@ def _yield_line(what, passes) -> str:
     low, high = binomial_interval(int(passes.sum()), len(passes))
     return (f"  {what}: {passes.mean():.4f} [{float(low):.4f}, {float(high):.4f}] "
             f"({len(passes)} machines)")
+
+
+def add_report_option(parser) -> None:
+    """``precrel report --compensation PLAN.toml``."""
+    parser.add_argument("--compensation", metavar="PLAN.toml",
+                        help="add an 'After compensation' section: the cheapest allocation "
+                             "for machines measured under this plan and compensated, beside "
+                             "the one without, what compensation relaxes and what it cannot "
+                             "(docs/compensation.md)")
+
+
+def report_builder(args, machine):
+    """The builder of the report's section of ``--compensation`` (the plan read now, so a
+    bad plan is refused before any work)."""
+    plan = read_compensation_plan(args.compensation, machine)
+    return lambda study: compensation_section(study, plan, args.compensation)

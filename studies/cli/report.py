@@ -15,7 +15,7 @@ from studies.report.zone_section import zone_section
 from studies.workflows import machine_study
 from studies.workflows.zone_comparison import zone_comparison
 
-from . import options
+from . import compensate, options
 
 
 def add_parser(subparsers):
@@ -57,6 +57,7 @@ def add_parser(subparsers):
                              "every item at the optimal (else the initial) allocation")
     parser.add_argument("--overwrite", action="store_true",
                         help="replace an earlier report in DIR (other files are left alone)")
+    compensate.add_report_option(parser)
     return parser
 
 
@@ -88,6 +89,9 @@ def run(args) -> int:
         included.append("sensitivity")
         extra.append(guarded("sensitivity", lambda study: study_sensitivity_section(
             study, machines=args.machines, rng=sensitivity_stream(study.seed))))
+    if args.compensation is not None:
+        included.append("compensation")
+        extra.append(guarded("compensation", compensate.report_builder(args, machine)))
     study = machine_study.run(machine, points=args.points, side=args.side, bounds=bounds,
                               seed=args.seed, repeats=args.repeats, samples=args.samples,
                               progress=options.say, bar=options.progress_bar,

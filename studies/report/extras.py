@@ -56,9 +56,10 @@ SECTION_FAILURES = (InputError, InputTypeError, InfeasibleAllocationError,
 TITLES = {"front": "Cost against reliability", "system": "System reliability",
           "rare": "Verification at the worst poses", "profiles": PROFILES_TITLE,
           "tests": ACCEPTANCE_TITLE, "catalogue": CATALOGUE_TITLE,
-          "sensitivity": "What each tolerance buys"}
+          "sensitivity": "What each tolerance buys", "compensation": "After compensation"}
 #: The option that asks for each section not in :data:`EXTRAS`.
-OPTIONS = {"tests": "--tests", "catalogue": "--catalogue", "sensitivity": "--sensitivity"}
+OPTIONS = {"tests": "--tests", "catalogue": "--catalogue", "sensitivity": "--sensitivity",
+           "compensation": "--compensation"}
 
 
 def allocations(study) -> dict:
