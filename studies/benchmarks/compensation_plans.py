@@ -1,7 +1,8 @@
 """The measurement plan as a design choice: the cost of the cheapest allocation after
 compensation against variants of the plan.
 
-Run as ``python -m studies.benchmarks.compensation_plans [--grid P] [--out DIR]``. For the
+Run as ``python -m studies.benchmarks.compensation_plans [--grid P] [--out DIR]
+[--bounds LO HI]`` (the box as factors of the initial allocation; default the machine file's). For the
 test 5-axis machine (tests/machines/swivel5.toml) and the paper's machine, each with its
 example plan (docs/examples/*_plan.toml), and for variants of the plan (laser runs only,
 no laser runs, an instrument ten times noisier, the table's spacing five times wider), it
@@ -51,12 +52,13 @@ def variants(plan: CompensationPlan) -> dict:
     return out
 
 
-def study(name: str, grid: int) -> pd.DataFrame:
+def study(name: str, grid: int, bounds=None) -> pd.DataFrame:
     machine_path, plan_path = MACHINES[name]
     machine = reliability.hobbing_machine() if machine_path is None else \
         reliability.load_machine(machine_path)
     base = read_compensation_plan(plan_path, machine)
-    problem = AllocationProblem.build(machine, workspace_grid(machine, grid), side="two_sided")
+    problem = AllocationProblem.build(machine, workspace_grid(machine, grid), side="two_sided",
+                                      bounds=bounds)
     without = problem.solve_exact()
     rows = []
     for variant, plan in variants(base).items():
@@ -93,10 +95,12 @@ def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--grid", type=int, default=3)
     parser.add_argument("--out", default="compensation-plans")
+    parser.add_argument("--bounds", type=float, nargs=2, metavar=("LO", "HI"))
     args = parser.parse_args(argv)
     out = Path(args.out)
     out.mkdir(exist_ok=True)
-    table = pd.concat([study(name, args.grid) for name in MACHINES], ignore_index=True)
+    table = pd.concat([study(name, args.grid, args.bounds) for name in MACHINES],
+                      ignore_index=True)
     table.to_csv(out / "plans.csv", index=False, float_format="%.6g")
     figure(table, out / "plans.png")
     print(table.to_string(index=False, float_format=lambda v: f"{v:.4g}"))

@@ -19,12 +19,13 @@ Nothing is asserted; the numbers are the result.
 from __future__ import annotations
 
 import argparse
+import sys
 
 import numpy as np
 import pandas as pd
 from scipy.stats import norm
 
-from allocation import AllocationProblem, allocate_for_yield
+from allocation import AllocationProblem, TargetUnreachableError, allocate_for_yield
 from allocation.compensated import allocate_compensated
 from reliability.basics.statistics import binomial_interval
 from reliability.compensation.compensated_machines import residual_model_passes
@@ -35,6 +36,8 @@ from studies.workflows.timing import one_blas_thread
 #: Bisection steps on the common per-pose target, and its range.
 STEPS = 8
 HIGHEST = 1.0 - 1e-7
+#: The upper end of the bisection when HIGHEST is out of reach in the box.
+HIGHEST_REACHABLE = 0.9999
 
 
 def with_compensation(machine, plan, yield_target, grid, machines, seed) -> dict:
@@ -45,9 +48,14 @@ def with_compensation(machine, plan, yield_target, grid, machines, seed) -> dict
     def found(target):
         problem = AllocationProblem.build(machine, poses, side="two_sided",
                                           targets=dict.fromkeys(machine.outputs, target))
-        return allocate_compensated(problem, plan)
+        try:
+            return allocate_compensated(problem, plan)
+        except TargetUnreachableError:
+            return None
 
     def reaches(result):
+        if result is None:
+            return False
         key = result.cost
         if key not in draws:
             draws[key] = residual_model_passes(plan, result.tolerances, poses, machines,
@@ -55,8 +63,9 @@ def with_compensation(machine, plan, yield_target, grid, machines, seed) -> dict
         return draws[key] >= yield_target
 
     relaxed = found(yield_target)
-    low, high = norm.ppf(yield_target), norm.ppf(HIGHEST)
-    best = found(HIGHEST)
+    top = HIGHEST if found(HIGHEST) is not None else HIGHEST_REACHABLE
+    low, high = norm.ppf(yield_target), norm.ppf(top)
+    best = found(top)
     for _ in range(STEPS):
         middle = 0.5 * (low + high)
         candidate = found(norm.cdf(middle))
@@ -90,8 +99,10 @@ def main(argv=None) -> int:
     rows = []
     for name in MACHINES:
         machine, plan = load(name, None)
+        print(f"{name}: without compensation", file=sys.stderr, flush=True)
         before = without_compensation(machine, args.yield_target, args.grid, args.machines,
                                       args.seed)
+        print(f"{name}: with compensation", file=sys.stderr, flush=True)
         after = with_compensation(machine, plan, args.yield_target, args.grid,
                                   args.machines, args.seed)
         rows.append({"machine": name, "cost_without": before["cost"],
