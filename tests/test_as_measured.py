@@ -4,8 +4,10 @@ acceptance results from posterior draws."""
 import shutil
 from dataclasses import replace
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
+import pandas as pd
 import pytest
 
 import reliability
@@ -18,6 +20,8 @@ from reliability.measured.plans import parse_plan
 from reliability.measured.simulated_measurements import simulate_measurements
 from reliability.model.poses import workspace_grid
 from studies.cli.program import main
+from studies.report.as_measured_section import as_measured_builder
+from studies.report.extras import guarded
 from studies.workflows.as_measured import as_measured
 
 HERE = Path(__file__).parent
@@ -147,3 +151,31 @@ def test_verify_prints_this_machine_beside_the_design(mill, identified_folder, t
     assert "probability that it holds every limit at every pose" in printed
     assert "design-time machine yield of the allocation" in printed
     assert "circle_xy_r100" in printed.split("This machine as measured")[1]
+
+
+def _study(machine, tolerances):
+    worst = pd.DataFrame(workspace_grid(machine, 2)[:6], columns=list(machine.axes))
+    check = SimpleNamespace(worst_poses=worst, machine_yield=None)
+    return SimpleNamespace(machine=machine, checks={"initial": check, "optimum": check},
+                           reachable=True, allocated=tolerances, points=2, machines=50,
+                           seed=0)
+
+
+def test_the_as_measured_section_names_the_prior_allocation(mill, mill_readings):
+    identified = reliability.identify(mill, mill_readings.measurements,
+                                      tolerances=0.5 * mill.initial_allocation)
+    section = guarded("as_measured", as_measured_builder(identified, source="m.csv"))(
+        _study(mill, 0.5 * mill.initial_allocation))
+    assert section.title == "As measured"
+    assert "prior is the optimum allocation" in section.text
+    assert set(section.tables["as_measured_outputs.csv"].index) == set(mill.outputs)
+
+
+def test_an_as_measured_section_that_fails_leaves_the_report_whole(mill, swivel,
+                                                                     mill_readings):
+    identified = reliability.identify(mill, mill_readings.measurements)
+    section = guarded("as_measured", as_measured_builder(identified, source="m.csv"))(
+        _study(swivel, swivel.initial_allocation))
+    assert section.title == "As measured"
+    assert "as_measured" in section.summary["not_computed"]
+    assert "--identification or --measurements" in section.text
