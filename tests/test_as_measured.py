@@ -133,6 +133,8 @@ def test_a_machine_known_exactly_gets_its_circle(mill, mill_readings):
     row = found.acceptance.set_index(["test", "quantity"]).loc[("circle_xy_r100", "G")]
     assert row["mean"] == pytest.approx(expected, abs=1e-6)
     assert row["pass_probability"] == float(expected <= tests[0].limit)
+    passes = found.summary_dict()["acceptance_pass"]
+    assert "circle_xy_r100.G" in passes and "position_X.R" not in passes
 
 
 def test_verify_prints_this_machine_beside_the_design(mill, identified_folder, tmp_path,

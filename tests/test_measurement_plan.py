@@ -58,7 +58,7 @@ def direct_sd(machine, candidates, subset, worst_poses):
 
 
 def test_the_chosen_runs_are_the_best_affordable_by_their_identification(mill, candidates):
-    budget = 3.5
+    budget = 2.5
     plan = plan_measurements(mill, candidates, budget, points=3)
     worst = list(plan.outputs["worst_pose"])
     assert plan.cost <= budget
@@ -70,6 +70,7 @@ def test_the_chosen_runs_are_the_best_affordable_by_their_identification(mill, c
                 scores[subset] = np.sum((sd / mill.limits) ** 2)
     chosen = tuple(sorted(plan.chosen))
     assert scores[chosen] <= min(scores.values()) * (1 + 1e-9)
+    assert plan.objective["greedy"] == pytest.approx(scores[chosen], rel=1e-6)
     assert plan.objective["chosen"] == pytest.approx(scores[chosen], rel=1e-6)
     np.testing.assert_allclose(plan.outputs["chosen_sd"], direct_sd(mill, candidates, chosen,
                                                                     worst), rtol=1e-6)

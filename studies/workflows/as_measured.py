@@ -110,7 +110,8 @@ class AsMeasured:
                            for row in self.outputs.itertuples()}}
         if self.acceptance is not None:
             out["acceptance_pass"] = {f"{r.test}.{r.quantity}": r.pass_probability
-                                      for r in self.acceptance.itertuples()}
+                                      for r in self.acceptance.itertuples()
+                                      if np.isfinite(r.limit)}
         return out
 
 
@@ -237,7 +238,7 @@ def _acceptance_table(machine, identification, tests, tolerances, draws, rng,
                                 confidence=CONFIDENCE).to_frame()
     design = acceptance(machine, tests, tolerances, machines=draws,
                         profile=identification.profile, distribution=machine.distribution,
-                        confidence=CONFIDENCE, rng=design_rng).to_frame()
+                        confidence=CONFIDENCE, driver_machines=1, rng=design_rng).to_frame()
     measured = measured[measured["test"] != "all"].reset_index(drop=True)
     design = design[design["test"] != "all"].reset_index(drop=True)
     return pd.DataFrame({
