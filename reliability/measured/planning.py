@@ -18,7 +18,8 @@ prior σ of the output (machine frame) is largest. The plan minimises
 variances in units of their limits. ``V`` is not submodular in general, so the choice is
 made twice: greedily by gain per cost with lazy evaluation (a run's last gain bounds its
 next one when the gains shrink as the plan grows, and it is re-evaluated whenever it comes
-first), kept against the best single affordable run; and, when there are at most
+first), kept against the best single affordable run, then improved by exchanging one run for
+another (or adding one) while that lowers ``V`` within the budget; and, when there are at most
 :data:`EXHAUSTIVE_CANDIDATES` candidates, over every affordable subset. The better is
 chosen, and the output says which.
 """
@@ -197,14 +198,15 @@ def plan_measurements(machine, candidates, budget: float, *, tolerances=None,
     rows, worst = worst_rows(machine, prior_sd, points)
     score = _Objective(rows, information, machine.limits)
     costs = np.array([c.cost for c in candidates])
-    greedy = _lazy_greedy(score, costs, budget)
-    chosen, method = greedy, "greedy by gain per cost, lazy evaluation"
+    greedy = _improve_by_swaps(score, costs, budget, _lazy_greedy(score, costs, budget))
+    chosen, method = greedy, "greedy by gain per cost with lazy evaluation, then swaps"
     if len(candidates) <= EXHAUSTIVE_CANDIDATES:
         best = _exhaustive(score, costs, budget)
         chosen = best if score(best) < score(greedy) - 1e-12 * score(()) else greedy
         method += (f"; every affordable subset searched ({len(candidates)} candidates): "
                    + ("the greedy choice is the best" if chosen == greedy else
-                      f"a better one than greedy's (V {score(greedy):.4g}) chosen"))
+                      f"a better one than the greedy choice (V {score(greedy):.4g}) "
+                      f"chosen"))
     order, added = _greedy_order(score, chosen)
     everything = tuple(range(len(candidates)))
     return MeasurementPlan(
@@ -286,6 +288,22 @@ def _lazy_greedy(score, costs, budget) -> tuple:
     if single is not None and score((single,)) < score(chosen):
         return (single,)
     return tuple(sorted(chosen))
+
+
+def _improve_by_swaps(score, costs, budget, chosen) -> tuple:
+    """``chosen`` with one run exchanged for another, or one added, while the best such
+    change that fits the budget lowers ``V``."""
+    chosen = tuple(chosen)
+    while True:
+        others = [j for j in range(len(costs)) if j not in chosen]
+        changes = [tuple(sorted((*chosen, j))) for j in others] + \
+            [tuple(sorted((*(k for k in chosen if k != i), j)))
+             for i in chosen for j in others]
+        changes = [c for c in changes if costs[list(c)].sum() <= budget]
+        best = min(changes, key=score, default=None)
+        if best is None or score(best) >= score(chosen):
+            return chosen
+        chosen = best
 
 
 def _exhaustive(score, costs, budget) -> tuple:

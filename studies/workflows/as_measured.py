@@ -31,7 +31,7 @@ from scipy.special import ndtr
 
 from reliability.acceptance.prediction import (AcceptanceResult, acceptance, build_path,
                                                deviation_weights, results_of_deviations)
-from reliability.basics import streams
+from reliability.basics import checks, streams
 from reliability.basics.chunks import chunks
 from reliability.basics.display import axis_units, pose_text
 from reliability.basics.statistics import binomial_interval
@@ -143,6 +143,7 @@ def as_measured(machine, identification, *, points: int = 5, poses=None,
     -------
     AsMeasured
     """
+    draws = checks.positive_int(draws, "draws")
     workspace_rng, tests_rng, design_rng = streams.spawn(rng, 3)
     tolerances = machine.check_tolerances(3.0 * np.asarray(identification.prior_sd))
     experiment = GridExperiment(machine, points)
@@ -174,17 +175,17 @@ def _judge(machine, identification, experiment, extra, draws, memory, rng) -> di
     pose and output; the outputs' sums and sums of squares per pose."""
     n_axes, n_poses = len(machine.axes), experiment.n_poses + len(extra)
     sampled = np.concatenate([_diagonal_poses(experiment), extra])
-    P = len(experiment.points[0])
+    count = len(experiment.points[0])
     out = {"holds_all": 0, "holds": np.zeros(6, dtype=np.int64),
            "inside": np.zeros((n_poses, 6), dtype=np.int64),
            "sum": np.zeros((n_poses, 6)), "squares": np.zeros((n_poses, 6))}
     for part in chunks(draws, 96 * n_poses, memory):
         x = identification.sample_at(sampled, part.stop - part.start, rng)
-        motion = np.stack([x[:, :P, 6 * a:6 * a + 6] for a in range(n_axes)], axis=1)
+        motion = np.stack([x[:, :count, 6 * a:6 * a + 6] for a in range(n_axes)], axis=1)
         assembly = x[:, 0, 6 * n_axes:].reshape(len(x), n_axes - 1, 6)
         y = experiment.evaluate(motion, assembly)
         if len(extra):
-            y = np.concatenate([y, machine.comprehensive_error(extra, x[:, P:, :])], axis=1)
+            y = np.concatenate([y, machine.comprehensive_error(extra, x[:, count:, :])], axis=1)
         inside = np.abs(y) < machine.limits
         out["holds_all"] += int(np.count_nonzero(inside.all(axis=(1, 2))))
         out["holds"] += inside.all(axis=1).sum(axis=0)
