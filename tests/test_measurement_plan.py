@@ -2,6 +2,7 @@
 identification of their readings gives, and the chosen plan is a plan file."""
 
 import itertools
+import tomllib
 from pathlib import Path
 
 import numpy as np
@@ -97,3 +98,18 @@ def test_plan_writes_the_chosen_runs_as_a_plan(mill, tmp_path, capsys):
     assert runs and sum(costs[run.name] for run in runs) <= 2
     assert all(f"  {run.name} (cost" in printed for run in runs)
     assert "what each chosen run adds" in printed
+
+
+def test_exchanges_take_the_greedy_plan_to_the_best_subset(tmp_path):
+    """On these four runs of the swivel machine's example plan, adding by gain per cost
+    takes circle_yz where circle_zx is better; the exchange finds the best of all subsets."""
+    swivel = reliability.load_machine(MILL.parent / "swivel5.toml")
+    example = tomllib.loads((MILL.parents[2] / "docs" / "examples" /
+                             "swivel5_plan.toml").read_text())
+    kept = ("laser_Z", "circle_yz", "circle_zx", "rotary_C")
+    candidates = parse_candidates({"tests": [t for t in example["tests"]
+                                             if t["name"] in kept]}, swivel)
+    plan = plan_measurements(swivel, candidates, 3, points=3)
+    assert sorted(candidates[i].run.name for i in plan.chosen) == ["circle_zx", "laser_Z",
+                                                                   "rotary_C"]
+    assert plan.objective["greedy"] == pytest.approx(plan.objective["chosen"], rel=1e-12)
