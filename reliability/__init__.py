@@ -30,6 +30,7 @@ from .first_order.system_reliability import (SystemReliability, system_reliabili
 from .model.machine import (COMPONENTS, OUTPUTS, Axis, CostCoefficients, Machine, hobbing_machine,
                             load_machine, machine_from_dict, machine_from_toml)
 from .measured.identification import Identification, identify
+from .measured.identification_files import read_identification
 from .measured.measurement_files import read_measurements
 from .model.poses import random_poses, workspace_grid
 from .sampling import rare_events as rare
@@ -44,8 +45,9 @@ __all__ = ["COMPONENTS", "OUTPUTS", "Axis", "CompensationTables", "CostCoefficie
            "PoseSamplingResult", "RandomPoseResult", "SystemReliability", "fosm",
            "hobbing_machine", "identify", "load_machine", "machine_from_dict",
            "machine_from_toml",
-           "interop", "random_poses", "rare", "read_compensation", "read_measurements",
-           "compensation_tables", "sample_at_poses", "sample_random_poses", "system_reliability", "workspace_grid",
+           "interop", "random_poses", "rare", "read_compensation", "read_identification",
+           "read_measurements", "compensation_tables", "sample_at_poses",
+           "sample_random_poses", "system_reliability", "workspace_grid",
            "worst_system_reliability", "write_compensation"]
 
 

@@ -15,6 +15,22 @@ import reliability
 MACHINE_DIR = Path(__file__).parent / "machines"
 
 
+#: Modules whose tests take longest, longest first. They run first, so that the two
+#: workers share them from the start and no long test is left for one worker at the end.
+LONG_MODULES = ("test_reproduce", "test_plots", "test_profiles_study", "test_trust",
+                "test_continuous", "test_sampling", "test_acceptance", "test_cli",
+                "test_report_study", "test_bounds_table", "test_combinations")
+
+
+def pytest_collection_modifyitems(items):
+    """Run the tests of :data:`LONG_MODULES` first, each module's tests kept together and in
+    their order (a module's fixtures are built once)."""
+    def rank(item):
+        name = item.module.__name__.rsplit(".", 1)[-1]
+        return LONG_MODULES.index(name) if name in LONG_MODULES else len(LONG_MODULES)
+    items.sort(key=rank)
+
+
 @pytest.fixture(scope="session", autouse=True)
 def one_blas_thread():
     """BLAS pinned to one thread: threads fight on a busy 2-core machine."""
@@ -38,6 +54,16 @@ def mill3():
 def trunnion5():
     """A 5-axis trunnion machine, C A Y X Z, with offsets and a tool offset."""
     return reliability.load_machine(MACHINE_DIR / "trunnion5.toml")
+
+
+@pytest.fixture(scope="session")
+def small_paper_study():
+    """The paper's case study, quick (few wolves, iterations and repeats): for tests of its
+    plumbing and figures, not its numbers. Its tests share the xdist group
+    ``small_paper_study``, so that it is computed once."""
+    from studies.paper import reproduce
+    return reproduce.run_study(seed=7, repeats=3, wolves=8, iterations=10,
+                               random_samples=2000)
 
 
 @pytest.fixture(scope="session", params=["hobbing", "mill3", "trunnion5"])

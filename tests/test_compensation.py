@@ -14,12 +14,14 @@ from allocation.compensated import allocate_compensated
 from studies import cli
 from reliability import compensation_tables, identify, read_compensation, write_compensation
 from reliability.basics.errors import InputError
+from reliability.basics.files import SIGNIFICANT
 from reliability.compensation.compensation_plans import (parse_compensation_plan,
                                                          read_compensation_plan)
 from reliability.compensation.residual import (compensated_deviation, fixed_rule_terms,
                                                positioning_draws, posterior_covariance,
                                                residual_covariance)
 from reliability.compensation.tables import CompensationTables, table_positions
+from reliability.measured.measurement_files import write_measurements
 from reliability.measured.simulated_measurements import simulate_measurements
 from reliability.model.poses import random_poses, workspace_grid
 
@@ -203,17 +205,21 @@ def test_table_range_caps_a_tabled_tolerance(mill3):
 
 
 # ----- the command line ------------------------------------------------------------------
-def test_compensate_writes_the_tables_of_an_identification_folder(tmp_path, mill3):
-    folder = tmp_path / "id"
-    folder.mkdir()
-    values = np.arange(mill3.n_errors) * 1e-6
-    rows = "\n".join(f"{n},{float(v)!r}" for n, v in zip(mill3.error_names, values))
-    (folder / "errors.csv").write_text("error,posterior_mean\n" + rows + "\n")
-    assert cli.main(["compensate", str(ROOT / "tests/machines/mill3.toml"),
-                     "--identification", str(folder), "--out", str(tmp_path / "tables"),
-                     "--spacing-mm", "200"]) == 0
+def test_compensate_writes_the_tables_of_an_identification_folder(tmp_path, mill3,
+                                                                    measured_mill3):
+    _, built, identification = measured_mill3
+    machine_file = str(ROOT / "tests" / "machines" / "mill3.toml")
+    write_measurements(built.measurements, mill3, tmp_path / "m.csv")
+    assert cli.main(["identify", machine_file, "--measurements", str(tmp_path / "m.csv"),
+                     "--out", str(tmp_path / "id")]) == 0
+    assert cli.main(["compensate", machine_file, "--identification", str(tmp_path / "id"),
+                     "--out", str(tmp_path / "tables"), "--spacing-mm", "200"]) == 0
     back = read_compensation(tmp_path / "tables", mill3)
-    assert np.array_equal(back.values_at(workspace_grid(mill3, 2))[0], values)
+    # errors.csv holds the posterior means to SIGNIFICANT digits; unseen items are 0 but
+    # for rounding (~1e-17)
+    scale = np.abs(identification.mean).max()
+    assert np.allclose(back.values_at(workspace_grid(mill3, 2)), identification.mean,
+                       rtol=10.0 ** (1 - SIGNIFICANT), atol=1e-9 * scale)
 
 
 def test_verify_text_sets_results_after_compensation_beside_before(mill3, tmp_path):

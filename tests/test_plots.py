@@ -525,10 +525,10 @@ def test_every_report_figure_is_readable_and_draws_the_tables_interval(mill3):
     np.testing.assert_allclose([b.get_y() + b.get_height() for b in motion.patches], ratio)
 
 
-def test_every_figure_of_the_paper_study_is_readable():
+@pytest.mark.xdist_group("small_paper_study")
+def test_every_figure_of_the_paper_study_is_readable(small_paper_study):
     from studies.paper import reproduce
-    study = reproduce.run_study(seed=7, repeats=2, wolves=8, iterations=10,
-                                random_samples=2000)
+    study = small_paper_study
     figures = reproduce.figures(study, reproduce.tables(study))
     assert {f"fig{n:02d}.png" for n in range(8, 16)} <= set(figures)
     for name, figure in figures.items():

@@ -7,12 +7,13 @@ import pytest
 from studies.paper import reproduce as rp
 
 
-@pytest.fixture(scope="module")
-def small_study():
+@pytest.fixture
+def small_study(small_paper_study):
     """A quick study (few wolves, iterations, repeats) to test the plumbing."""
-    return rp.run_study(seed=7, repeats=3, wolves=12, iterations=30, random_samples=2000)
+    return small_paper_study
 
 
+@pytest.mark.xdist_group("small_paper_study")
 def test_required_tables_and_columns(small_study):
     tables = rp.tables(small_study)
     table6 = tables["table6_allocation.csv"]
@@ -25,11 +26,13 @@ def test_required_tables_and_columns(small_study):
     assert repeats.groupby("allocation").size().eq(3).all()
 
 
+@pytest.mark.xdist_group("small_paper_study")
 def test_fcem_reproduces_a(small_study):
     np.testing.assert_allclose(small_study.fcem.b, [0, 0.06, 0.24, 0.32, 0.38], atol=1e-12)
     assert small_study.fcem.value == pytest.approx(1.98, abs=1e-12)
 
 
+@pytest.mark.xdist_group("small_paper_study")
 def test_exact_optimum_beats_gwo_and_paper(small_study):
     costs = rp.tables(small_study)["table7_cost.csv"]["cost"]
     assert costs["exact"] <= costs["gwo"] * (1 + 1e-9)

@@ -275,8 +275,9 @@ def test_evaluate_at_tolerance_sized_errors(hob, table6):
 def test_one_axis_machine_is_evaluated():
     """A 1-axis machine (accepted by machine_from_dict) has an empty tail and no joint.
 
-    Fails today: ``_segment(1, 1)`` adds the gap of joint 0, which does not exist
-    (IndexError in ``_deviation``), and both head and tail would carry the tool offset.
+    The failure guarded against: ``_segment(1, 1)`` adding the gap of joint 0, which does
+    not exist (IndexError in ``_deviation``), and head and tail both carrying the tool
+    offset.
     """
     m = machine_from_dict(ONE1, source="ONE1")
     g = GridExperiment(m, 4)
@@ -386,8 +387,8 @@ def test_draw_errors_shape_seed_and_refusals():
 
 @pytest.mark.parametrize("k", [0.0, -3.0, float("nan"), float("inf")])
 def test_draw_errors_refuses_bad_coverage_factor(k):
-    """σ = t/k needs a finite k > 0. Fails today: k <= 0 makes the rejection loop of the
-    truncated draw endless (|z| > k always), nan gives nan errors, inf gives zeros."""
+    """σ = t/k needs a finite k > 0. Unchecked, k <= 0 would make the rejection loop of
+    the truncated draw endless (|z| > k always), nan would give nan errors, inf zeros."""
     with _time_limit(1.0, f"draw_errors(k={k})"):
         with pytest.raises(ValueError, match=r"\bk\b"):
             draw_errors([0.01, 1e-5], (10,), k=k, rng=0)
@@ -491,7 +492,8 @@ def test_run_refuses_bad_tolerances_naming_the_error(hob, grid3, position, value
 
 @pytest.mark.parametrize("k", [0.0, -3.0, float("nan")])
 def test_run_refuses_bad_coverage_factor(hob, grid3, k):
-    """Fails today: run(k=0) never returns (see test_draw_errors_refuses_bad_coverage_factor)."""
+    """Unchecked, run(k=0) would never return (see
+    test_draw_errors_refuses_bad_coverage_factor)."""
     with _time_limit(1.0, f"GridExperiment.run(k={k})"):
         with pytest.raises(ValueError, match=r"\bk\b"):
             grid3.run(hob.initial_allocation, repeats=2, rng=0, k=k)
@@ -560,8 +562,8 @@ def test_random_pose_fosm_uses_the_spread_actually_drawn(hob):
     """With truncated draws (the default) the like-with-like FOSM uses the truncated σ
     (``error_sigma(t, k, 'truncated')``), as the grid comparison does.
 
-    Fails today: sample_random_poses always uses σ = t/k, so its fosm_two_sided sits
-    0.004-0.007 below what it should at 3× Table 4 (about 4-5 binomial SE of the sampled
+    With σ = t/k for truncated draws, fosm_two_sided would sit 0.004-0.007 below what it
+    should at 3× Table 4 (about 4-5 binomial SE of the sampled
     share at 1e5 samples). The reference mean over poses is taken on independent random
     poses; its own noise is std(P over poses)/sqrt(n), and Z = 4 of the combined noise
     is allowed.
@@ -594,8 +596,8 @@ def test_random_poses_are_deterministic_with_seed(hob):
     ({"chunk": 0}, "chunk"), ({"distribution": "uniform"}, "uniform"), ({"k": 0.0}, r"\bk\b"),
 ])
 def test_random_poses_refusals_name_the_argument(hob, options, match):
-    """Fails today for n_samples and chunk: the messages say 'repeats' and 'batch'
-    (``_check_run_options`` is shared with run()), which a caller never passed."""
+    """The messages name n_samples and chunk, not 'repeats' and 'batch' (the checks are
+    shared with run()), which a caller of sample_random_poses never passed."""
     kwargs = {"n_samples": 10, "rng": 0, **options}
     with pytest.raises(ValueError, match=match):
         sample_random_poses(hob, hob.initial_allocation, **kwargs)

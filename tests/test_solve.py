@@ -164,7 +164,7 @@ def test_a_binding_row_means_sigma_equals_the_allowed_sigma(small, small_exact, 
     # A row load is σ²/(I/z)², so a binding row (λ > 0, load 1) is σ = I/z. 1e-9 is what
     # an exactly binding row gives in double precision (observed 1e-16 with the primal
     # SLSQP path of convex.py); the dual L-BFGS-B path leaves binding rows at load
-    # 1 − 2.4e-8, i.e. σ = (I/z)(1 − 1.3e-8), so this fails today.
+    # 1 − 2.4e-8, i.e. σ = (I/z)(1 − 1.3e-8), which this would catch.
     problem, result = small[side], small_exact[side]
     active = result.active[result.active["multiplier"] > 0]
     assert len(active) >= 3

@@ -749,6 +749,30 @@ def acceptance(machine, tests, tolerances=None, *, machines: int = 2000,
                             k=float(k), confidence=float(confidence))
 
 
+def results_of_deviations(machine, tests, deviations, rng=None) -> pd.DataFrame:
+    """Each test's results on given machines, columns ``(test, quantity)`` as
+    :attr:`AcceptanceResult.values`.
+
+    ``deviations`` ``(m, P, 3)`` is each machine's tool-point deviation in the workpiece
+    frame at the poses of the tests' paths (:func:`build_path`), stacked in test order; the
+    repeatability and reversal of positioning runs are drawn from ``rng`` as in
+    :func:`acceptance`.
+    """
+    tests = _check_tests(tests)
+    plan = _plan(machine, tests, ConstantProfile(), np.zeros(machine.n_errors), None)
+    deviations = np.asarray(deviations, dtype=float)
+    if deviations.ndim != 3 or deviations.shape[1:] != (len(plan.weights), 3):
+        raise InputError(f"deviations must have shape (machines, {len(plan.weights)}, 3); "
+                         f"got {deviations.shape}")
+    rng = generator(rng)
+    repeat = [rng.standard_normal((len(deviations), p.test.runs, 2, len(p.poses)))
+              for p in plan.paths if isinstance(p.test, PositioningTest)]
+    columns = pd.MultiIndex.from_tuples([(p.test.name, q) for p in plan.paths
+                                         for q in p.test.quantities],
+                                        names=["test", "quantity"])
+    return pd.DataFrame(_results(plan, deviations, repeat, scale=(1.0, 1.0)), columns=columns)
+
+
 def _check_options(distribution, k, confidence, machines, driver_machines) -> None:
     if distribution not in DISTRIBUTIONS:
         raise InputError(f"distribution must be one of {DISTRIBUTIONS}; got {distribution!r}")

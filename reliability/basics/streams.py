@@ -78,7 +78,9 @@ def extra_stream(seed: int, index: int) -> np.random.Generator:
 
     The extra streams in use: 0, :func:`system_stream`; 1, :func:`rare_stream`; 2,
     :func:`profiles_stream`; 3, :func:`catalogue_stream`; 4, :func:`sensitivity_stream`;
-    5, :func:`zone_stream`.
+    5, :func:`zone_stream`; 6, this machine as measured
+    (``studies.workflows.as_measured.AS_MEASURED_STREAM``); 7, the compensated machines of
+    ``precrel verify --compensation`` (``studies.cli.compensate.VERIFY_STREAM``).
     """
     seed = _seed(seed)
     return np.random.default_rng(np.random.SeedSequence([seed, EXTRA_FAMILY],

@@ -25,7 +25,9 @@ TRANSLATIONS = ("dx", "dy", "dz")
 ANGLES = ("ex", "ey", "ez")
 #: Keys a plan adds to every test, and the keys of a line run.
 UNCERTAINTY_KEYS = ("u", "u_angle")
-LINE_KEYS = ("name", "kind", "axis", "line", "targets", "quantities", *UNCERTAINTY_KEYS)
+#: What a run costs, read by the planning of measurements (reliability.measured.planning).
+PLAN_KEYS = (*UNCERTAINTY_KEYS, "cost")
+LINE_KEYS = ("name", "kind", "axis", "line", "targets", "quantities", *PLAN_KEYS)
 
 
 @dataclass(frozen=True, eq=False)
@@ -67,7 +69,7 @@ def parse_plan(data: Mapping, machine, source: str = "plan") -> tuple[PlannedRun
     if not isinstance(entries, list) or not entries or \
             not all(isinstance(e, Mapping) for e in entries):
         raise InputError(f"{source}: expected one or more [[tests]] tables")
-    tests = [{k: v for k, v in e.items() if k not in UNCERTAINTY_KEYS} for e in entries
+    tests = [{k: v for k, v in e.items() if k not in PLAN_KEYS} for e in entries
              if e.get("kind") != "line"]
     built = iter(parse_tests({"tests": tests}, machine, source) if tests else ())
     runs = []

@@ -5,7 +5,6 @@ machine keeps after compensation."""
 from __future__ import annotations
 
 import dataclasses
-from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
@@ -25,6 +24,7 @@ from reliability.first_order.fosm import fosm
 from reliability.compensation.tables import (DEFAULT_SPACING_DEG, DEFAULT_SPACING_MM,
                                              compensation_tables)
 from reliability.measured.identification import identify
+from reliability.measured.identification_files import read_identification
 from reliability.measured.measurement_files import read_measurements
 from reliability.model.poses import workspace_grid
 from studies.report.compensation_section import compensation_section
@@ -32,8 +32,6 @@ from studies.report.writer import SIGNIFICANT
 
 from . import options
 
-#: Columns ``errors.csv`` of ``precrel identify --out`` must have for the tables.
-ERRORS_COLUMNS = ("error", "posterior_mean")
 #: Grid of the residual printed for a machine identified here.
 RESIDUAL_GRID = 3
 
@@ -46,10 +44,9 @@ def add_parser(subparsers):
                     "one column per motion error named by its ISO 230-1 symbol (mm, rad), "
                     "and assembly.csv (error, iso, value) of the constant errors; each value "
                     "is the identified error, the correction its negative "
-                    "(docs/compensation.md). From --identification DIR (the errors.csv of "
-                    "precrel identify --out) or --measurements meas.csv (identified here, "
-                    "and then the outputs after compensation are printed beside those "
-                    "before).")
+                    "(docs/compensation.md). From --identification DIR (the folder of "
+                    "precrel identify --out) or --measurements meas.csv (identified here); "
+                    "prints this machine's outputs before and after compensation.")
     options.add_machine(parser)
     source = parser.add_mutually_exclusive_group(required=True)
     source.add_argument("--identification", metavar="DIR",
@@ -94,8 +91,7 @@ def run(args) -> int:
           f"{machine.n_errors} errors tabled, every {args.spacing_mm:g} mm and "
           f"{args.spacing_deg:g} degrees; written {', '.join(table_file_names(machine))} "
           f"into {out}")
-    if args.measurements is not None:
-        print("\n" + residual_text(identification, tables))
+    print("\n" + residual_text(identification, tables))
     return 0
 
 
@@ -105,45 +101,7 @@ def _identification(args, machine):
             options.read_tolerances(args.tolerances, machine)
         return identify(machine, read_measurements(args.measurements, machine),
                         tolerances=tolerances)
-    return read_posterior_means(args.identification, machine)
-
-
-@dataclass(frozen=True, eq=False)
-class PosteriorMeans:
-    """The posterior means of an identification folder's ``errors.csv`` (the ``constant``
-    profile: one value per error along the whole travel)."""
-
-    machine: object
-    mean: np.ndarray
-
-    def mean_at(self, poses) -> np.ndarray:
-        poses = np.asarray(poses, dtype=float)
-        return np.broadcast_to(self.mean, poses.shape[:-1] + self.mean.shape).copy()
-
-
-def read_posterior_means(folder, machine) -> PosteriorMeans:
-    """``--identification DIR``: the posterior means of ``DIR/errors.csv``, every error of
-    the machine once."""
-    path = f"{folder}/errors.csv"
-    try:
-        table = pd.read_csv(path)
-    except (OSError, pd.errors.ParserError, pd.errors.EmptyDataError) as exc:
-        raise InputError(f"--identification {folder}: cannot read errors.csv: {exc}") from None
-    missing = [c for c in ERRORS_COLUMNS if c not in table.columns]
-    if missing:
-        raise InputError(f"--identification {path}: no column {missing[0]!r}")
-    names = tuple(table["error"])
-    if sorted(names) != sorted(machine.error_names):
-        unknown = sorted(set(names) ^ set(machine.error_names))
-        raise InputError(f"--identification {path}: its errors are not this machine's "
-                         f"(first difference: {unknown[0]!r})")
-    values = pd.to_numeric(table["posterior_mean"], errors="coerce").to_numpy()
-    if not np.all(np.isfinite(values)):
-        row = int(np.argmax(~np.isfinite(values))) + 1
-        raise InputError(f"--identification {path}, row {row}, column 'posterior_mean': "
-                         f"expected a finite number")
-    return PosteriorMeans(machine, machine.error_vector(dict(zip(names, values)),
-                                                        default=None))
+    return read_identification(args.identification, machine)
 
 
 def residual_text(identification, tables) -> str:
@@ -211,7 +169,7 @@ def run_allocation(args) -> int:
 
 
 #: Extra stream of the compensated machines of ``verify --compensation``.
-VERIFY_STREAM = 6
+VERIFY_STREAM = 7
 #: Machines of the residual model behind the predicted yield after compensation.
 MODEL_MACHINES = 20_000
 

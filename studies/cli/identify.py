@@ -7,12 +7,13 @@ import json
 
 from reliability.basics.files import SIGNIFICANT, atomic_write_text, write_csv
 from reliability.measured.identification import identify
+from reliability.measured.identification_files import COVARIANCE_FILE, write_covariance
 from reliability.measured.measurement_files import read_measurements
 
 from . import options
 
 #: The files written into ``--out DIR``.
-RESULT_FILES = ("errors.csv", "setup.csv", "residuals.csv", "summary.json")
+RESULT_FILES = ("errors.csv", "setup.csv", "residuals.csv", "summary.json", COVARIANCE_FILE)
 
 
 def add_parser(subparsers):
@@ -65,4 +66,5 @@ def _write(result, out, overwrite) -> None:
         write_csv(table, out / name, overwrite=overwrite, index=False, float_format=digits)
     atomic_write_text(out / "summary.json", json.dumps(result.summary_dict(), indent=2) + "\n",
                       overwrite)
+    write_covariance(result, out / COVARIANCE_FILE, overwrite)
     print(f"\nwritten {', '.join(RESULT_FILES)} into {out}")

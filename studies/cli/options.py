@@ -20,6 +20,9 @@ from reliability.acceptance import definitions
 from reliability.basics import display
 from reliability.basics.errors import InputError
 from reliability.basics.files import check_destination
+from reliability.measured.identification import identify
+from reliability.measured.identification_files import read_identification
+from reliability.measured.measurement_files import read_measurements
 from reliability.model.kinematics import FRAMES
 from reliability.model.machine import load_machine
 from reliability.model.machine_checks import tolerance_warnings, unit_mistakes
@@ -330,3 +333,31 @@ def print_warnings(texts) -> None:
 def say(text: str) -> None:
     """A progress line on stderr."""
     print(text, file=sys.stderr, flush=True)
+
+
+# ----- this machine as measured -------------------------------------------------------
+def add_as_measured(parser) -> None:
+    """``--identification DIR`` or ``--measurements CSV``: this machine's reliability given
+    what was measured, beside the design-time numbers."""
+    group = parser.add_mutually_exclusive_group()
+    group.add_argument("--identification", metavar="DIR",
+                       help="also this machine's reliability as measured: the folder "
+                            "'precrel identify --out' wrote (docs/measurements.md)")
+    group.add_argument("--measurements", metavar="CSV",
+                       help="the same from a measurement file, identified first under the "
+                            "constant profile with the allocation in force as prior")
+
+
+def as_measured_identification(args, machine, tolerances=None):
+    """The identification of ``--identification`` or ``--measurements`` (identified with
+    ``tolerances`` as the prior's allocation, the initial one when None); None without
+    either."""
+    if args.identification is not None:
+        try:
+            return read_identification(args.identification, machine)
+        except InputError as exc:
+            raise InputError(f"--identification {exc}") from None
+    if args.measurements is not None:
+        return identify(machine, read_measurements(args.measurements, machine),
+                        tolerances=tolerances)
+    return None

@@ -20,6 +20,7 @@ COMMANDS = ("check", "predict", "allocate", "verify", "report", "front", "sweep"
 COMMANDS += ("sensitivity",)
 COMMANDS += ("measure",)
 COMMANDS += ("identify",)
+COMMANDS += ("plan",)
 COMMANDS += ("compensate",)
 PROG = "precrel"
 #: Exit code of bad input (argparse's own convention).

@@ -7,6 +7,7 @@ from reliability.basics.errors import InputError
 from reliability.basics.streams import sensitivity_stream, zone_stream
 from studies.report import machine_sections
 from studies.report.acceptance_section import BUILT_MACHINES
+from studies.report.as_measured_section import as_measured_builder
 from studies.report.extras import (EXTRAS, TITLES, acceptance_builder, builders,
                                    catalogue_builder, guarded, not_computed)
 from studies.report.sensitivity_section import study_sensitivity_section
@@ -55,6 +56,7 @@ def add_parser(subparsers):
     parser.add_argument("--sensitivity", action="store_true",
                         help="add a 'What each tolerance buys' section: d yield / d ln t of "
                              "every item at the optimal (else the initial) allocation")
+    options.add_as_measured(parser)
     parser.add_argument("--overwrite", action="store_true",
                         help="replace an earlier report in DIR (other files are left alone)")
     compensate.add_report_option(parser)
@@ -85,6 +87,11 @@ def run(args) -> int:
         extra.append(lambda study: zone_section(zone_comparison(
             machine, points=args.points, side=args.side, bounds=bounds,
             machines=args.machines, rng=zone_stream(args.seed))))
+    measured = options.as_measured_identification(args, machine)
+    if measured is not None:
+        included.append("as_measured")
+        extra.append(guarded("as_measured", as_measured_builder(
+            measured, tests, source=args.identification or args.measurements)))
     if args.sensitivity:
         included.append("sensitivity")
         extra.append(guarded("sensitivity", lambda study: study_sensitivity_section(

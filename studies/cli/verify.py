@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import numpy as np
 import pandas as pd
 
 from allocation.continuous import DEFAULT_RTOL, WORKSPACE_CHOICES
@@ -9,6 +10,7 @@ from reliability.basics.errors import InputError
 from reliability.basics.streams import extra_stream
 from reliability.sampling.pose_sampling import EVENTS, sample_at_poses
 from reliability.sampling.verification import rare_event_table, reachable_events, verify
+from studies.workflows.as_measured import AS_MEASURED_STREAM, as_measured
 
 from . import compensate, options
 
@@ -60,6 +62,11 @@ def add_parser(subparsers):
     parser.add_argument("--rtol", type=options.probability, default=DEFAULT_RTOL,
                         metavar="R", help=f"relative tolerance in sigma of the continuous "
                                           f"workspace's certificate (default {DEFAULT_RTOL:g})")
+    options.add_as_measured(parser)
+    parser.add_argument("--tests", metavar="TESTS.toml",
+                        help="with --identification or --measurements: each acceptance "
+                             "test's predicted result for this machine, beside machines "
+                             "built to the allocation")
     compensate.add_verification_option(parser)
     return parser
 
@@ -80,6 +87,8 @@ def run(args) -> int:
         options.check_certifiable(machine, "--workspace continuous (the default)",
                                   "pass --workspace grid to sample at the worst grid poses")
     t = options.read_tolerances(args.tolerances, machine)
+    measured = options.as_measured_identification(args, machine, t)
+    tests = as_measured_tests(args, machine, measured)
     result = verify(machine, t, points=args.points, repeats=args.repeats,
                     samples=args.samples, rng=args.seed, progress=options.say,
                     bar=options.progress_bar, machines=args.machines,
@@ -104,9 +113,40 @@ def run(args) -> int:
     if args.rare:
         options.say(f"rare-event estimates at the worst poses ({args.rare_method})")
         print("\n" + rare_text(machine, t, args, rng=extra_stream(args.seed, 1)))
+    if measured is not None:
+        options.say("this machine as measured: posterior draws through the exact chain")
+        print("\n" + as_measured_text(machine, measured, t, result, tests, args, where))
     if args.compensation is not None:
         print("\n" + compensate.verification_text(machine, t, args))
     return 0
+
+
+def as_measured_tests(args, machine, measured):
+    """``--tests``, read; refused without ``--identification`` or ``--measurements``."""
+    if args.tests is None:
+        return None
+    if measured is None:
+        raise InputError("--tests predicts acceptance tests for a measured machine; give "
+                         "--identification DIR or --measurements CSV with it")
+    return options.read_tests(args.tests, machine)
+
+
+def as_measured_text(machine, identification, tolerances, result, tests, args, where) -> str:
+    """This machine's reliability at the grid and the verification's worst poses, beside
+    the design's (the design-time yield when the identification's prior is the allocation
+    verified)."""
+    same = np.allclose(3.0 * np.asarray(identification.prior_sd), tolerances, rtol=1e-5,
+                       atol=0.0)
+    found = as_measured(machine, identification, points=args.points,
+                        poses=result.worst_poses[list(machine.axes)].to_numpy(dtype=float),
+                        draws=args.machines, tests=tests,
+                        design_yield=result.machine_yield if same else None,
+                        rng=extra_stream(args.seed, AS_MEASURED_STREAM))
+    note = "" if same else (f"\nnote: the identification's prior is not {args.tolerances}; "
+                            f"the design-time numbers above are of its own allocation "
+                            f"(t = 3 x prior sd)")
+    return (f"{found.summary()}\n(the further poses: each output's {where} worst pose of "
+            f"the design){note}")
 
 
 def precision_text(machine, tolerances, precision: float, max_samples: int, *, rng) -> str:

@@ -35,6 +35,7 @@ from studies.workflows.profile_comparison import (ProfilesStudy, profile_compari
 
 from .acceptance_section import TITLE as ACCEPTANCE_TITLE
 from .acceptance_section import acceptance_section
+from .as_measured_section import TITLE as AS_MEASURED_TITLE
 from .catalogue_section import TITLE as CATALOGUE_TITLE
 from .catalogue_section import catalogue_section
 from .profiles_section import TITLE as PROFILES_TITLE
@@ -56,9 +57,11 @@ SECTION_FAILURES = (InputError, InputTypeError, InfeasibleAllocationError,
 TITLES = {"front": "Cost against reliability", "system": "System reliability",
           "rare": "Verification at the worst poses", "profiles": PROFILES_TITLE,
           "tests": ACCEPTANCE_TITLE, "catalogue": CATALOGUE_TITLE,
-          "sensitivity": "What each tolerance buys", "compensation": "After compensation"}
+          "sensitivity": "What each tolerance buys", "as_measured": AS_MEASURED_TITLE,
+          "compensation": "After compensation"}
 #: The option that asks for each section not in :data:`EXTRAS`.
 OPTIONS = {"tests": "--tests", "catalogue": "--catalogue", "sensitivity": "--sensitivity",
+           "as_measured": "--identification or --measurements",
            "compensation": "--compensation"}
 
 

@@ -40,13 +40,15 @@ INSIDE_COLOR, OUTSIDE_COLOR = "tab:blue", "tab:red"
 def fit_titles(figure) -> None:
     """Wrap the figure's suptitle and every axes' title that is wider than the room it has
     (:data:`TITLE_ROOM` of the figure's width, or its axes' width) onto more lines, and fit
-    the layout again. Figures whose titles take less than :data:`CROWDED` of the room their
-    axes have before the layout are left alone without being drawn."""
+    the layout again (the layout only: nothing is drawn). Figures whose titles take less than
+    :data:`CROWDED` of the room their axes have before the layout are left alone."""
     renderer = figure._get_renderer()
     if not _crowded(figure, renderer):
         return
+    engine = figure.get_layout_engine()
     for _ in range(3):
-        figure.draw_without_rendering()
+        if engine is not None:
+            engine.execute(figure)
         texts = [(ax.title, ax.get_window_extent(renderer).width) for ax in figure.axes]
         if figure._suptitle is not None:
             texts.append((figure._suptitle, TITLE_ROOM * figure.bbox.width))
