@@ -65,7 +65,7 @@ def _tight_text(tight) -> str:
             f"prior σ at the allocation)") if unseen < len(tight) else ""
     return (f"**What stays tight** ({len(tight)} items kept below their upper bound): "
             f"{unseen} of them are not seen by the plan at all — every run has its own "
-            f"instrument zeros, so an error that moves the tool point by the same amount at "
+            f"instrument zeros, so an error that moves or turns the tool by the same amount at "
             f"every pose of a run (a constant translation the rotary axes do not turn) is "
             f"never identified and no table holds it; it keeps its prior{seen}.")
 
