@@ -8,8 +8,8 @@ linearised at the current posterior mean ``θ̂``:
 
     y_i ≈ h_i(x̂_i) + a_i (θ − θ̂) + b_i s,
 
-``a_i`` the exact chain's sensitivities at ``x̂_i`` (central differences with a step of each
-error's prior σ, exact for the chain's quadratic part) carried to the coefficients. The
+``a_i`` the exact chain's sensitivities at ``x̂_i`` (central differences with a step of
+:data:`STEP` of each error's prior σ) carried to the coefficients. The
 linear-Gaussian update is solved again with the data ``y_i − h_i(x̂_i) + a_i θ̂`` until no
 coefficient moves by more than :data:`SETTLED` of its posterior σ, at most
 :data:`MAX_ITERATIONS` times.
@@ -34,6 +34,9 @@ from .measurement_files import QUANTITIES
 SETTLED = 1e-3
 #: Most re-linearisations.
 MAX_ITERATIONS = 10
+#: Central-difference step of the exact chain's sensitivities, in units of each error's
+#: prior σ.
+STEP = 1e-4
 
 
 @dataclass(frozen=True, eq=False)
@@ -87,7 +90,7 @@ def exact_rows(machine, measurements, part, coefficients, theta) -> tuple[np.nda
     read = exact_reader(machine, measurements, part)
     errors = coefficients.values(theta, read.poses)
     rows = np.empty((len(read.where), machine.n_errors))
-    for i, step in enumerate(coefficients.prior_sd):
+    for i, step in enumerate(STEP * coefficients.prior_sd):
         move = np.zeros(machine.n_errors)
         move[i] = step
         rows[:, i] = (read(errors + move) - read(errors - move)) / (2.0 * step)
