@@ -185,3 +185,16 @@ def test_identify_writes_profiles_under_gp(mill, tmp_path, capsys):
     assert list(table.columns) == ["error", "position", "prior_sd", "posterior_mean",
                                    "posterior_sd", "lower", "upper"]
     assert set(table["error"]) == set(mill.error_names[:18])
+
+
+def test_an_identification_rebuilt_from_its_error_tables_acts_the_same(mill):
+    result = reliability.identify(mill, simulate_measurements(mill, lasers(mill), rng=4)
+                                  .measurements)
+    kept = ("machine", "profile", "prior_sd", "mean", "covariance", "setup", "rank",
+            "condition", "combinations", "prior_like", "residuals", "chi2", "dof")
+    rebuilt = reliability.Identification(**{name: getattr(result, name) for name in kept})
+    poses = np.array([[100.0, 50.0, -200.0], [300.0, -250.0, -10.0]])
+    for ours, theirs in zip(rebuilt.predict(poses), result.predict(poses)):
+        np.testing.assert_array_equal(ours, theirs)
+    np.testing.assert_array_equal(rebuilt.mean_at(poses), result.mean_at(poses))
+    np.testing.assert_array_equal(rebuilt.sample_at(poses, 5, 9), result.sample_at(poses, 5, 9))

@@ -25,7 +25,6 @@ projected out, which is χ² with ``N − n_setup`` degrees of freedom.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import cached_property
 
 import numpy as np
 import pandas as pd
@@ -75,17 +74,15 @@ class Identification:
     machine : Machine
     profile : str
         ``'constant'`` or ``'gp:<ℓ>'``.
-    coefficients : Coefficients
-        How the errors are written as standard-normal coefficients.
-    theta : ndarray (n_coefficients,)
-    theta_covariance : ndarray (n_coefficients, n_coefficients)
-        Posterior mean and covariance of the coefficients.
-    positions : tuple of ndarray
-        The distinct positions (mm, rad) each axis is read at.
+    prior_sd, mean : ndarray (n_errors,)
+    covariance : ndarray (n_errors, n_errors)
+        Prior σ, posterior mean and covariance of every error (mm, rad); under ``gp`` of a
+        motion error's mean over its stroke.
     setup : DataFrame
         ``setup, estimate, sd`` of every set-up unknown.
     rank : int
-        Rank of the information about the coefficients once the set-ups are estimated.
+        Rank of the information about the errors (their coefficients under ``gp``) once
+        the set-ups are estimated.
     condition : float
         Condition number of that information (scaled by the prior σ) on its rank.
     combinations : tuple of str
@@ -98,22 +95,30 @@ class Identification:
         ``row, run, quantity, value, fitted, normalised`` per reading.
     chi2 : float
     dof : int
+    coefficients : Coefficients, optional
+        How the errors are written as standard-normal coefficients; one per error (the
+        ``constant`` profile) when not given.
+    theta : ndarray (n_coefficients,), optional
+    theta_covariance : ndarray (n_coefficients, n_coefficients), optional
+        Posterior mean and covariance of the coefficients; from :attr:`mean` and
+        :attr:`covariance` when not given.
+    positions : tuple of ndarray
+        The distinct positions (mm, rad) each axis is read at.
     iterations : int
         Gauss–Newton re-linearisations on the exact chain (0: first order at zero errors).
     change : float
         Largest change of a posterior mean (a row of :attr:`errors` or :attr:`profiles`)
         the re-linearisations made, in units of its posterior σ.
     settled : bool
-        Whether the last re-linearisation moved no mean by more than
+        Whether the last re-linearisation moved no coefficient by more than
         :data:`reliability.measured.relinearisation.SETTLED` of its σ.
     """
 
     machine: object
     profile: str
-    coefficients: Coefficients
-    theta: np.ndarray
-    theta_covariance: np.ndarray
-    positions: tuple
+    prior_sd: np.ndarray
+    mean: np.ndarray
+    covariance: np.ndarray
     setup: pd.DataFrame
     rank: int
     condition: float
@@ -122,32 +127,22 @@ class Identification:
     residuals: pd.DataFrame
     chi2: float
     dof: int
+    coefficients: Coefficients | None = None
+    theta: np.ndarray | None = None
+    theta_covariance: np.ndarray | None = None
+    positions: tuple = ()
     iterations: int = 0
     change: float = 0.0
     settled: bool = True
 
-    @property
-    def prior_sd(self) -> np.ndarray:
-        """``(n_errors,)`` prior σ of the rows of :attr:`errors`: t/3, or under ``gp`` that
-        of a motion error's mean over its stroke."""
-        rows = self._mean_rows
-        return np.sqrt(np.sum(rows ** 2, axis=1))
-
-    @cached_property
-    def _mean_rows(self) -> np.ndarray:
-        return self.coefficients.mean_matrix()
-
-    @property
-    def mean(self) -> np.ndarray:
-        """``(n_errors,)`` posterior mean of every error (under ``gp`` a motion error's mean
-        over its stroke)."""
-        return self._mean_rows @ self.theta
-
-    @property
-    def covariance(self) -> np.ndarray:
-        """``(n_errors, n_errors)`` posterior covariance of :attr:`mean` (mm, rad)."""
-        rows = self._mean_rows
-        return rows @ self.theta_covariance @ rows.T
+    def __post_init__(self):
+        if self.coefficients is None:
+            sigma = np.asarray(self.prior_sd, dtype=float)
+            object.__setattr__(self, "coefficients", Coefficients(
+                travel_bases(self.machine, "constant"), sigma))
+            object.__setattr__(self, "theta", np.asarray(self.mean) / sigma)
+            object.__setattr__(self, "theta_covariance",
+                               np.asarray(self.covariance) / np.outer(sigma, sigma))
 
     @property
     def errors(self) -> pd.DataFrame:
@@ -192,6 +187,10 @@ class Identification:
         """Posterior mean and σ ``(..., 6)`` of the six outputs in the workpiece frame at
         ``poses`` ``(..., n_axes)``, first order, each error taken at the pose's position
         along its axis."""
+        if not self.coefficients.varies:
+            jac = self.machine.jacobian(poses, frame="workpiece")
+            variance = np.einsum("...oi,ij,...oj->...o", jac, self.covariance, jac)
+            return jac @ self.mean, np.sqrt(np.maximum(variance, 0.0))
         poses = self.machine.check_positions(poses)
         flat = poses.reshape(-1, poses.shape[-1])
         mean, sd = np.empty((len(flat), 6)), np.empty((len(flat), 6))
@@ -208,24 +207,31 @@ class Identification:
     def sample(self, n: int, rng) -> np.ndarray:
         """``(n, n_errors)`` draws of the rows of :attr:`errors` from the posterior (the
         errors themselves under ``constant``)."""
-        return self._draw_theta(n, rng) @ self._mean_rows.T
+        factor = _psd_factor(self.covariance)
+        normals = streams.generator(rng).standard_normal((n, len(self.mean)))
+        return self.mean + normals @ factor.T
 
     def mean_at(self, poses) -> np.ndarray:
         """``(..., n_errors)``: the posterior mean of every error as it acts at each pose
         ``(..., n_axes)``, a motion error at the pose's position along its axis (under
         ``constant`` the same at every pose)."""
-        return self.coefficients.values(self.theta, np.asarray(poses, dtype=float))
+        poses = np.asarray(poses, dtype=float)
+        if not self.coefficients.varies:
+            return np.broadcast_to(self.mean, poses.shape[:-1] + self.mean.shape).copy()
+        return self.coefficients.values(self.theta, poses)
 
     def sample_at(self, poses, n: int, rng) -> np.ndarray:
         """``(n, ..., n_errors)``: machines drawn from the posterior, each error's value as it
         acts at each pose ``(..., n_axes)`` (under ``constant`` the same at every pose)."""
-        return self.coefficients.values(self._draw_theta(n, rng),
-                                        np.asarray(poses, dtype=float))
-
-    def _draw_theta(self, n: int, rng) -> np.ndarray:
+        poses = np.asarray(poses, dtype=float)
+        if not self.coefficients.varies:
+            drawn = self.sample(n, rng)
+            shape = (n,) + (1,) * (poses.ndim - 1) + drawn.shape[1:]
+            return np.broadcast_to(drawn.reshape(shape),
+                                   (n,) + poses.shape[:-1] + drawn.shape[1:]).copy()
         factor = _psd_factor(self.theta_covariance)
         normals = streams.generator(rng).standard_normal((n, len(self.theta)))
-        return self.theta + normals @ factor.T
+        return self.coefficients.values(self.theta + normals @ factor.T, poses)
 
     def worst_residual(self) -> pd.Series:
         """The reading with the largest normalised residual."""
@@ -464,11 +470,12 @@ def _identification(machine, measurements, setups, coefficients, fit, fitted, it
         _, _, item_null = _seen_directions(item_information * np.outer(scale, scale))
         combinations = combination_texts(machine.error_names, item_null * scale[:, None])
     rows = coefficients.mean_matrix()
-    prior = np.sqrt(np.sum(rows ** 2, axis=1))
-    sd = np.sqrt(np.maximum(np.sum((rows @ fit.covariance) * rows, axis=1), 0.0))
+    covariance = rows @ fit.covariance @ rows.T
+    prior, sd = np.sqrt(np.sum(rows ** 2, axis=1)), np.sqrt(np.diag(covariance))
     return Identification(
-        machine=machine, coefficients=coefficients, theta=fit.theta,
-        theta_covariance=fit.covariance, positions=distinct_positions(measurements),
+        machine=machine, prior_sd=prior, mean=rows @ fit.theta, covariance=covariance,
+        coefficients=coefficients, theta=fit.theta, theta_covariance=fit.covariance,
+        positions=distinct_positions(measurements),
         setup=pd.DataFrame({"setup": setups.names, "estimate": fit.setup_mean,
                             "sd": np.sqrt(np.diag(fit.setup_covariance))}),
         rank=rank, condition=condition, combinations=combinations,
