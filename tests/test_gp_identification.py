@@ -198,3 +198,13 @@ def test_an_identification_rebuilt_from_its_error_tables_acts_the_same(mill):
         np.testing.assert_array_equal(ours, theirs)
     np.testing.assert_array_equal(rebuilt.mean_at(poses), result.mean_at(poses))
     np.testing.assert_array_equal(rebuilt.sample_at(poses, 5, 9), result.sample_at(poses, 5, 9))
+
+
+def test_what_precise_readings_cannot_tell_apart_is_named_as_for_coarse_ones(mill):
+    from dataclasses import replace
+
+    meas = simulate_measurements(mill, lasers(mill), profile="gp:300", rng=0).measurements
+    coarse = reliability.identify(mill, meas, profile="gp:300")
+    precise = reliability.identify(mill, replace(meas, u=meas.u / 100), profile="gp:300")
+    assert precise.combinations == coarse.combinations
+    assert "Y.ey - Y-X.ey" in precise.combinations

@@ -35,7 +35,7 @@ from ..basics import streams
 from ..basics.chunks import chunks, jacobian_bytes
 from ..basics.errors import InputError
 from .measurement_files import QUANTITIES, Measurements
-from .information import add_readings, empty_blocks, setup_effect, solve
+from .information import add_readings, eliminate_setups, empty_blocks, setup_effect, solve
 from .relinearisation import gauss_newton
 from .travel_bases import Coefficients, travel_bases
 
@@ -465,7 +465,7 @@ def _identification(machine, measurements, setups, coefficients, fit, fitted, it
         combinations = combination_texts(machine.error_names,
                                          null * coefficients.prior_sd[:, None])
     else:
-        item_information = solve(item_blocks, setups.names).information
+        item_information = eliminate_setups(item_blocks, setups.names)[2]
         scale = coefficients.prior_sd
         _, _, item_null = _seen_directions(item_information * np.outer(scale, scale))
         combinations = combination_texts(machine.error_names, item_null * scale[:, None])

@@ -57,10 +57,7 @@ def add_readings(blocks, setups, part, rows, values, u, *, setup_terms=True) -> 
 def solve(blocks, setup_names) -> Fit:
     """The posterior of the coefficients (prior N(0, I)) and of the set-ups (flat prior)
     from the information blocks."""
-    setup_factor = _setup_cholesky(blocks["BB"], setup_names)
-    gain = linalg.cho_solve(setup_factor, blocks["BA"])
-    information = blocks["AA"] - blocks["BA"].T @ gain
-    information = 0.5 * (information + information.T)
+    setup_factor, gain, information = eliminate_setups(blocks, setup_names)
     drive = blocks["Ay"] - gain.T @ blocks["By"]
     factor = linalg.cho_factor(information + np.eye(len(drive)), lower=True)
     theta = linalg.cho_solve(factor, drive)
@@ -69,6 +66,15 @@ def solve(blocks, setup_names) -> Fit:
     setup_covariance = linalg.cho_solve(setup_factor, np.eye(len(setup_mean))) + \
         gain @ covariance @ gain.T
     return Fit(theta, covariance, information, setup_mean, setup_covariance)
+
+
+def eliminate_setups(blocks, setup_names) -> tuple:
+    """The set-ups' Cholesky factor, the gain ``(BᵀWB)⁻¹BᵀWA`` and the Schur complement
+    ``F``, the information about the unknowns once the set-ups are estimated."""
+    setup_factor = _setup_cholesky(blocks["BB"], setup_names)
+    gain = linalg.cho_solve(setup_factor, blocks["BA"])
+    information = blocks["AA"] - blocks["BA"].T @ gain
+    return setup_factor, gain, 0.5 * (information + information.T)
 
 
 def _setup_cholesky(matrix, names):
