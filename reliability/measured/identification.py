@@ -1,22 +1,25 @@
 """Identification of a built machine's errors from its measurements (docs/measurements.md).
 
-A linear-Gaussian Bayesian update. Readings ``y = A x + B s + e`` with ``x`` the geometric
-errors (prior N(0, diag σ²), σ = t/3 of the allocation in force), ``s`` the set-up unknowns
-of the runs (flat prior: an instrument zero per quantity a run reads, a ballbar centre's
-offset in its circle's plane) and ``e ~ N(0, diag u²)``. ``A`` is the first-order tool-point
+A linear-Gaussian Bayesian update. Readings ``y = A θ + B s + e`` with ``θ`` the errors as
+standard-normal coefficients (:mod:`reliability.measured.travel_bases`: under ``constant``
+``θ = x/σ``, σ = t/3 of the allocation in force; under ``gp:<ℓ>`` each motion error is a
+Gaussian process along travel in its Karhunen–Loève basis), ``s`` the set-up unknowns of
+the runs (flat prior: an instrument zero per quantity a run reads, a ballbar centre's offset
+in its circle's plane) and ``e ~ N(0, diag u²)``. ``A`` is the first-order tool-point
 deviation in the workpiece frame at zero errors (the analytic Jacobian), read along each
-reading's quantity.
+reading's quantity and carried to the coefficients; with ``iterate`` it is re-linearised at
+the posterior mean on the exact chain (Gauss–Newton, :mod:`reliability.measured.relinearisation`).
 
 Everything is formed in the information form, accumulated over chunks of readings:
 ``AᵀWA``, ``BᵀWA``, ``BᵀWB``, ``AᵀWy``, ``BᵀWy`` with ``W = diag(1/u²)``. The set-ups are
 eliminated exactly by the Schur complement ``F = AᵀWA − (BᵀWA)ᵀ (BᵀWB)⁻¹ BᵀWA``, the
 information about the errors once the set-ups are estimated; the posterior precision is
-``diag(1/σ²) + F``, factored by Cholesky.
+``I + F``, factored by Cholesky.
 
 The check of fit is exact for the linear-Gaussian model: the minimum of
-``Σ r_i² + x̂ᵀ diag(1/σ²) x̂`` (``r_i`` the normalised residuals at the posterior mean and
-the estimated set-ups) equals ``yᵀ Q y`` with ``Q`` the prior-predictive precision with the
-set-ups projected out, which is χ² with ``N − n_setup`` degrees of freedom.
+``Σ r_i² + θ̂ᵀθ̂`` (``r_i`` the normalised residuals at the posterior mean and the estimated
+set-ups) equals ``yᵀ Q y`` with ``Q`` the prior-predictive precision with the set-ups
+projected out, which is χ² with ``N − n_setup`` degrees of freedom.
 """
 
 from __future__ import annotations
@@ -25,13 +28,16 @@ from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
-from scipy import linalg, stats
+from scipy import stats
 
 from ..acceptance.prediction import tool_point
+from ..basics import streams
 from ..basics.chunks import chunks, jacobian_bytes
 from ..basics.errors import InputError
-from ..model.profiles import ConstantProfile, profile_model
 from .measurement_files import QUANTITIES, Measurements
+from .information import add_readings, eliminate_setups, empty_blocks, setup_effect, solve
+from .relinearisation import gauss_newton
+from .travel_bases import Coefficients, travel_bases
 
 #: Two-sided 95 % normal quantile of the posterior intervals.
 Z95 = stats.norm.ppf(0.975)
@@ -45,6 +51,9 @@ PRIOR_LIKE = 0.95
 CHI2_ALPHA = 1e-3
 #: Coefficients of a combination below this fraction of its largest are dropped.
 COEFFICIENT_FLOOR = 1e-8
+#: Columns of the ``profiles.csv`` table.
+PROFILE_COLUMNS = ("error", "position", "prior_sd", "posterior_mean", "posterior_sd",
+                   "lower", "upper")
 
 
 @dataclass(frozen=True)
@@ -64,23 +73,45 @@ class Identification:
     ----------
     machine : Machine
     profile : str
+        ``'constant'`` or ``'gp:<ℓ>'``.
     prior_sd, mean : ndarray (n_errors,)
     covariance : ndarray (n_errors, n_errors)
-        Posterior covariance of the errors (mm, rad).
+        Prior σ, posterior mean and covariance of every error (mm, rad); under ``gp`` of a
+        motion error's mean over its stroke.
     setup : DataFrame
         ``setup, estimate, sd`` of every set-up unknown.
     rank : int
-        Rank of the information about the errors once the set-ups are estimated.
+        Rank of the information about the errors (their coefficients under ``gp``) once
+        the set-ups are estimated.
     condition : float
         Condition number of that information (scaled by the prior σ) on its rank.
     combinations : tuple of str
-        Directions of the errors that change no reading.
+        Directions of the errors, each motion error shifted by one amount along its whole
+        travel, that change no reading.
     prior_like : tuple of str
-        Errors whose posterior σ is still above :data:`PRIOR_LIKE` of their prior σ.
+        Rows of :attr:`errors` whose posterior σ is still above :data:`PRIOR_LIKE` of their
+        prior σ.
     residuals : DataFrame
         ``row, run, quantity, value, fitted, normalised`` per reading.
     chi2 : float
     dof : int
+    coefficients : Coefficients, optional
+        How the errors are written as standard-normal coefficients; one per error (the
+        ``constant`` profile) when not given.
+    theta : ndarray (n_coefficients,), optional
+    theta_covariance : ndarray (n_coefficients, n_coefficients), optional
+        Posterior mean and covariance of the coefficients; from :attr:`mean` and
+        :attr:`covariance` when not given.
+    positions : tuple of ndarray
+        The distinct positions (mm, rad) each axis is read at.
+    iterations : int
+        Gauss–Newton re-linearisations on the exact chain (0: first order at zero errors).
+    change : float
+        Largest change of a posterior mean (a row of :attr:`errors` or :attr:`profiles`)
+        the re-linearisations made, in units of its posterior σ.
+    settled : bool
+        Whether the last re-linearisation moved no coefficient by more than
+        :data:`reliability.measured.relinearisation.SETTLED` of its σ.
     """
 
     machine: object
@@ -96,15 +127,56 @@ class Identification:
     residuals: pd.DataFrame
     chi2: float
     dof: int
+    coefficients: Coefficients | None = None
+    theta: np.ndarray | None = None
+    theta_covariance: np.ndarray | None = None
+    positions: tuple = ()
+    iterations: int = 0
+    change: float = 0.0
+    settled: bool = True
+
+    def __post_init__(self):
+        if self.coefficients is None:
+            sigma = np.asarray(self.prior_sd, dtype=float)
+            object.__setattr__(self, "coefficients", Coefficients(
+                travel_bases(self.machine, "constant"), sigma))
+            object.__setattr__(self, "theta", np.asarray(self.mean) / sigma)
+            object.__setattr__(self, "theta_covariance",
+                               np.asarray(self.covariance) / np.outer(sigma, sigma))
 
     @property
     def errors(self) -> pd.DataFrame:
         """The ``errors.csv`` table: ``error, prior_sd, posterior_mean, posterior_sd, lower,
-        upper`` (mm, rad), the interval the 95 % posterior interval."""
-        sd = np.sqrt(np.diag(self.covariance))
+        upper`` (mm, rad), the interval the 95 % posterior interval; under ``gp`` a motion
+        error's row is its mean over the stroke."""
+        mean, sd = self.mean, np.sqrt(np.diag(self.covariance))
         return pd.DataFrame({"error": self.machine.error_names, "prior_sd": self.prior_sd,
-                             "posterior_mean": self.mean, "posterior_sd": sd,
-                             "lower": self.mean - Z95 * sd, "upper": self.mean + Z95 * sd})
+                             "posterior_mean": mean, "posterior_sd": sd,
+                             "lower": mean - Z95 * sd, "upper": mean + Z95 * sd})
+
+    @property
+    def profiles(self) -> pd.DataFrame:
+        """The ``profiles.csv`` table: every motion error at every position its axis is
+        read at (``position`` in mm, or degrees on a rotary axis): ``error, position,
+        prior_sd, posterior_mean, posterior_sd, lower, upper`` (mm, rad). Empty under
+        ``constant``."""
+        if not self.coefficients.varies:
+            return pd.DataFrame({name: [] for name in PROFILE_COLUMNS})
+        parts = [self._axis_profiles(a) for a in range(len(self.positions))]
+        return pd.concat(parts, ignore_index=True)
+
+    def _axis_profiles(self, a: int) -> pd.DataFrame:
+        positions = self.positions[a]
+        prior, mean, sd = self.coefficients.profile_moments(a, positions, self.theta,
+                                                            self.theta_covariance)
+        axis = self.machine.axis_specs[a]
+        shown = np.degrees(positions) if axis.kind == "rotary" else positions
+        names = np.array(self.machine.error_names[6 * a:6 * a + 6])
+        return pd.DataFrame({
+            "error": np.repeat(names, len(positions)), "position": np.tile(shown, 6),
+            "prior_sd": prior.ravel(), "posterior_mean": mean.ravel(),
+            "posterior_sd": sd.ravel(), "lower": (mean - Z95 * sd).ravel(),
+            "upper": (mean + Z95 * sd).ravel()})
 
     @property
     def chi2_p_value(self) -> float:
@@ -113,31 +185,53 @@ class Identification:
 
     def predict(self, poses) -> tuple[np.ndarray, np.ndarray]:
         """Posterior mean and σ ``(..., 6)`` of the six outputs in the workpiece frame at
-        ``poses`` ``(..., n_axes)``, first order."""
-        jac = self.machine.jacobian(poses, frame="workpiece")
-        mean = jac @ self.mean
-        variance = np.einsum("...oi,ij,...oj->...o", jac, self.covariance, jac)
-        return mean, np.sqrt(np.maximum(variance, 0.0))
+        ``poses`` ``(..., n_axes)``, first order, each error taken at the pose's position
+        along its axis."""
+        if not self.coefficients.varies:
+            jac = self.machine.jacobian(poses, frame="workpiece")
+            variance = np.einsum("...oi,ij,...oj->...o", jac, self.covariance, jac)
+            return jac @ self.mean, np.sqrt(np.maximum(variance, 0.0))
+        poses = self.machine.check_positions(poses)
+        flat = poses.reshape(-1, poses.shape[-1])
+        mean, sd = np.empty((len(flat), 6)), np.empty((len(flat), 6))
+        width = 6 * 8 * (self.coefficients.size + 2 * self.machine.n_errors)
+        for part in chunks(len(flat), width):
+            rows = self.coefficients.rows(self.machine.jacobian(flat[part],
+                                                                frame="workpiece"), flat[part])
+            mean[part] = rows @ self.theta
+            sd[part] = np.sqrt(np.maximum(np.sum((rows @ self.theta_covariance) * rows,
+                                                 axis=-1), 0.0))
+        shape = poses.shape[:-1] + (6,)
+        return mean.reshape(shape), sd.reshape(shape)
 
     def sample(self, n: int, rng) -> np.ndarray:
-        """``(n, n_errors)`` machines drawn from the posterior."""
+        """``(n, n_errors)`` draws of the rows of :attr:`errors` from the posterior (the
+        errors themselves under ``constant``)."""
         factor = _psd_factor(self.covariance)
-        return self.mean + rng.standard_normal((n, len(self.mean))) @ factor.T
+        normals = streams.generator(rng).standard_normal((n, len(self.mean)))
+        return self.mean + normals @ factor.T
 
     def mean_at(self, poses) -> np.ndarray:
         """``(..., n_errors)``: the posterior mean of every error as it acts at each pose
-        ``(..., n_axes)`` (under ``constant`` the same at every pose)."""
+        ``(..., n_axes)``, a motion error at the pose's position along its axis (under
+        ``constant`` the same at every pose)."""
         poses = np.asarray(poses, dtype=float)
-        return np.broadcast_to(self.mean, poses.shape[:-1] + self.mean.shape).copy()
+        if not self.coefficients.varies:
+            return np.broadcast_to(self.mean, poses.shape[:-1] + self.mean.shape).copy()
+        return self.coefficients.values(self.theta, poses)
 
     def sample_at(self, poses, n: int, rng) -> np.ndarray:
         """``(n, ..., n_errors)``: machines drawn from the posterior, each error's value as it
         acts at each pose ``(..., n_axes)`` (under ``constant`` the same at every pose)."""
         poses = np.asarray(poses, dtype=float)
-        drawn = self.sample(n, rng)
-        shape = (n,) + (1,) * (poses.ndim - 1) + drawn.shape[1:]
-        return np.broadcast_to(drawn.reshape(shape),
-                               (n,) + poses.shape[:-1] + drawn.shape[1:]).copy()
+        if not self.coefficients.varies:
+            drawn = self.sample(n, rng)
+            shape = (n,) + (1,) * (poses.ndim - 1) + drawn.shape[1:]
+            return np.broadcast_to(drawn.reshape(shape),
+                                   (n,) + poses.shape[:-1] + drawn.shape[1:]).copy()
+        factor = _psd_factor(self.theta_covariance)
+        normals = streams.generator(rng).standard_normal((n, len(self.theta)))
+        return self.coefficients.values(self.theta + normals @ factor.T, poses)
 
     def worst_residual(self) -> pd.Series:
         """The reading with the largest normalised residual."""
@@ -145,23 +239,35 @@ class Identification:
 
     def summary_dict(self) -> dict:
         """The ``summary.json`` keys."""
-        return {"readings": len(self.residuals), "parameters": int(len(self.mean)),
+        return {"readings": len(self.residuals), "parameters": int(self.machine.n_errors),
+                "coefficients": int(self.coefficients.size),
                 "rank": int(self.rank), "condition": float(self.condition),
                 "chi2": float(self.chi2), "dof": int(self.dof), "profile": self.profile,
                 "chi2_p_value": self.chi2_p_value, "setups": len(self.setup),
-                "combinations": list(self.combinations), "prior_like": list(self.prior_like)}
+                "combinations": list(self.combinations), "prior_like": list(self.prior_like),
+                "iterations": int(self.iterations), "change": float(self.change),
+                "settled": bool(self.settled)}
 
     def summary(self) -> str:
         """The identification in words: rank, condition, combinations, χ² check."""
-        lines = [f"{len(self.residuals)} readings, {len(self.mean)} errors, "
-                 f"{len(self.setup)} set-up unknowns; profile {self.profile}",
-                 f"rank of the information about the errors: {self.rank} of {len(self.mean)}, "
-                 f"condition {self.condition:.3g}"]
+        lines = [f"{len(self.residuals)} readings, {self.machine.n_errors} errors, "
+                 f"{len(self.setup)} set-up unknowns; profile {self.profile}"]
+        if self.coefficients.varies:
+            lines.append(f"the errors along travel as {self.coefficients.size} coefficients; "
+                         f"rank of the information about them: {self.rank} of "
+                         f"{self.coefficients.size}, condition {self.condition:.3g}")
+        else:
+            lines.append(f"rank of the information about the errors: {self.rank} of "
+                         f"{self.machine.n_errors}, condition {self.condition:.3g}")
         if self.combinations:
-            lines.append("moving the errors along these directions changes no reading:")
+            lines.append("moving the errors along these directions changes no reading"
+                         + (" (motion errors shifted along their whole travel):"
+                            if self.coefficients.varies else ":"))
             lines += [f"  {text}" for text in self.combinations]
         if self.prior_like:
             lines.append(f"still essentially their prior: {', '.join(self.prior_like)}")
+        if self.iterations:
+            lines.append(self._iteration_text())
         verdict = "consistent" if self.chi2_p_value >= CHI2_ALPHA else "NOT explained"
         lines.append(f"chi2 = {self.chi2:.4g} on {self.dof} degrees of freedom "
                      f"(p = {self.chi2_p_value:.3g}): readings {verdict} by the model")
@@ -172,9 +278,15 @@ class Identification:
                          f"{worst['normalised']:.3g}")
         return "\n".join(lines)
 
+    def _iteration_text(self) -> str:
+        settled = "settled" if self.settled else "NOT settled"
+        return (f"re-linearised on the exact chain at the posterior mean: {self.iterations} "
+                f"iteration{'s' if self.iterations > 1 else ''}, {settled}; the largest "
+                f"change of a posterior mean is {self.change:.3g} of its posterior sigma")
+
 
 def identify(machine, measurements: Measurements, *, tolerances=None, profile="constant",
-             memory: int | None = None) -> Identification:
+             iterate: bool = False, memory: int | None = None) -> Identification:
     """Identify a built machine's errors from its readings.
 
     Parameters
@@ -185,8 +297,12 @@ def identify(machine, measurements: Measurements, *, tolerances=None, profile="c
     tolerances : array_like, optional
         Allocation in force; σ = t/3 is each error's prior σ. The machine file's initial
         allocation by default.
-    profile : 'constant'
-        One value of every motion error along the whole travel.
+    profile : 'constant' or 'gp:<length mm>'
+        One value of every motion error along the whole travel, or a Gaussian process
+        along travel with the kernel of docs/profiles.md.
+    iterate : bool
+        Re-linearise at the posterior mean on the exact chain until it settles
+        (Gauss–Newton).
     memory : int, optional
         Bytes of temporary arrays per chunk of readings.
 
@@ -197,13 +313,23 @@ def identify(machine, measurements: Measurements, *, tolerances=None, profile="c
     if not isinstance(measurements, Measurements):
         raise InputError(f"measurements must be read by read_measurements; got "
                          f"{type(measurements).__name__}")
-    if not isinstance(profile_model(profile), ConstantProfile):
-        raise InputError(f"profile: only 'constant' is identified; got {profile!r}")
     t = machine.initial_allocation if tolerances is None else machine.check_tolerances(tolerances)
-    prior_sd = np.asarray(t, dtype=float) / 3.0
+    coefficients = Coefficients(travel_bases(machine, profile), np.asarray(t, float) / 3.0)
     setups = setup_columns(machine, measurements)
-    blocks = information_blocks(machine, measurements, setups, memory)
-    return _posterior(machine, measurements, setups, blocks, prior_sd, memory)
+    blocks, item_blocks = _first_order_blocks(machine, measurements, setups, coefficients,
+                                              memory)
+    fit = solve(blocks, setups.names)
+    iterations, change, settled, fitted = 0, 0.0, True, None
+    if iterate:
+        first = fit
+        fit, iterations, settled, fitted = gauss_newton(
+            machine, measurements, setups, coefficients, fit, memory)
+        change = _largest_change(coefficients, measurements, first, fit)
+    if fitted is None:
+        fitted = _first_order_fitted(machine, measurements, setups, coefficients, fit, memory)
+    return _identification(machine, measurements, setups, coefficients, fit, fitted,
+                           item_blocks, profile=str(profile), iterations=iterations,
+                           change=change, settled=settled)
 
 
 def reading_rows(machine, measurements, part) -> np.ndarray:
@@ -266,85 +392,108 @@ def _circle_plane(machine, measurements, rows, run) -> np.ndarray:
 
 
 def information_blocks(machine, measurements, setups, memory=None) -> dict:
-    """``AᵀWA, BᵀWA, BᵀWB, AᵀWy, BᵀWy``, accumulated over chunks of readings; ``B`` is
-    never formed: each reading touches at most two set-up columns, summed into place."""
-    p, s = machine.n_errors, len(setups.names)
-    out = {"AA": np.zeros((p, p)), "BA": np.zeros((s, p)), "BB": np.zeros((s, s)),
-           "Ay": np.zeros(p), "By": np.zeros(s)}
+    """``AᵀWA, BᵀWA, BᵀWB, AᵀWy, BᵀWy`` of the errors (one value each along travel) at zero
+    errors, accumulated over chunks of readings."""
+    out = empty_blocks(machine.n_errors, len(setups.names))
     for part in chunks(len(measurements), jacobian_bytes(machine), memory):
-        weight = 1.0 / measurements.u[part]
-        a = reading_rows(machine, measurements, part) * weight[:, None]
-        columns = setups.columns[part]
-        b = setups.coefficients[part] * weight[:, None]
-        y = measurements.value[part] * weight
-        out["AA"] += a.T @ a
-        out["Ay"] += a.T @ y
-        for k in range(columns.shape[1]):
-            np.add.at(out["BA"], columns[:, k], b[:, k, None] * a)
-            np.add.at(out["By"], columns[:, k], b[:, k] * y)
-            for j in range(columns.shape[1]):
-                np.add.at(out["BB"], (columns[:, k], columns[:, j]), b[:, k] * b[:, j])
+        add_readings(out, setups, part, reading_rows(machine, measurements, part),
+                     measurements.value[part], measurements.u[part])
     return out
 
 
-def _posterior(machine, measurements, setups, blocks, prior_sd, memory) -> Identification:
-    setup_factor = _setup_cholesky(blocks["BB"], setups.names)
-    gain = linalg.cho_solve(setup_factor, blocks["BA"])
-    information = blocks["AA"] - blocks["BA"].T @ gain
-    information = 0.5 * (information + information.T)
-    drive = blocks["Ay"] - gain.T @ blocks["By"]
-    factor = linalg.cho_factor(information + np.diag(1.0 / prior_sd ** 2), lower=True)
-    mean = linalg.cho_solve(factor, drive)
-    covariance = linalg.cho_solve(factor, np.eye(len(mean)))
-    setup_mean = linalg.cho_solve(setup_factor, blocks["By"] - blocks["BA"] @ mean)
-    setup_cov = linalg.cho_solve(setup_factor, np.eye(len(setup_mean))) + \
-        gain @ covariance @ gain.T
-    residuals = _residuals(machine, measurements, setups, mean, setup_mean, memory)
-    rank, condition, combinations = _seen_directions(machine, information, prior_sd)
-    sd = np.sqrt(np.diag(covariance))
-    return Identification(
-        machine=machine, profile="constant", prior_sd=prior_sd, mean=mean,
-        covariance=covariance,
-        setup=pd.DataFrame({"setup": setups.names, "estimate": setup_mean,
-                            "sd": np.sqrt(np.diag(setup_cov))}),
-        rank=rank, condition=condition, combinations=combinations,
-        prior_like=tuple(np.array(machine.error_names)[sd > PRIOR_LIKE * prior_sd]),
-        residuals=residuals,
-        chi2=float(np.sum(residuals["normalised"] ** 2) + np.sum((mean / prior_sd) ** 2)),
-        dof=len(measurements) - len(setups.names))
+def _first_order_blocks(machine, measurements, setups, coefficients, memory):
+    """The blocks of the coefficients and, when the errors vary along travel, of the errors
+    as constant shifts (for naming what cannot be told apart), in one pass."""
+    blocks = empty_blocks(coefficients.size, len(setups.names))
+    item = empty_blocks(machine.n_errors, len(setups.names)) if coefficients.varies else None
+    width = jacobian_bytes(machine) + 16 * coefficients.size
+    for part in chunks(len(measurements), width, memory):
+        rows = reading_rows(machine, measurements, part)
+        values, u = measurements.value[part], measurements.u[part]
+        add_readings(blocks, setups, part, coefficients.rows(rows, measurements.poses[part]),
+                     values, u)
+        if item is not None:
+            add_readings(item, setups, part, rows, values, u)
+    return blocks, item
 
 
-def _setup_cholesky(matrix, names):
-    try:
-        return linalg.cho_factor(matrix, lower=True)
-    except linalg.LinAlgError:
-        diagonal = np.diag(matrix)
-        weakest = names[int(np.argmin(diagonal))] if len(names) else "?"
-        raise InputError(f"the set-up unknowns cannot be estimated from the readings (first "
-                         f"suspect: {weakest!r}); give each run readings that move it") from None
-
-
-def _residuals(machine, measurements, setups, mean, setup_mean, memory) -> pd.DataFrame:
+def _first_order_fitted(machine, measurements, setups, coefficients, fit, memory):
     fitted = np.empty(len(measurements))
-    for part in chunks(len(measurements), jacobian_bytes(machine), memory):
-        fitted[part] = reading_rows(machine, measurements, part) @ mean + np.sum(
-            setups.coefficients[part] * setup_mean[setups.columns[part]], axis=1)
-    return pd.DataFrame({"row": np.arange(1, len(measurements) + 1), "run": measurements.run,
-                         "quantity": measurements.quantity, "value": measurements.value,
-                         "fitted": fitted,
-                         "normalised": (measurements.value - fitted) / measurements.u})
+    width = jacobian_bytes(machine) + 16 * coefficients.size
+    for part in chunks(len(measurements), width, memory):
+        rows = coefficients.rows(reading_rows(machine, measurements, part),
+                                 measurements.poses[part])
+        fitted[part] = rows @ fit.theta + setup_effect(setups, part, fit.setup_mean)
+    return fitted
 
 
-def _seen_directions(machine, information, prior_sd) -> tuple[int, float, tuple[str, ...]]:
-    """Rank and condition of the prior-scaled information, and its null space named."""
-    scaled = information * np.outer(prior_sd, prior_sd)
-    values, vectors = np.linalg.eigh(scaled)
+def distinct_positions(measurements) -> tuple:
+    """The distinct positions (mm, rad) each axis is read at."""
+    return tuple(np.unique(column) for column in measurements.poses.T)
+
+
+def _reported(coefficients, positions, fit) -> tuple[np.ndarray, np.ndarray]:
+    """Mean and σ of every reported quantity: the rows of ``errors.csv`` and, under ``gp``,
+    of ``profiles.csv``."""
+    rows = coefficients.mean_matrix()
+    means = [rows @ fit.theta]
+    sds = [np.sqrt(np.maximum(np.sum((rows @ fit.covariance) * rows, axis=1), 0.0))]
+    if coefficients.varies:
+        for a, where in enumerate(positions):
+            _, mean, sd = coefficients.profile_moments(a, where, fit.theta, fit.covariance)
+            means.append(mean.ravel())
+            sds.append(sd.ravel())
+    return np.concatenate(means), np.concatenate(sds)
+
+
+def _largest_change(coefficients, measurements, first, last) -> float:
+    positions = distinct_positions(measurements)
+    before, _ = _reported(coefficients, positions, first)
+    after, sd = _reported(coefficients, positions, last)
+    seen = sd > 0
+    return float(np.max(np.abs(after - before)[seen] / sd[seen], initial=0.0))
+
+
+def _identification(machine, measurements, setups, coefficients, fit, fitted, item_blocks,
+                    **status) -> Identification:
+    residuals = pd.DataFrame({"row": np.arange(1, len(measurements) + 1),
+                              "run": measurements.run, "quantity": measurements.quantity,
+                              "value": measurements.value, "fitted": fitted,
+                              "normalised": (measurements.value - fitted) / measurements.u})
+    rank, condition, null = _seen_directions(fit.information)
+    if item_blocks is None:
+        combinations = combination_texts(machine.error_names,
+                                         null * coefficients.prior_sd[:, None])
+    else:
+        item_information = eliminate_setups(item_blocks, setups.names)[2]
+        scale = coefficients.prior_sd
+        _, _, item_null = _seen_directions(item_information * np.outer(scale, scale))
+        combinations = combination_texts(machine.error_names, item_null * scale[:, None])
+    rows = coefficients.mean_matrix()
+    covariance = rows @ fit.covariance @ rows.T
+    prior, sd = np.sqrt(np.sum(rows ** 2, axis=1)), np.sqrt(np.diag(covariance))
+    return Identification(
+        machine=machine, prior_sd=prior, mean=rows @ fit.theta, covariance=covariance,
+        coefficients=coefficients, theta=fit.theta, theta_covariance=fit.covariance,
+        positions=distinct_positions(measurements),
+        setup=pd.DataFrame({"setup": setups.names, "estimate": fit.setup_mean,
+                            "sd": np.sqrt(np.diag(fit.setup_covariance))}),
+        rank=rank, condition=condition, combinations=combinations,
+        prior_like=tuple(np.array(machine.error_names)[sd > PRIOR_LIKE * prior]),
+        residuals=residuals,
+        chi2=float(np.sum(residuals["normalised"] ** 2) + np.sum(fit.theta ** 2)),
+        dof=len(measurements) - len(setups.names), **status)
+
+
+def _seen_directions(information) -> tuple[int, float, np.ndarray]:
+    """Rank and condition of an information matrix of unit-prior unknowns, and a basis
+    ``(n, k)`` of its null space."""
+    values, vectors = np.linalg.eigh(information)
     largest = max(values[-1], 0.0)
     seen = values > RANK_TOLERANCE * largest
     rank = int(np.sum(seen))
     condition = float(largest / values[seen][0]) if rank else float("inf")
-    null = vectors[:, ~seen] * prior_sd[:, None]
-    return rank, condition, combination_texts(machine.error_names, null)
+    return rank, condition, vectors[:, ~seen]
 
 
 def combination_texts(names, null) -> tuple[str, ...]:

@@ -13,7 +13,8 @@ from reliability.measured.measurement_files import read_measurements
 from . import options
 
 #: The files written into ``--out DIR``.
-RESULT_FILES = ("errors.csv", "setup.csv", "residuals.csv", "summary.json", COVARIANCE_FILE)
+RESULT_FILES = ("errors.csv", "profiles.csv", "setup.csv", "residuals.csv", "summary.json",
+                COVARIANCE_FILE)
 
 
 def add_parser(subparsers):
@@ -32,7 +33,12 @@ def add_parser(subparsers):
                         help="allocation in force (columns error, allocated); default the "
                              "machine file's initial allocation")
     parser.add_argument("--profile", default="constant", metavar="P",
-                        help="motion errors along travel: constant (one value per machine)")
+                        help="motion errors along travel: constant (one value per machine, "
+                             "the default) or gp:<length mm> (a Gaussian process along "
+                             "travel, docs/profiles.md; writes profiles.csv)")
+    parser.add_argument("--iterate", action="store_true",
+                        help="re-linearise at the posterior mean on the exact chain "
+                             "(Gauss-Newton) and say how much that changed")
     parser.add_argument("--out", metavar="DIR",
                         help=f"write {', '.join(RESULT_FILES)} into DIR")
     parser.add_argument("--overwrite", action="store_true",
@@ -47,10 +53,13 @@ def run(args) -> int:
     measurements = read_measurements(args.measurements, machine)
     tolerances = None if args.tolerances is None else \
         options.read_tolerances(args.tolerances, machine)
-    result = identify(machine, measurements, tolerances=tolerances, profile=args.profile)
+    result = identify(machine, measurements, tolerances=tolerances, profile=args.profile,
+                      iterate=args.iterate)
     source = "initial allocation" if args.tolerances is None else args.tolerances
+    model = "on the exact chain at the posterior mean" if args.iterate else \
+        "first order at zero errors"
     print(f"Identification of {machine.name!r} from {args.measurements}, prior sigma = t/3 "
-          f"of the {source}; first order at zero errors.\n")
+          f"of the {source}; {model}.\n")
     print(result.summary())
     if out is not None:
         _write(result, out, args.overwrite)
@@ -62,9 +71,13 @@ def _write(result, out, overwrite) -> None:
     digits = f"%.{SIGNIFICANT}g"
     tables = {"errors.csv": result.errors, "setup.csv": result.setup,
               "residuals.csv": result.residuals}
+    if result.coefficients.varies:
+        tables["profiles.csv"] = result.profiles
     for name, table in tables.items():
         write_csv(table, out / name, overwrite=overwrite, index=False, float_format=digits)
     atomic_write_text(out / "summary.json", json.dumps(result.summary_dict(), indent=2) + "\n",
                       overwrite)
     write_covariance(result, out / COVARIANCE_FILE, overwrite)
-    print(f"\nwritten {', '.join(RESULT_FILES)} into {out}")
+    written = [name for name in RESULT_FILES
+               if name in tables or name in ("summary.json", COVARIANCE_FILE)]
+    print(f"\nwritten {', '.join(written)} into {out}")
