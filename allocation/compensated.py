@@ -26,6 +26,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 import pandas as pd
 
+from reliability.basics.display import error_units, quantity_text
 from reliability.compensation.compensation_plans import K
 from reliability.compensation.residual import (fixed_rule_terms, positioning_variance,
                                                posterior_covariance)
@@ -115,10 +116,12 @@ class CompensatedAllocation:
                  f"upper bound (the box or the table's range)"]
         if len(tight):
             lines.append("items kept tight:")
-            lines += [f"  {row.error} ({row.iso}): {row.allocated:.4g} of up to {row.upper:.4g}"
-                      f", posterior σ {row.posterior_share:.2f} of prior, "
+            units = error_units(tight["error"], self.result.problem.machine.cost_coefficients.units)
+            lines += [f"  {row.error} ({row.iso}): {quantity_text(row.allocated, unit)} of up "
+                      f"to {quantity_text(row.upper, unit)}, posterior σ "
+                      f"{row.posterior_share:.2f} of prior, "
                       f"{'seen' if row.seen else 'not seen'} by the plan"
-                      for row in tight.itertuples()]
+                      for row, unit in zip(tight.itertuples(), units)]
         return "\n".join(lines)
 
 
