@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import pandas as pd
 
+from reliability.basics.display import UNIT_SCALES, output_people_units, unit_symbol
 from reliability.basics.files import atomic_write_text
 from reliability.measured.planning import plan_measurements, read_candidates
 
@@ -63,10 +64,11 @@ def run(args) -> int:
 
 def output_table(machine, plan) -> pd.DataFrame:
     """Each output's worst pose and its sd with no run, the chosen runs and every
-    candidate, in µm and µrad."""
+    candidate, in the machine file's units (mm and rad when it states none)."""
     rows = []
-    for output, row in plan.outputs.iterrows():
-        scale, unit = (1e3, "µm") if output.startswith("d") else (1e6, "µrad")
+    units = output_people_units(machine.cost_coefficients.units)
+    for (output, row), unit in zip(plan.outputs.iterrows(), units):
+        scale, unit = UNIT_SCALES[unit], unit_symbol(unit)
         rows.append({"output": output, "limit": f"{scale * row['limit']:.4g} {unit}",
                      "worst pose": options.pose_text(machine, row["worst_pose"]),
                      **{name: f"{scale * row[column]:.3g} {unit}" for name, column in

@@ -33,7 +33,8 @@ from reliability.acceptance.prediction import (AcceptanceResult, acceptance, bui
                                                deviation_weights, results_of_deviations)
 from reliability.basics import checks, streams
 from reliability.basics.chunks import chunks
-from reliability.basics.display import axis_units, pose_text
+from reliability.basics.display import (UNIT_SCALES, axis_units, output_people_units,
+                                        pose_text, unit_symbol)
 from reliability.basics.statistics import binomial_interval
 from reliability.first_order.fosm import fosm
 from reliability.model.machine import OUTPUTS
@@ -258,10 +259,12 @@ def holds_text(holds: dict) -> str:
 
 
 def output_table(result) -> pd.DataFrame:
-    """The per-output table as printed: this machine beside the design, µm and µrad."""
+    """The per-output table as printed: this machine beside the design, in the machine
+    file's units (mm and rad when it states none)."""
     rows = []
-    for output, row in result.outputs.iterrows():
-        scale, unit = (1e3, "µm") if output.startswith("d") else (1e6, "µrad")
+    units = output_people_units(result.machine.cost_coefficients.units)
+    for (output, row), unit in zip(result.outputs.iterrows(), units):
+        scale, unit = UNIT_SCALES[unit], unit_symbol(unit)
         rows.append({
             "output": output, "limit": f"{scale * row['limit']:.4g} {unit}",
             "holds everywhere %": _interval_text(row["holds"], row["holds_lower"],
