@@ -270,7 +270,7 @@ def branch_and_bound(model, low, high, rtol, max_calls, memory=None, zone=None):
         if across.any():
             contribution[across] = _across_split(model, zone, contribution[across],
                                                  box_low[across], box_high[across],
-                                                 high - low, boundary.lagrangian)
+                                                 high - low)
         box_low, box_high = _narrow(box_low[keep], box_high[keep], contribution[keep],
                                     slope[keep])
     if len(box_low):  # stopped by max_calls: the open boxes still count
@@ -309,11 +309,6 @@ class _ZoneBoundary:
         constraints = None if zone is None or model.reading != "sigma" else \
             ZoneConstraints(zone)
         return cls(model, constraints, low, high, inside)
-
-    @property
-    def lagrangian(self) -> bool:
-        """Whether boxes across the boundary get Lagrangian bounds."""
-        return self.constraints is not None
 
     def search(self, starts):
         """Local maxima from ``starts``: in the zone when it has constraints."""
@@ -426,17 +421,15 @@ def _across_zone(model, zone, low, high, memory=None):
     return outside, ~outside[~outside] & ~inside[~outside]
 
 
-def _across_split(model, zone, contribution, low, high, span, lagrangian):
-    """What boxes across the zone's boundary are halved by: each axis' share of the bound
-    plus its share of the stroke and, without Lagrangian bounds, of the tool point's
-    enclosure (:meth:`ZoneEnclosure.split_shares`), so that the boundary is resolved along
-    the axes it depends on. A Lagrangian bound needs no resolved boundary: its own shares
-    say where the box is too wide."""
+def _across_split(model, zone, contribution, low, high, span):
+    """What boxes across the zone's boundary are halved by: each axis' share of the bound,
+    of the stroke and its part of the tool point's enclosure where it reaches across the
+    zone's limits (:meth:`ZoneEnclosure.split_shares`), so that the boundary is resolved
+    along the axes it depends on while it is wide against the zone."""
     total = contribution.sum(axis=1, keepdims=True)
     share = np.divide(contribution, total, out=np.zeros_like(contribution), where=total > 0)
-    if not lagrangian:
-        share = share + zone.split_shares(model.expansion.pose(low), model.expansion.pose(high))
-    return share + (high - low) / span
+    return (share + zone.split_shares(model.expansion.pose(low), model.expansion.pose(high))
+            + (high - low) / span)
 
 
 def _evaluate(model, low, high, memory):

@@ -112,12 +112,13 @@ class ZoneEnclosure:
         return solid & (lo[:, -1] >= lowest_cos) & (hi[:, -1] <= highest_cos)
 
     def split_shares(self, low, high) -> np.ndarray:
-        """Each axis' share of the width of the enclosures that reach across the zone's
-        limits over boxes of poses, ``(b, n_axes)``, summing to 1 (or 0): per measure
-        (``(x, y, z, cos tilt)`` or ``(r², z, cos tilt)``) half the box's width along the
-        axis times the enclosure of the measure's derivative, relative to the zone's size
-        in that measure, summed over the measures whose enclosure reaches across a limit;
-        the axis to split to resolve the boundary. In chunks within
+        """Each axis' part of the width of the enclosures that reach across the zone's
+        limits over boxes of poses, relative to the zone's size, ``(b, n_axes)``: per
+        measure (``(x, y, z, cos tilt)`` or ``(r², z, cos tilt)``) half the box's width
+        along the axis times the enclosure of the measure's derivative over the zone's size
+        in that measure, summed over the measures whose enclosure reaches across a limit.
+        It vanishes as the box shrinks along the axis, so it says which axes leave the
+        boundary unresolved. In chunks within
         :data:`reliability.basics.chunks.MEMORY_BUDGET`."""
         low, high = np.atleast_2d(low), np.atleast_2d(high)
         return np.concatenate([self._split_shares(low[part], high[part])
@@ -132,9 +133,7 @@ class ZoneEnclosure:
         width = np.stack([half[:, a, None] * (np.abs(tree[(a,)][0]) + tree[(a,)][1])
                           for a in range(expansion.n_axes)], axis=1)  # (b, axes, measures)
         weight = self._straddling(low, high) / self._sizes()
-        score = np.einsum("bam,bm->ba", width, weight)
-        total = score.sum(axis=1, keepdims=True)
-        return np.divide(score, total, out=np.zeros_like(score), where=total > 0)
+        return np.einsum("bam,bm->ba", width, weight)
 
     def _sizes(self) -> np.ndarray:
         """The zone's size in each measure: its extent along x, y, z (box), R² and its
