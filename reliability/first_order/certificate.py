@@ -36,10 +36,15 @@ bounded local search on the expansion (L-BFGS-B), which also polishes the final 
 workspace is the zone's poses. Each open box is classified by the enclosure of its tool
 point and tilt (:class:`reliability.first_order.zone_enclosure.ZoneEnclosure`): a box proved
 outside the zone is dropped, a box proved inside is searched as above, and a box across the
-boundary is kept whole (its bound holds over its zone part too), never replaced by a face
-(the face may lie outside the zone) and halved along its widest axis relative to the
-stroke, so that the boundary is resolved. Only candidates inside the zone count, and every
-axis keeps the position its candidate was found at.
+boundary is kept whole, never replaced by a face (the face may lie outside the zone), and
+bounded (σ reading) by the lower of its whole-box bound and the Taylor bound of the
+Lagrangian ``σ² − λ·g`` of the zone's constraints ``g ≤ 0``
+(:mod:`reliability.first_order.zone_bound`), with λ the multipliers at the best candidates
+or fitted to the box: any ``λ ≥ 0`` bounds σ² over the box's poses in the zone, and the
+multipliers of the worst pose make the bound close to second order there. It is halved by
+its shares of the bound and of the stroke and by its part of the enclosures that reach
+across the zone's limits. Only candidates inside the zone count, the local searches are
+constrained to it (SLSQP), and every axis keeps the position its candidate was found at.
 """
 
 from __future__ import annotations

@@ -12,13 +12,14 @@ holds satisfies them. For any ``λ ≥ 0``,
 
     max over (box ∩ zone) of f  ≤  max over box of  L = f − Σ_j λ_j g_j,
 
-because ``−λ_j g_j ≥ 0`` on the zone. ``L`` is again a per-axis expansion of degree 2 (the
-measures are of degree 1 or 2 in each axis), so the certificate's Taylor bound of boxes
-applies to it unchanged. With λ the multipliers of the worst pose q* on the boundary
-(``∇f(q*) = Σ λ_j ∇g_j(q*)`` over the constraints active there, on the axes not at a stroke's
-end), ``L`` is stationary at q* along the boundary's directions and ``L(q*) = f(q*)``, so
-the bound of a box near q* exceeds ``f(q*)`` by O(h²) where the whole-box bound of ``f``
-exceeds it by O(h).
+because ``−λ_j g_j ≥ 0`` on the zone. ``L`` is again of degree 2 in each axis (the
+measures are of degree 1 or 2), so the certificate's second-order Taylor bound of boxes
+applies to it, with its Hessian enclosed by ``f``'s minus ``Σ λ_j`` times the constraints'
+(:meth:`ZoneConstraints.parts`, :func:`hessian_enclosure`). With λ the multipliers of the
+worst pose q* on the boundary (``∇f(q*) = Σ λ_j ∇g_j(q*)`` over the constraints active
+there, on the axes not at a stroke's end: :meth:`ZoneConstraints.multipliers`), ``L`` is
+stationary at q* along the boundary's directions and ``L(q*) = f(q*)``, so the bound of a
+box near q* exceeds ``f(q*)`` by O(h²) where the whole-box bound of ``f`` exceeds it by O(h).
 """
 
 from __future__ import annotations
