@@ -92,8 +92,8 @@ END_SNAP = 1e-12
 #: Best candidates (work zone) from which the search on the boundary starts and at which
 #: the constraints' multipliers are taken.
 MULTIPLIER_POINTS = 4
-#: Sets of multipliers (work zone) from the best candidates whose Lagrangians bound the
-#: boxes across the boundary, beside one fitted to each box.
+#: Sets of multipliers (work zone) from the best candidates, the latest first, whose
+#: Lagrangians bound the boxes across the boundary, beside one fitted to each box.
 MULTIPLIER_SETS = 4
 #: Sweeps of coordinate descent that fit a box's own multipliers.
 FIT_SWEEPS = 3
@@ -335,8 +335,11 @@ class _ZoneBoundary:
         found = np.array([self.constraints.multipliers(self.model.expansion, point,
                                                        self.low, self.high)
                           for point in tied[:MULTIPLIER_POINTS]])
-        self.multipliers = np.unique(np.vstack([found, self.multipliers]),
-                                     axis=0)[-MULTIPLIER_SETS:]
+        kept = []
+        for multipliers in np.vstack([found, self.multipliers]):
+            if multipliers.any() and not any(np.array_equal(multipliers, k) for k in kept):
+                kept.append(multipliers)
+        self.multipliers = np.array(kept[:MULTIPLIER_SETS]).reshape(-1, found.shape[1])
         return tied, best
 
     def tighten(self, bound, contribution, low, high, across, memory):
