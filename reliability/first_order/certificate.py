@@ -311,15 +311,15 @@ class _ZoneBoundary:
 
     @classmethod
     def for_model(cls, model, zone, low, high, inside):
-        constraints = None if zone is None or model.reading != "sigma" else \
-            ZoneConstraints(zone)
+        constraints = None if zone is None else ZoneConstraints(zone)
         return cls(model, constraints, low, high, inside)
 
     def search(self, starts):
         """Local maxima from ``starts``: in the zone when it has constraints."""
         if self.constraints is None:
             return self.model.polish(starts, self.low, self.high)
-        return self.constraints.search(self.model.expansion, starts, self.low, self.high)
+        return self.constraints.search(lambda x: _point_slope(self.model, x), starts,
+                                       self.low, self.high)
 
     def update(self, tied, best):
         """After a better candidate: the search on the zone's boundary from it, and the
@@ -332,8 +332,8 @@ class _ZoneBoundary:
         if len(found) and values.max() > best * (1 + TIE_RTOL):
             tied, best = found[values >= values.max() * (1 - TIE_RTOL)], float(values.max())
         self.searched = best
-        found = np.array([self.constraints.multipliers(self.model.expansion, point,
-                                                       self.low, self.high)
+        found = np.array([self.constraints.multipliers(_point_slope(self.model, point)[1],
+                                                       point, self.low, self.high)
                           for point in tied[:MULTIPLIER_POINTS]])
         kept = []
         for multipliers in np.vstack([found, self.multipliers]):
@@ -351,13 +351,54 @@ class _ZoneBoundary:
         per_box = self.model.bytes_per_box + self.constraints.bytes_per_box
         for part in chunks(len(rows), per_box, BOX_MEMORY if memory is None else memory):
             chosen = rows[part]
-            other, share = self._lagrangian_bounds(low[chosen], high[chosen])
+            other = self._lagrangian_bounds(low[chosen], high[chosen])
+            other, share = other if self.model.reading == "sigma" else \
+                (other, contribution[chosen])
             lower = other < bound[chosen]
             bound[chosen[lower]] = other[lower]
             contribution[chosen[lower]] = share[lower]
         return bound, contribution
 
     def _lagrangian_bounds(self, low, high):
+        """The σ reading's Lagrangian bounds (:meth:`_sigma_bounds`) and shares, or the
+        stack's bounds (:meth:`_stack_bounds`)."""
+        if self.model.reading == "sigma":
+            return self._sigma_bounds(low, high)
+        return self._stack_bounds(low, high)
+
+    def _weights(self, gradient, g, g_gradient, g_mid, g_rad, half):
+        """The multipliers kept and the one fitted to each box, ``(b, k, n_constraints)``."""
+        kept = np.broadcast_to(self.multipliers[None], (len(half),) + self.multipliers.shape)
+        fitted = _fitted_multipliers(gradient, g, g_gradient, g_mid, g_rad, half)
+        return np.concatenate([kept, fitted[:, None]], axis=1)
+
+    def _stack_bounds(self, low, high):
+        """Per box, the least over the multipliers of the bound of the stack minus
+        ``λ·g``: ``g`` below its linear model by at most its second-order remainder, the
+        stack's linear model minus λ times ``g``'s is convex in the step, so largest at a
+        vertex (along the axes the stack does not depend on, at the end where ``−λ·∇g``
+        rises), plus both remainders and the margins; ``(b,)``."""
+        model, e = self.model, self.model.expansion
+        centre, half = (low + high) / 2, (high - low) / 2
+        point = point_tree(e, centre, 1)
+        value = point[()]
+        gradient = np.stack([point[(a,)] for a in range(e.n_axes)], axis=1)
+        g, g_gradient, g_mid, g_rad = self.constraints.parts(low, high)
+        slope = np.einsum("bai,bi->ba", gradient, np.sign(value))
+        weights = self._weights(slope, g, g_gradient, g_mid, g_rad, half)
+        steps = half[:, None, :] * model.vertices[None]
+        totals = np.abs(value[:, None, :] + np.matmul(steps, gradient)).sum(axis=-1)
+        pull = np.einsum("bkj,bja->bka", weights, g_gradient)  # λ·∇g
+        rise = (totals[:, None, :] - np.einsum("bka,bva->bkv", pull, steps)).max(axis=2)
+        fixed_rise = (np.abs(pull) * (half * model.fixed)[:, None, :]).sum(axis=2)
+        g_remainder = 0.5 * np.einsum("bjac,ba,bc->bj", np.abs(g_mid) + g_rad, half, half)
+        total = (rise + fixed_rise - np.einsum("bkj,bj->bk", weights, g)
+                 + np.einsum("bkj,bj->bk", weights, g_remainder)
+                 + (0.5 * half * (half @ model.curvature)).sum(axis=1)[:, None]
+                 + e.margin.sum() + weights @ self.constraints.margins)
+        return total.min(axis=1)
+
+    def _sigma_bounds(self, low, high):
         """Per box, the least over the multipliers kept and one fitted to the box of the
         second-order Taylor bound of ``L = f − λ·g`` over the box (its Hessian enclosed by
         ``f``'s minus λ times the constraints'), plus the margins: an upper bound of ``f``
@@ -369,10 +410,7 @@ class _ZoneBoundary:
         gradient = np.stack([point[(a,)] for a in range(e.n_axes)], axis=1)
         f_mid, f_rad = hessian_enclosure(e, low, high)
         g, g_gradient, g_mid, g_rad = self.constraints.parts(low, high)
-        weights = np.concatenate([np.broadcast_to(self.multipliers[None],
-                                                  (len(low),) + self.multipliers.shape),
-                                  _fitted_multipliers(gradient, g, g_gradient, g_mid,
-                                                      g_rad, half)[:, None]], axis=1)
+        weights = self._weights(gradient, g, g_gradient, g_mid, g_rad, half)
         value = point[()][:, None] - np.einsum("bkj,bj->bk", weights, g)
         slope = gradient[:, None] - np.einsum("bkj,bja->bka", weights, g_gradient)
         mid = f_mid[:, None] - np.einsum("bkj,bjac->bkac", weights, g_mid)
@@ -388,6 +426,17 @@ class _ZoneBoundary:
         least = np.argmin(total, axis=1)
         rows = np.arange(len(low))
         return total[rows, least], rise[rows, least]
+
+
+def _point_slope(model, point):
+    """The model's function and its gradient at a local point, ``(value, (n_axes,))``:
+    σ², or the stack ``Σ_i |w_i|`` with ``Σ_i sign(w_i) ∇w_i`` (one of its
+    subgradients)."""
+    tree = point_tree(model.expansion, np.asarray(point, dtype=float)[None, :], 1)
+    gradient = np.stack([tree[(a,)][0] for a in range(model.expansion.n_axes)])
+    if model.reading == "sigma":
+        return float(tree[()][0]), gradient
+    return float(np.abs(tree[()][0]).sum()), gradient @ np.sign(tree[()][0])
 
 
 def _fitted_multipliers(gradient, g, g_gradient, g_mid, g_rad, half):

@@ -76,19 +76,17 @@ class ZoneConstraints:
                              for a in range(self.expansion.n_axes)], axis=-1)
         return measures, gradient
 
-    def search(self, expansion, starts, low, high) -> np.ndarray:
-        """Local maxima of the expansion ``expansion`` (one value, local coordinates) in
-        the zone and the box ``[low, high]``, from each start (SLSQP with exact
-        gradients); ``(n_starts, n_axes)``, each a pose kept :data:`SEARCH_MARGIN` inside
-        the constraints."""
+    def search(self, objective, starts, low, high) -> np.ndarray:
+        """Local maxima of ``objective`` (a local point ``(n_axes,)`` to its value and
+        gradient) in the zone and the box ``[low, high]``, from each start (SLSQP);
+        ``(n_starts, n_axes)``, each a pose kept :data:`SEARCH_MARGIN` inside the
+        constraints."""
         starts = np.atleast_2d(starts)
-        scale = float(np.abs(expansion.values(starts)).max()) if len(starts) else 1.0
-        scale = scale if scale > 0 else 1.0
+        scale = max([abs(objective(x)[0]) for x in starts] + [0.0]) or 1.0
 
         def negative(x):
-            tree = point_tree(expansion, x[None, :], 1)
-            gradient = np.array([tree[(a,)][0] for a in range(len(x))])
-            return -tree[()][0] / scale, -gradient / scale
+            value, gradient = objective(x)
+            return -value / scale, -gradient / scale
 
         constraint = {"type": "ineq",
                       "fun": lambda x: -self.values(x)[0][0] - SEARCH_MARGIN,
@@ -100,13 +98,12 @@ class ZoneConstraints:
                                  low, high)
                          for x in starts]).reshape(len(starts), len(low))
 
-    def multipliers(self, expansion, point, low, high) -> np.ndarray:
-        """Multipliers ``λ ≥ 0`` of the constraints active at a local point: the
-        non-negative least-squares fit of ``∇f = Σ λ_j ∇g_j`` on the axes not at a
-        stroke's end (zero for inactive constraints), ``(n_constraints,)``."""
+    def multipliers(self, gradient, point, low, high) -> np.ndarray:
+        """Multipliers ``λ ≥ 0`` of the constraints active at a local point where ``f``
+        has the gradient ``gradient`` (``(n_axes,)``): the non-negative least-squares fit
+        of ``∇f = Σ λ_j ∇g_j`` on the axes not at a stroke's end (zero for inactive
+        constraints), ``(n_constraints,)``."""
         point = np.asarray(point, dtype=float)
-        tree = point_tree(expansion, point[None, :], 1)
-        gradient = np.array([tree[(a,)][0] for a in range(len(point))])
         values, jacobian = self.values(point)
         active = values[0] > -ACTIVE_TOLERANCE
         span = high - low
