@@ -37,10 +37,10 @@ workspace is the zone's poses. Each open box is classified by the enclosure of i
 point and tilt (:class:`reliability.first_order.zone_enclosure.ZoneEnclosure`): a box proved
 outside the zone is dropped, a box proved inside is searched as above, and a box across the
 boundary is kept whole, never replaced by a face (the face may lie outside the zone), and
-bounded (σ reading) by the lower of its whole-box bound and the Taylor bound of the
-Lagrangian ``σ² − λ·g`` of the zone's constraints ``g ≤ 0``
+bounded by the lower of its whole-box bound and the bound of the Lagrangian ``σ² − λ·g``
+(or stack ``− λ·g``) of the zone's constraints ``g ≤ 0``
 (:mod:`reliability.first_order.zone_bound`), with λ the multipliers at the best candidates
-or fitted to the box: any ``λ ≥ 0`` bounds σ² over the box's poses in the zone, and the
+or fitted to the box: any ``λ ≥ 0`` bounds the spread over the box's poses in the zone, and the
 multipliers of the worst pose make the bound close to second order there. It is halved by
 its shares of the bound and of the stroke and by its part of the enclosures that reach
 across the zone's limits. Only candidates inside the zone count, the local searches are
@@ -296,12 +296,11 @@ def branch_and_bound(model, low, high, rtol, max_calls, memory=None, zone=None):
 
 
 class _ZoneBoundary:
-    """What the work zone's constraints add to the σ reading's search
+    """What the work zone's constraints add to the search
     (:mod:`reliability.first_order.zone_bound`): the local search kept to the zone, and
     Lagrangian bounds of the boxes across its boundary, with the multipliers at the best
-    candidates found so far and one fitted to each box. Without a zone, or under the stack
-    reading (not smooth), the search is the model's own and the bounds are left as they
-    are."""
+    candidates found so far and one fitted to each box. Without a zone the search is the
+    model's own and the bounds are left as they are."""
 
     def __init__(self, model, constraints, low, high, inside):
         self.model, self.constraints = model, constraints
