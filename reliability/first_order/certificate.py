@@ -36,10 +36,15 @@ bounded local search on the expansion (L-BFGS-B), which also polishes the final 
 workspace is the zone's poses. Each open box is classified by the enclosure of its tool
 point and tilt (:class:`reliability.first_order.zone_enclosure.ZoneEnclosure`): a box proved
 outside the zone is dropped, a box proved inside is searched as above, and a box across the
-boundary is kept whole (its bound holds over its zone part too), never replaced by a face
-(the face may lie outside the zone) and halved along its widest axis relative to the
-stroke, so that the boundary is resolved. Only candidates inside the zone count, and every
-axis keeps the position its candidate was found at.
+boundary is kept whole, never replaced by a face (the face may lie outside the zone), and
+bounded by the lower of its whole-box bound and the bound of the Lagrangian ``σ² − λ·g``
+(or stack ``− λ·g``) of the zone's constraints ``g ≤ 0``
+(:mod:`reliability.first_order.zone_bound`), with λ the multipliers at the best candidates
+or fitted to the box: any ``λ ≥ 0`` bounds the spread over the box's poses in the zone, and the
+multipliers of the worst pose make the bound close to second order there. It is halved by
+its shares of the bound and of the stroke and by its part of the enclosures that reach
+across the zone's limits. Only candidates inside the zone count, the local searches are
+constrained to it (SLSQP), and every axis keeps the position its candidate was found at.
 """
 
 from __future__ import annotations
@@ -59,6 +64,7 @@ from ..model.kinematics import jacobian, output_variance
 from ..model.machine import OUTPUTS
 from .fosm import error_sigma
 from .pose_expansion import interval_tree, jacobian_expansion, point_tree, variance_expansion
+from .zone_bound import ZoneConstraints, hessian_enclosure
 from .zone_enclosure import ZoneEnclosure
 
 #: The spreads the certificate can bound: σ (Eq. 20) or the first-order worst-case stack.
@@ -83,6 +89,14 @@ START_POINTS = {"sigma": 5, "stack": 3}
 START_SEARCHES = 3
 #: Fraction of a stroke's span within which a reported position is put on the stroke's end.
 END_SNAP = 1e-12
+#: Best candidates (work zone) from which the search on the boundary starts and at which
+#: the constraints' multipliers are taken.
+MULTIPLIER_POINTS = 4
+#: Sets of multipliers (work zone) from the best candidates, the latest first, whose
+#: Lagrangians bound the boxes across the boundary, beside one fitted to each box.
+MULTIPLIER_SETS = 4
+#: Sweeps of coordinate descent that fit a box's own multipliers.
+FIT_SWEEPS = 3
 
 
 def certified_worst(machine, tolerances, *, rtol: float = DEFAULT_RTOL, k: float = 3.0,
@@ -228,18 +242,22 @@ def branch_and_bound(model, low, high, rtol, max_calls, memory=None, zone=None):
         Boxes evaluated.
     """
     inside = _zone_test(model, zone)
-    tied, best = model.start(low, high, inside)
+    boundary = _ZoneBoundary.for_model(model, zone, low, high, inside)
+    tied, best = model.start(low, high, inside, boundary.search)
+    tied, best = boundary.update(tied, best)
     limit = model.closing_factor(rtol) * (1 - CLOSING_MARGIN)
     box_low, box_high = low[None, :], high[None, :]
     closed_bound = -np.inf
     calls = 0
     while len(box_low) and calls < max_calls:
-        across = _across_zone(model, zone, box_low, box_high)
+        across = _across_zone(model, zone, box_low, box_high, memory)
         box_low, box_high, across = box_low[~across[0]], box_high[~across[0]], across[1]
         if not len(box_low):
             break
         bound, contribution, points, values, slope = _evaluate(model, box_low, box_high,
                                                                memory)
+        bound, contribution = boundary.tighten(bound, contribution, box_low, box_high,
+                                               across, memory)
         calls += len(box_low)
         values = np.where(inside(points), values, -np.inf)
         top = values.max()
@@ -248,6 +266,7 @@ def branch_and_bound(model, low, high, rtol, max_calls, memory=None, zone=None):
         best = max(best, top)
         tied = np.unique(np.vstack([tied[model.values(tied) >= best * (1 - TIE_RTOL)],
                                     points[values >= best * (1 - TIE_RTOL)]]), axis=0)
+        tied, best = boundary.update(tied, best)
         done = bound <= best * limit
         if done.any():
             closed_bound = max(closed_bound, bound[done].max())
@@ -260,14 +279,184 @@ def branch_and_bound(model, low, high, rtol, max_calls, memory=None, zone=None):
         box_low, box_high = _narrow(box_low[keep], box_high[keep], contribution[keep],
                                     slope[keep])
     if len(box_low):  # stopped by max_calls: the open boxes still count
-        closed_bound = max(closed_bound, _evaluate(model, box_low, box_high, memory)[0].max())
-        calls += len(box_low)
-    polished = model.polish(tied[:1], low, high)  # the last digits of the best candidate
+        across = _across_zone(model, zone, box_low, box_high, memory)
+        box_low, box_high, across = box_low[~across[0]], box_high[~across[0]], across[1]
+        if len(box_low):
+            bound, contribution = _evaluate(model, box_low, box_high, memory)[:2]
+            bound = boundary.tighten(bound, contribution, box_low, box_high, across,
+                                     memory)[0]
+            closed_bound = max(closed_bound, bound.max())
+            calls += len(box_low)
+    polished = boundary.search(tied[:1])  # the last digits of the best candidate
     polished = polished[inside(polished)]
     top = float(model.values(polished).max()) if len(polished) else -np.inf
     if top > best * (1 + TIE_RTOL):
         tied, best = polished, top
     return tied, max(closed_bound, best), calls
+
+
+class _ZoneBoundary:
+    """What the work zone's constraints add to the search
+    (:mod:`reliability.first_order.zone_bound`): the local search kept to the zone, and
+    Lagrangian bounds of the boxes across its boundary, with the multipliers at the best
+    candidates found so far and one fitted to each box. Without a zone the search is the
+    model's own and the bounds are left as they are."""
+
+    def __init__(self, model, constraints, low, high, inside):
+        self.model, self.constraints = model, constraints
+        self.low, self.high, self.inside = low, high, inside
+        self.multipliers = np.zeros((0, 0 if constraints is None else constraints.count))
+        self.searched = -np.inf
+
+    @classmethod
+    def for_model(cls, model, zone, low, high, inside):
+        constraints = None if zone is None else ZoneConstraints(zone)
+        return cls(model, constraints, low, high, inside)
+
+    def search(self, starts):
+        """Local maxima from ``starts``: in the zone when it has constraints."""
+        if self.constraints is None:
+            return self.model.polish(starts, self.low, self.high)
+        return self.constraints.search(lambda x: _point_slope(self.model, x), starts,
+                                       self.low, self.high)
+
+    def update(self, tied, best):
+        """After a better candidate: the search on the zone's boundary from it, and the
+        multipliers at the best candidates; ``(tied, best)`` with what the search found."""
+        if self.constraints is None or best <= self.searched * (1 + TIE_RTOL):
+            return tied, best
+        found = self.search(tied[:MULTIPLIER_POINTS])
+        found = found[self.inside(found)]
+        values = self.model.values(found)
+        if len(found) and values.max() > best * (1 + TIE_RTOL):
+            tied, best = found[values >= values.max() * (1 - TIE_RTOL)], float(values.max())
+        self.searched = best
+        found = np.array([self.constraints.multipliers(_point_slope(self.model, point)[1],
+                                                       point, self.low, self.high)
+                          for point in tied[:MULTIPLIER_POINTS]])
+        kept = []
+        for multipliers in np.vstack([found, self.multipliers]):
+            if multipliers.any() and not any(np.array_equal(multipliers, k) for k in kept):
+                kept.append(multipliers)
+        self.multipliers = np.array(kept[:MULTIPLIER_SETS]).reshape(-1, found.shape[1])
+        return tied, best
+
+    def tighten(self, bound, contribution, low, high, across, memory):
+        """The bounds (and contributions) of the boxes across the boundary replaced by
+        their Lagrangian bound (:meth:`_lagrangian_bounds`) where it is lower."""
+        rows = np.flatnonzero(across)
+        if self.constraints is None or not len(rows):
+            return bound, contribution
+        per_box = self.model.bytes_per_box + self.constraints.bytes_per_box
+        for part in chunks(len(rows), per_box, BOX_MEMORY if memory is None else memory):
+            chosen = rows[part]
+            other = self._lagrangian_bounds(low[chosen], high[chosen])
+            other, share = other if self.model.reading == "sigma" else \
+                (other, contribution[chosen])
+            lower = other < bound[chosen]
+            bound[chosen[lower]] = other[lower]
+            contribution[chosen[lower]] = share[lower]
+        return bound, contribution
+
+    def _lagrangian_bounds(self, low, high):
+        """The σ reading's Lagrangian bounds (:meth:`_sigma_bounds`) and shares, or the
+        stack's bounds (:meth:`_stack_bounds`)."""
+        if self.model.reading == "sigma":
+            return self._sigma_bounds(low, high)
+        return self._stack_bounds(low, high)
+
+    def _weights(self, gradient, g, g_gradient, g_mid, g_rad, half):
+        """The multipliers kept and the one fitted to each box, ``(b, k, n_constraints)``."""
+        kept = np.broadcast_to(self.multipliers[None], (len(half),) + self.multipliers.shape)
+        fitted = _fitted_multipliers(gradient, g, g_gradient, g_mid, g_rad, half)
+        return np.concatenate([kept, fitted[:, None]], axis=1)
+
+    def _stack_bounds(self, low, high):
+        """Per box, the least over the multipliers of the bound of the stack minus
+        ``λ·g``: ``g`` below its linear model by at most its second-order remainder, the
+        stack's linear model minus λ times ``g``'s is convex in the step, so largest at a
+        vertex (along the axes the stack does not depend on, at the end where ``−λ·∇g``
+        rises), plus both remainders and the margins; ``(b,)``."""
+        model, e = self.model, self.model.expansion
+        centre, half = (low + high) / 2, (high - low) / 2
+        point = point_tree(e, centre, 1)
+        value = point[()]
+        gradient = np.stack([point[(a,)] for a in range(e.n_axes)], axis=1)
+        g, g_gradient, g_mid, g_rad = self.constraints.parts(low, high)
+        slope = np.einsum("bai,bi->ba", gradient, np.sign(value))
+        weights = self._weights(slope, g, g_gradient, g_mid, g_rad, half)
+        steps = half[:, None, :] * model.vertices[None]
+        totals = np.abs(value[:, None, :] + np.matmul(steps, gradient)).sum(axis=-1)
+        pull = np.einsum("bkj,bja->bka", weights, g_gradient)  # λ·∇g
+        rise = (totals[:, None, :] - np.einsum("bka,bva->bkv", pull, steps)).max(axis=2)
+        fixed_rise = (np.abs(pull) * (half * model.fixed)[:, None, :]).sum(axis=2)
+        g_remainder = 0.5 * np.einsum("bjac,ba,bc->bj", np.abs(g_mid) + g_rad, half, half)
+        total = (rise + fixed_rise - np.einsum("bkj,bj->bk", weights, g)
+                 + np.einsum("bkj,bj->bk", weights, g_remainder)
+                 + (0.5 * half * (half @ model.curvature)).sum(axis=1)[:, None]
+                 + e.margin.sum() + weights @ self.constraints.margins)
+        return total.min(axis=1)
+
+    def _sigma_bounds(self, low, high):
+        """Per box, the least over the multipliers kept and one fitted to the box of the
+        second-order Taylor bound of ``L = f − λ·g`` over the box (its Hessian enclosed by
+        ``f``'s minus λ times the constraints'), plus the margins: an upper bound of ``f``
+        over the box's poses in the zone. Returns the bounds ``(b,)`` and each axis' share
+        ``(b, n_axes)``."""
+        e = self.model.expansion
+        half = (high - low) / 2
+        point = point_tree(e, (low + high) / 2, 1)
+        gradient = np.stack([point[(a,)] for a in range(e.n_axes)], axis=1)
+        f_mid, f_rad = hessian_enclosure(e, low, high)
+        g, g_gradient, g_mid, g_rad = self.constraints.parts(low, high)
+        weights = self._weights(gradient, g, g_gradient, g_mid, g_rad, half)
+        value = point[()][:, None] - np.einsum("bkj,bj->bk", weights, g)
+        slope = gradient[:, None] - np.einsum("bkj,bja->bka", weights, g_gradient)
+        mid = f_mid[:, None] - np.einsum("bkj,bjac->bkac", weights, g_mid)
+        rad = f_rad[:, None] + np.einsum("bkj,bjac->bkac", weights, g_rad)
+        diagonal = np.arange(e.n_axes)
+        curvature = (mid + rad)[..., diagonal, diagonal]
+        cross = np.abs(mid) + rad
+        cross[..., diagonal, diagonal] = 0.0
+        step = _rising_step(np.abs(slope), curvature, np.broadcast_to(half[:, None], slope.shape))
+        rise = (np.abs(slope) * step + 0.5 * curvature * step ** 2
+                + 0.5 * half[:, None] * np.einsum("bkac,bc->bka", cross, half))
+        total = value + rise.sum(axis=2) + e.margin + weights @ self.constraints.margins
+        least = np.argmin(total, axis=1)
+        rows = np.arange(len(low))
+        return total[rows, least], rise[rows, least]
+
+
+def _point_slope(model, point):
+    """The model's function and its gradient at a local point, ``(value, (n_axes,))``:
+    σ², or the stack ``Σ_i |w_i|`` with ``Σ_i sign(w_i) ∇w_i`` (one of its
+    subgradients)."""
+    tree = point_tree(model.expansion, np.asarray(point, dtype=float)[None, :], 1)
+    gradient = np.stack([tree[(a,)][0] for a in range(model.expansion.n_axes)])
+    if model.reading == "sigma":
+        return float(tree[()][0]), gradient
+    return float(np.abs(tree[()][0]).sum()), gradient @ np.sign(tree[()][0])
+
+
+def _fitted_multipliers(gradient, g, g_gradient, g_mid, g_rad, half):
+    """Per box, multipliers ``λ ≥ 0`` of the constraints the box may pass (``g``'s Taylor
+    bound over it above 0) that make ``f − λ·g`` level at its centre, scaled by the box:
+    non-negative least squares of ``h ⊙ ∇f`` on the ``h ⊙ ∇g_j`` by
+    :data:`FIT_SWEEPS` sweeps of projected coordinate descent; ``(b, n_constraints)``."""
+    passed = (g + np.einsum("bja,ba->bj", np.abs(g_gradient), half)
+              + 0.5 * np.einsum("bjac,ba,bc->bj", np.abs(g_mid) + g_rad, half, half)) > 0
+    columns = g_gradient * half[:, None, :]
+    target = gradient * half
+    norms = np.square(columns).sum(axis=2)
+    multipliers = np.zeros(g.shape)
+    for _ in range(FIT_SWEEPS):
+        for j in range(g.shape[1]):
+            residual = target - np.einsum("bj,bja->ba", multipliers, columns)
+            step = np.divide((residual * columns[:, j]).sum(axis=1), norms[:, j],
+                             out=np.zeros(len(g)), where=norms[:, j] > 0)
+            multipliers[:, j] = np.where(passed[:, j],
+                                         np.maximum(multipliers[:, j] + step, 0.0), 0.0)
+    return multipliers
 
 
 def _zone_test(model, zone):
@@ -278,21 +467,21 @@ def _zone_test(model, zone):
     return lambda points: zone.contains(model.expansion.pose(points))
 
 
-def _across_zone(model, zone, low, high):
+def _across_zone(model, zone, low, high, memory=None):
     """Boxes proved outside the work zone, and boxes across its boundary (proved neither
     outside nor inside); none of either without a zone."""
     if zone is None:
         return np.zeros((2, len(low)), dtype=bool)
-    pose_low, pose_high = model.expansion.pose(low), model.expansion.pose(high)
-    outside = zone.outside(pose_low, pose_high)
-    return outside, ~outside[~outside] & ~zone.inside(pose_low[~outside],
-                                                        pose_high[~outside])
+    outside, inside = zone.classify(model.expansion.pose(low), model.expansion.pose(high),
+                                    BOX_MEMORY if memory is None else memory)
+    return outside, ~outside[~outside] & ~inside[~outside]
 
 
 def _across_split(model, zone, contribution, low, high, span):
-    """What boxes across the zone's boundary are halved by: each axis' share of the bound
-    plus its share of the tool point's enclosure (:meth:`ZoneEnclosure.split_shares`), so
-    that the axes the boundary depends on are split too."""
+    """What boxes across the zone's boundary are halved by: each axis' share of the bound,
+    of the stroke and its part of the tool point's enclosure where it reaches across the
+    zone's limits (:meth:`ZoneEnclosure.split_shares`), so that the boundary is resolved
+    along the axes it depends on while it is wide against the zone."""
     total = contribution.sum(axis=1, keepdims=True)
     share = np.divide(contribution, total, out=np.zeros_like(contribution), where=total > 0)
     return (share + zone.split_shares(model.expansion.pose(low), model.expansion.pose(high))
@@ -349,9 +538,9 @@ class _Model:
         high = np.array([axis.stroke[1] for axis in machine.axis_specs], dtype=float)
         return self.expansion.local(low), self.expansion.local(high)
 
-    def start(self, low, high, inside):
+    def start(self, low, high, inside, search):
         """The best points of the :data:`START_POINTS` grid inside the work zone (``inside``
-        of points) and their value."""
+        of points) and their value (``search``, a local search, is not used)."""
         grid = _start_grid(low, high, START_POINTS[self.reading], inside)
         values = self.grid_values(grid)
         return grid[values >= values.max() * (1 - TIE_RTOL)], float(values.max())
@@ -393,13 +582,13 @@ class _SigmaModel(_Model):
     def closing_factor(self, rtol):
         return (1 + rtol) ** 2
 
-    def start(self, low, high, inside):
+    def start(self, low, high, inside, search):
         """The grid's best points (inside the work zone: ``inside`` of points) improved by
-        L-BFGS-B on σ² from the best few, where it stays in the zone."""
+        the local search ``search`` of points (:meth:`polish`, or the search constrained to
+        the work zone) from the best few, where it stays in the zone."""
         grid = _start_grid(low, high, START_POINTS[self.reading], inside)
         values = self.grid_values(grid)
-        found = self.polish(grid[np.argsort(-values, kind="stable")[:START_SEARCHES]],
-                            low, high)
+        found = search(grid[np.argsort(-values, kind="stable")[:START_SEARCHES]])
         found = found[inside(found)]
         candidates = np.vstack([grid, found])
         values = np.concatenate([values, self.values(found)])
