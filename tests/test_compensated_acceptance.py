@@ -148,9 +148,9 @@ def test_report_section_shows_the_compensated_column_and_survives_a_failure(mill
     study = SimpleNamespace(machine=mill3, reachable=False, machines=50, seed=0,
                             checks={"initial": SimpleNamespace(
                                 machine_yield=SimpleNamespace(profile="constant"))})
-    section = acceptance_builder([circle], plan=_mill3_plan(mill3),
+    section = acceptance_builder([circle], suggest=0.9, plan=_mill3_plan(mill3),
                                  plan_name="plan.toml")(study)
-    assert "compensated pass" in section.text
+    assert "compensated pass" in section.text and "compensated suggested µm" in section.text
     assert "pass_probability" + SUFFIX in section.tables["acceptance_initial.csv"]
     assert "c/G" in section.summary["acceptance_compensated"]["initial"]
     # a plan of another machine: its tests' axes are refused, the section stays

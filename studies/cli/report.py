@@ -44,7 +44,8 @@ def add_parser(subparsers):
                              + " (default: include all)")
     parser.add_argument("--tests", metavar="TESTS.toml",
                         help="add an 'Acceptance tests' section: these ISO 230 tests "
-                             "predicted for the initial and the optimal allocation")
+                             "predicted for the initial and the optimal allocation (with "
+                             "--compensation, also after compensation)")
     parser.add_argument("--suggest", type=options.probability, metavar="P",
                         help="with --tests: add each result's suggested limit, the limit "
                              "that a share P of the built machines meet")

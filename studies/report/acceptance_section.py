@@ -72,7 +72,7 @@ def acceptance_section(machine, tests, allocations: dict, *, machines: int = BUI
             f"the result's mean square, the item drawn alone."]
     tables, summary = {}, {}
     if compensated is not None:
-        text += ["", _compensation_note(compensated, plan_name, seed)]
+        text += ["", _compensation_note(compensated, plan_name, seed, first.n_machines)]
     for label, result in results.items():
         suggestion = None if suggest is None else suggest_limits(result, suggest)
         frame = result.to_frame() if suggestion is None else suggestion.to_frame()
@@ -93,16 +93,17 @@ def acceptance_section(machine, tests, allocations: dict, *, machines: int = BUI
                                            "acceptance_machines": first.n_machines, **extra})
 
 
-def _compensation_note(compensated, plan_name: str, seed: int) -> str:
+def _compensation_note(compensated, plan_name: str, seed: int, machines: int) -> str:
     if not isinstance(compensated, dict):
         return (f"**After compensation** (`--compensation {plan_name}`): not computed: "
                 f"{compensated}")
     return (f"**After compensation** (`--compensation {plan_name}`): beside each result, "
             f"machines built to the same allocation, measured under the plan and compensated "
-            f"(columns \"compensated\"; `precrel acceptance --compensation {plan_name} --seed "
-            f"{seed}` prints the same numbers): residual errors drawn correlated from the "
-            f"residual model, each one value along the whole travel, repeatability and "
-            f"reversal in positioning tests as before (docs/compensation.md).")
+            f"(columns \"compensated\"; `precrel acceptance --compensation {plan_name} "
+            f"--seed {seed} --machines {machines}` prints the same numbers): residual errors "
+            f"drawn correlated from the residual model, each one value along the whole "
+            f"travel, repeatability and reversal in positioning tests as before "
+            f"(docs/compensation.md).")
 
 
 def _compensated_pass(frame) -> str:
@@ -141,8 +142,8 @@ def _shown(result, frame):
         rows["suggested"] = [f"{1000 * r.suggested_limit:.3g} [{1000 * r.suggested_low:.3g}, "
                              f"{1000 * r.suggested_high:.3g}]" for r in rows.itertuples()]
     compensated = _compensated_columns(rows)
-    return rows[["test", "quantity", "limit", "mean", "q95", "pass", *suggested,
-                 *compensated, "drivers"]].rename(columns={"limit": "limit µm", "mean": "mean µm",
+    return rows[["test", "quantity", "limit", "mean", "q95", "pass", *suggested, *compensated,
+                 "drivers"]].rename(columns={"limit": "limit µm", "mean": "mean µm",
                                              "q95": "q95 µm", "suggested": "suggested µm"})
 
 
@@ -158,7 +159,8 @@ def _compensated_columns(rows) -> list[str]:
     shown = ["compensated µm (q05–q95)", "compensated pass"]
     if "suggested_limit" + SUFFIX in rows:
         rows["compensated suggested µm"] = [
-            f"{1000 * r['suggested_limit' + SUFFIX]:.3g} [{1000 * r['suggested_low' + SUFFIX]:.3g}, "
+            f"{1000 * r['suggested_limit' + SUFFIX]:.3g} "
+            f"[{1000 * r['suggested_low' + SUFFIX]:.3g}, "
             f"{1000 * r['suggested_high' + SUFFIX]:.3g}]" for _, r in rows.iterrows()]
         shown.append("compensated suggested µm")
     return shown
