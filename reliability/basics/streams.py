@@ -80,7 +80,8 @@ def extra_stream(seed: int, index: int) -> np.random.Generator:
     :func:`profiles_stream`; 3, :func:`catalogue_stream`; 4, :func:`sensitivity_stream`;
     5, :func:`zone_stream`; 6, this machine as measured
     (``studies.workflows.as_measured.AS_MEASURED_STREAM``); 7, the compensated machines of
-    ``precrel verify --compensation`` (``studies.cli.compensate.VERIFY_STREAM``).
+    ``precrel verify --compensation`` (``studies.cli.compensate.VERIFY_STREAM``); 8,
+    :func:`compensated_acceptance_stream`.
     """
     seed = _seed(seed)
     return np.random.default_rng(np.random.SeedSequence([seed, EXTRA_FAMILY],
@@ -169,3 +170,11 @@ def zone_stream(seed) -> np.random.Generator:
     """The work-zone stream of seed ``seed`` (extra stream 5): the built machines of the
     report's "The work zone" section (``report --seed S`` on a machine with a work zone)."""
     return extra_stream(seed, 5)
+
+
+def compensated_acceptance_stream(seed) -> np.random.Generator:
+    """The stream of the compensated machines' acceptance tests with seed ``seed`` (extra
+    stream 8): ``precrel acceptance --compensation --seed S`` and, afresh for each
+    allocation, the acceptance-test section of ``precrel report --seed S --tests
+    --compensation``."""
+    return extra_stream(seed, 8)

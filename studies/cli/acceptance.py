@@ -7,7 +7,10 @@ from reliability.acceptance.prediction import acceptance, path_profile, profile_
 from reliability.acceptance.suggested_limits import check_machines, suggest_limits
 from reliability.basics.errors import InputError
 from reliability.basics.files import SIGNIFICANT, write_csv
-from reliability.basics.streams import acceptance_stream
+from reliability.basics.streams import acceptance_stream, compensated_acceptance_stream
+from reliability.compensation.compensation_plans import read_compensation_plan
+from studies.workflows.compensated_acceptance import (compensated_acceptance,
+                                                      comparison_frame, comparison_text)
 
 from . import options
 
@@ -43,6 +46,12 @@ def add_parser(subparsers):
                         help="add to each result the limit that a share P of the built "
                              "machines meet (its P-quantile, with a distribution-free 95 %% "
                              "interval), and the probability of passing each test with them")
+    parser.add_argument("--compensation", metavar="PLAN.toml",
+                        help="also each result after compensation, beside the result before: "
+                             "machines built to the allocation, measured under this plan and "
+                             "compensated (a measurement plan with a [compensation] table, "
+                             "docs/compensation.md), drawn from the residual model; adds "
+                             "columns ending in _compensated to acceptance.csv")
     parser.add_argument("--out", metavar="DIR", help=f"write {RESULT_FILE} into DIR")
     parser.add_argument("--overwrite", action="store_true",
                         help=f"replace an earlier {RESULT_FILE} in DIR")
@@ -63,6 +72,8 @@ def run(args) -> int:
         raise InputError(f"{chosen}: {error} (give it with --profile)") from None
     if args.suggest is not None:
         check_machines(args.machines, args.suggest, name="--machines")
+    plan = None if args.compensation is None else \
+        read_compensation_plan(args.compensation, machine)
     options.say(f"{len(tests)} tests on {args.machines} built machines")
     result = acceptance(machine, tests, tolerances, machines=args.machines,
                         profile=machine.profile, rng=acceptance_stream(args.seed))
@@ -77,14 +88,34 @@ def run(args) -> int:
     suggestion = None if args.suggest is None else suggest_limits(result, args.suggest)
     if suggestion is not None:
         print(f"\n{suggestion.summary()}")
+    table = result.to_frame() if suggestion is None else suggestion.to_frame()
+    if plan is not None:
+        table = _compensated(args, plan, tests, tolerances, result)
     if out is not None:
         out.mkdir(exist_ok=True)
-        table = result.to_frame() if suggestion is None else suggestion.to_frame()
         path = write_csv(table, out / RESULT_FILE, overwrite=args.overwrite,
                          index=False, float_format=f"%.{SIGNIFICANT}g")
         print(f"\nwritten {path}")
     return 0
 
+
+def _compensated(args, plan, tests, tolerances, before):
+    """Print the results after compensation beside those before; the table with both."""
+    options.say(f"{args.machines} machines measured under {args.compensation} and "
+                f"compensated")
+    after = compensated_acceptance(plan, tests, tolerances, machines=args.machines,
+                                   rng=compensated_acceptance_stream(args.seed))
+    frame = comparison_frame(before, after, args.suggest)
+    print(f"\nafter compensation ({args.compensation}: {len(plan.runs)} runs, "
+          f"{int(plan.tabled.sum())} items tabled), {after.n_machines} machines of the "
+          f"residual model, extra stream 8 of seed {args.seed}: residual errors drawn "
+          f"correlated, each one value along the whole travel (the constant profile, the one "
+          f"an identification holds), repeatability and reversal in positioning tests as "
+          f"before; results in µm, mean (5–95 %), pass probability (Wilson 95 %)"
+          + ("" if args.suggest is None else
+             f", suggested limit (the {args.suggest:g}-quantile)") + "\n")
+    print(comparison_text(frame))
+    return frame
 
 
 def profile_source(args) -> str:

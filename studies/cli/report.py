@@ -5,6 +5,7 @@ from __future__ import annotations
 from reliability.acceptance.suggested_limits import minimum_machines
 from reliability.basics.errors import InputError
 from reliability.basics.streams import sensitivity_stream, zone_stream
+from reliability.compensation.compensation_plans import read_compensation_plan
 from studies.report import machine_sections
 from studies.report.acceptance_section import BUILT_MACHINES
 from studies.report.as_measured_section import as_measured_builder
@@ -43,7 +44,8 @@ def add_parser(subparsers):
                              + " (default: include all)")
     parser.add_argument("--tests", metavar="TESTS.toml",
                         help="add an 'Acceptance tests' section: these ISO 230 tests "
-                             "predicted for the initial and the optimal allocation")
+                             "predicted for the initial and the optimal allocation (with "
+                             "--compensation, also after compensation)")
     parser.add_argument("--suggest", type=options.probability, metavar="P",
                         help="with --tests: add each result's suggested limit, the limit "
                              "that a share P of the built machines meet")
@@ -76,7 +78,11 @@ def run(args) -> int:
     extra = builders(included)
     if tests is not None:
         included.append("tests")
-        extra.append(guarded("tests", acceptance_builder(tests, suggest=args.suggest)))
+        plan = None if args.compensation is None else \
+            read_compensation_plan(args.compensation, machine)
+        extra.append(guarded("tests", acceptance_builder(tests, suggest=args.suggest,
+                                                         plan=plan,
+                                                         plan_name=args.compensation)))
     if args.catalogue is not None:
         included.append("catalogue")
         start, start_text = start_tolerances(args, machine)

@@ -12,6 +12,7 @@ from matplotlib.figure import Figure
 from reliability.acceptance.prediction import DEFAULT_PROFILE, acceptance, profile_note
 from reliability.acceptance.suggested_limits import suggest_limits
 from reliability.basics.streams import acceptance_stream
+from studies.workflows.compensated_acceptance import SUFFIX, comparison_frame
 
 from .markdown import markdown_table
 from .section import Section
@@ -23,7 +24,8 @@ BUILT_MACHINES = 2000
 
 
 def acceptance_section(machine, tests, allocations: dict, *, machines: int = BUILT_MACHINES,
-                       profile=DEFAULT_PROFILE, suggest=None, seed: int = 0) -> Section:
+                       profile=DEFAULT_PROFILE, suggest=None, seed: int = 0,
+                       compensated=None, plan_name: str = "") -> Section:
     """Predicted acceptance-test results of machines built to each allocation.
 
     Each allocation's numbers are those of ``precrel acceptance --tolerances CSV --profile
@@ -46,6 +48,12 @@ def acceptance_section(machine, tests, allocations: dict, *, machines: int = BUI
     seed : int
         Every allocation draws from a fresh
         :func:`reliability.basics.streams.acceptance_stream` of ``seed``.
+    compensated : dict or str, optional
+        Label -> the results after compensation of machines built to that allocation
+        (:func:`studies.workflows.compensated_acceptance.compensated_acceptance`), shown
+        beside; or why they could not be computed, said in their place.
+    plan_name : str
+        The compensation plan, as the reader gave it.
     """
     results = {label: acceptance(machine, tests, t, machines=machines, profile=profile,
                                  rng=acceptance_stream(seed))
@@ -63,23 +71,55 @@ def acceptance_section(machine, tests, allocations: dict, *, machines: int = BUI
             f"probabilities with Wilson 95 % intervals; drivers: each error item's share of "
             f"the result's mean square, the item drawn alone."]
     tables, summary = {}, {}
+    if compensated is not None:
+        text += ["", _compensation_note(compensated, plan_name, seed, first.n_machines)]
     for label, result in results.items():
         suggestion = None if suggest is None else suggest_limits(result, suggest)
         frame = result.to_frame() if suggestion is None else suggestion.to_frame()
+        if isinstance(compensated, dict):
+            frame = comparison_frame(result, compensated[label], suggest)
         tables[f"acceptance_{label}.csv"] = frame
         text += ["", f"**{label}** ({setting}): all tests passed with probability "
-                 f"{_interval(frame.iloc[-1])}{_suggested_pass(suggestion)}.", "",
+                 f"{_interval(frame.iloc[-1])}{_suggested_pass(suggestion)}"
+                 f"{_compensated_pass(frame)}.", "",
                  markdown_table(_shown(result, frame), index=False)]
         summary[label] = {f"{row.test}/{row.quantity}": row.pass_probability
                           for row in frame.itertuples() if not math.isnan(row.pass_probability)}
+    extra = {} if not isinstance(compensated, dict) else {"acceptance_compensated": {
+        label: _pass_summary(tables[f"acceptance_{label}.csv"], SUFFIX) for label in results}}
     return Section(TITLE, "\n".join(text), figures={FIGURE: plot_results(results)},
                    tables=tables, summary={"acceptance": summary,
                                            "acceptance_profile": first.profile,
-                                           "acceptance_machines": first.n_machines})
+                                           "acceptance_machines": first.n_machines, **extra})
 
 
-def _interval(row) -> str:
-    return f"{row.pass_probability:.4f} [{row.pass_low:.4f}, {row.pass_high:.4f}]"
+def _compensation_note(compensated, plan_name: str, seed: int, machines: int) -> str:
+    if not isinstance(compensated, dict):
+        return (f"**After compensation** (`--compensation {plan_name}`): not computed: "
+                f"{compensated}")
+    return (f"**After compensation** (`--compensation {plan_name}`): beside each result, "
+            f"machines built to the same allocation, measured under the plan and compensated "
+            f"(columns \"compensated\"; `precrel acceptance --compensation {plan_name} "
+            f"--seed {seed} --machines {machines}` prints the same numbers): residual errors "
+            f"drawn correlated from the residual model, each one value along the whole "
+            f"travel, repeatability and reversal in positioning tests as before "
+            f"(docs/compensation.md).")
+
+
+def _compensated_pass(frame) -> str:
+    if "pass_probability" + SUFFIX not in frame:
+        return ""
+    return f"; after compensation {_interval(frame.iloc[-1], SUFFIX)}"
+
+
+def _pass_summary(frame, suffix: str) -> dict:
+    return {f"{row['test']}/{row['quantity']}": row["pass_probability" + suffix]
+            for _, row in frame.iterrows() if not math.isnan(row["pass_probability" + suffix])}
+
+
+def _interval(row, suffix: str = "") -> str:
+    return (f"{row['pass_probability' + suffix]:.4f} [{row['pass_low' + suffix]:.4f}, "
+            f"{row['pass_high' + suffix]:.4f}]")
 
 
 def _suggested_pass(suggestion) -> str:
@@ -94,16 +134,36 @@ def _shown(result, frame):
     rows = frame[frame["test"] != "all"].copy()
     for column in ("limit", "mean", "q95"):
         rows[column] = [f"{1000 * v:.3g}" if not math.isnan(v) else "-" for v in rows[column]]
-    rows["pass"] = [_interval(r) if not math.isnan(r.pass_probability) else "-"
-                    for r in rows.itertuples()]
+    rows["pass"] = [_interval(r) if not math.isnan(r["pass_probability"]) else "-"
+                    for _, r in rows.iterrows()]
     rows["drivers"] = [result.top_drivers(r.test, r.quantity) or "-" for r in rows.itertuples()]
     suggested = ["suggested"] if "suggested_limit" in rows else []
     if suggested:
         rows["suggested"] = [f"{1000 * r.suggested_limit:.3g} [{1000 * r.suggested_low:.3g}, "
                              f"{1000 * r.suggested_high:.3g}]" for r in rows.itertuples()]
-    return rows[["test", "quantity", "limit", "mean", "q95", "pass", *suggested,
+    compensated = _compensated_columns(rows)
+    return rows[["test", "quantity", "limit", "mean", "q95", "pass", *suggested, *compensated,
                  "drivers"]].rename(columns={"limit": "limit µm", "mean": "mean µm",
                                              "q95": "q95 µm", "suggested": "suggested µm"})
+
+
+def _compensated_columns(rows) -> list[str]:
+    """Add the results after compensation to the shown rows, when there are any."""
+    if "mean" + SUFFIX not in rows:
+        return []
+    rows["compensated µm (q05–q95)"] = [
+        f"{1000 * r['mean' + SUFFIX]:.3g} ({1000 * r['q05' + SUFFIX]:.3g}–"
+        f"{1000 * r['q95' + SUFFIX]:.3g})" for _, r in rows.iterrows()]
+    rows["compensated pass"] = [_interval(r, SUFFIX) if not math.isnan(
+        r["pass_probability" + SUFFIX]) else "-" for _, r in rows.iterrows()]
+    shown = ["compensated µm (q05–q95)", "compensated pass"]
+    if "suggested_limit" + SUFFIX in rows:
+        rows["compensated suggested µm"] = [
+            f"{1000 * r['suggested_limit' + SUFFIX]:.3g} "
+            f"[{1000 * r['suggested_low' + SUFFIX]:.3g}, "
+            f"{1000 * r['suggested_high' + SUFFIX]:.3g}]" for _, r in rows.iterrows()]
+        shown.append("compensated suggested µm")
+    return shown
 
 
 def plot_results(results: dict) -> Figure:

@@ -29,7 +29,9 @@ import pandas as pd
 
 from allocation import AllocationProblem, InfeasibleAllocationError, solve_catalogue
 from reliability.basics.errors import InputError, InputTypeError
-from reliability.basics.streams import catalogue_stream, rare_stream, system_stream
+from reliability.basics.streams import (catalogue_stream, compensated_acceptance_stream,
+                                        rare_stream, system_stream)
+from studies.workflows.compensated_acceptance import compensated_acceptance
 from studies.workflows.profile_comparison import (ProfilesStudy, profile_comparison,
                                                   profile_length)
 
@@ -129,15 +131,31 @@ def with_study_yields(comparison: pd.DataFrame, study) -> pd.DataFrame:
     return comparison
 
 
-def acceptance_builder(tests, suggest=None):
+def acceptance_builder(tests, suggest=None, plan=None, plan_name: str = ""):
     """The builder of the acceptance-test section of ``tests``: both allocations under the
     study's profile, with the study's machine count and seed (and the limits a share
-    ``suggest`` of built machines meet, when given)."""
+    ``suggest`` of built machines meet, when given); with a compensation ``plan``, each
+    result after compensation beside (said in its place when it cannot be computed)."""
     def build(study):
-        return acceptance_section(study.machine, tests, allocations(study),
+        shown = allocations(study)
+        compensated = None if plan is None else compensated_results(plan, tests, shown, study)
+        return acceptance_section(study.machine, tests, shown,
                                   machines=study.machines, profile=study_profile(study),
-                                  suggest=suggest, seed=study.seed)
+                                  suggest=suggest, seed=study.seed, compensated=compensated,
+                                  plan_name=plan_name)
     return build
+
+
+def compensated_results(plan, tests, shown: dict, study):
+    """Label -> acceptance results after compensation of each allocation in ``shown``
+    (each from a fresh :func:`compensated_acceptance_stream` of the study's seed), or the
+    reason, when one of :data:`SECTION_FAILURES` stops them."""
+    try:
+        return {label: compensated_acceptance(plan, tests, t, machines=study.machines,
+                                              rng=compensated_acceptance_stream(study.seed))
+                for label, t in shown.items()}
+    except SECTION_FAILURES as error:
+        return str(error)
 
 
 def catalogue_builder(catalogue, start=None, *, start_text: str = "the initial allocation",
