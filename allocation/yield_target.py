@@ -100,6 +100,10 @@ FD_STEP = 0.15
 FIRST_STEP = 0.3
 #: A price ratio of this factor moves a target by one whole step.
 PRICE_SCALE = 4.0
+#: A machine's output is screened at its worst pose only when its ratio there is at least
+#: this share of the design quantile of the machines' worst ratios (or is the machine's
+#: worst): outputs far inside their limits do not decide a verdict near the yield's margin.
+SCREEN_FLOOR = 0.5
 #: Machines simulated by default (design and verification samples each).
 DEFAULT_MACHINES = 2000
 #: The samples of built machines, in the order of their streams
@@ -417,22 +421,28 @@ def _stages(search, yield_target, naive_steps, rounds, restore_steps, shape_step
     """The naive start, the per-output search and the shape search in ``search``'s box."""
     started = time.perf_counter()
     naive = _confirmed(lambda: search.naive(naive_steps, yield_target), search, "design")
-    best = _confirmed(lambda: search.improve(naive, rounds, restore_steps), search, "design")
+    best = search.improve(naive, rounds, restore_steps)
     targets_found = time.perf_counter()
-    shaped = _confirmed(lambda: search.shape(best, shape_steps), search, "shape")
+    shaped = search.shape(best, shape_steps)
+    while shaped is not None and not search.confirm(shaped.t, "shape"):
+        shaped = search.shape(shaped, 1)  # its end point rescaled on the widened screen
+    if shaped is None or shaped.cost >= best.cost:
+        best = _confirmed(lambda: search.improve(naive, rounds, restore_steps), search,
+                          "design", best)
     chosen = best if shaped is None or shaped.cost >= best.cost else shaped
     return _Outcome(search=search, naive=naive, best=best, chosen=chosen,
                     seconds={"targets": targets_found - started,
                              "shape": time.perf_counter() - targets_found})
 
 
-def _confirmed(stage, search, sample):
-    """The point ``stage()`` ends at, run again until its screened verdicts on ``sample``
-    are the whole grid's (each failed check widens the screen, so this ends)."""
-    while True:
+def _confirmed(stage, search, sample, point=None):
+    """The point ``stage()`` ends at (``point`` when it has run already), run again until
+    its screened verdicts on ``sample`` are the whole grid's (each failed check widens the
+    screen, so this ends)."""
+    point = stage() if point is None else point
+    while point is not None and not search.confirm(point.t, sample):
         point = stage()
-        if point is None or search.confirm(point.t, sample):
-            return point
+    return point
 
 
 class YieldUnreachableError(InfeasibleAllocationError):
@@ -621,6 +631,7 @@ class _Search:
         self._start = None
         self._cache = {}
         self._poses = {}
+        self._grid = {}
 
     def _caps(self) -> np.ndarray:
         """Largest required index of each output the box can hold (all items at their
@@ -678,9 +689,18 @@ class _Search:
         u = self.draws(sample)
         if sample not in self._poses:
             ratios, where = self.model.output_ratios(u, t, with_poses=True)
-            self._poses[sample] = where
+            self._poses[sample] = self._screen(ratios, where)
             return ratios
         return self.model.ratios_at(u, t, self._poses[sample])[0]
+
+    def _screen(self, ratios, where) -> np.ndarray:
+        """The worst poses ``where (machines, 6)`` worth screening: a machine's pose of an
+        output whose ratio is below :data:`SCREEN_FLOOR` times the design quantile of the
+        machines' worst ratios becomes -1 (no pose), unless it is the machine's worst."""
+        level = max(self.design_target, 0.5)
+        floor = SCREEN_FLOOR * np.quantile(ratios.max(axis=1), level)
+        kept = (ratios >= floor) | (ratios == ratios.max(axis=1, keepdims=True))
+        return np.where(kept, where, -1)
 
     def worst_ratios(self, sample: str):
         """``t -> (ratio, row)``: each machine's worst ratio of ``t`` over its screened
@@ -691,12 +711,16 @@ class _Search:
     def confirm(self, t, sample: str) -> bool:
         """Whether the screened verdicts of ``t`` on ``sample`` are the whole grid's; when
         not, the grid's worst poses of ``t`` join every machine's screened poses and every
-        cached verdict is dropped."""
-        u = self.draws(sample)
-        if np.array_equal(self.model.output_ratios(u, t) < 1.0, self.verdicts(t, sample)):
+        cached verdict is dropped. The grid's verdicts of each ``t`` are kept, so a stage
+        that ends again at the same allocation is checked without the grid."""
+        key = (sample, np.asarray(t, dtype=float).tobytes())
+        if key not in self._grid:
+            ratios, where = self.model.output_ratios(self.draws(sample), t, with_poses=True)
+            self._grid[key] = (ratios < 1.0, self._screen(ratios, where))
+        grid, worst = self._grid[key]
+        if np.array_equal(grid, self.verdicts(t, sample)):
             return True
-        where = self.model.output_ratios(u, t, with_poses=True)[1]
-        self._poses[sample] = np.concatenate([self._poses[sample], where], axis=1)
+        self._poses[sample] = np.concatenate([self._poses[sample], worst], axis=1)
         self._cache.clear()
         return False
 

@@ -62,3 +62,41 @@ def test_search_checks_its_screen_on_the_whole_grid(trunnion5):
     assert search._poses["design"].shape == (60, 7)
     assert search.confirm(t, "design")
     np.testing.assert_array_equal(search.verdicts(t, "design"), grid)
+
+
+def test_ratios_at_skips_missing_poses(swivel_model):
+    """A negative pose is no pose: each machine's ratios are those of its other poses, and a
+    machine without any pose holds every output (ratio 0, pose -1)."""
+    u = swivel_model.draws(30, 5)
+    t = swivel_model.machine.initial_allocation
+    poses = np.random.default_rng(4).integers(0, swivel_model.experiment.n_poses, (30, 3))
+    holes = poses.copy()
+    holes[::3, 1] = -1
+    holes[1] = -1
+    ratios, found = swivel_model.ratios_at(u, t, holes)
+    for m in range(30):
+        kept = holes[m][holes[m] >= 0]
+        if len(kept) == 0:
+            assert np.all(ratios[m] == 0) and np.all(found[m] == -1)
+            continue
+        alone, at = swivel_model.ratios_at(u[m:m + 1], t, kept[None, :])
+        np.testing.assert_array_equal(ratios[m], alone[0])
+        np.testing.assert_array_equal(found[m], at[0])
+
+
+def test_a_failed_check_evaluates_the_grid_once(trunnion5, monkeypatch):
+    """The check that catches a screen missing the worst poses takes the grid's verdicts and
+    its worst poses from one evaluation of the whole grid."""
+    search = _Search(trunnion5, 3, None, 60, 4, 0.0)
+    t = trunnion5.initial_allocation
+    search.verdicts(t, "design")
+    search._poses["design"] = np.zeros((60, 1), dtype=np.intp)
+    calls = []
+    whole_grid = search.model.output_ratios
+
+    def counted(*args, **kwargs):
+        calls.append(kwargs)
+        return whole_grid(*args, **kwargs)
+    monkeypatch.setattr(search.model, "output_ratios", counted)
+    assert not search.confirm(t, "design")
+    assert len(calls) == 1
