@@ -79,7 +79,8 @@ def show(machine, yield_target, machines, seed, at_target) -> float:
     print(f"    margin at equal yield {margin['level']:.4f}: {margin['margin']:.2%} ± "
           f"{margin['margin_error']:.2%} of the initial cost (paired bootstrap s.e.); "
           f"time {wall:.1f} s wall, {cpu:.1f} s CPU ({result.evaluations} candidates; "
-          f"build {result.seconds['build']:.1f} s, targets {result.seconds['targets']:.1f} s, "
+          f"build {result.seconds['build']:.1f} s, bound {result.seconds['bound']:.1f} s, "
+          f"targets {result.seconds['targets']:.1f} s, "
           f"shape {result.seconds['shape']:.1f} s, verification "
           f"{result.seconds['verify']:.1f} s); peak memory {peak / 2 ** 20:.0f} MiB")
     return margin["margin"]
