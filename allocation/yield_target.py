@@ -13,7 +13,9 @@ whose yield is at least Y and returns it inside a bracket:
   probability Y, :class:`~allocation.front.CommonTargetSolver`) is a lower bound on its
   cost. The row probability is the FOSM one (the linearised output read as normal with
   σ of Eq. 20, the truncated σ under the truncated reading), so the bound holds for that
-  model of a row, on the same grid; the yield itself is sampled on the exact model.
+  model of a row, on the same grid; the yield itself is sampled on the exact model. The
+  six rows of one pose must hold together, which gives a tighter bound
+  (:mod:`allocation.yield_bound`); the larger of the two is the lower bound.
 * **feasible side.** Every candidate is the certified optimum of the per-pose problem for
   six per-output two-sided targets (one per output, stated as required indices
   ``z_o = Φ⁻¹((1 + R_o)/2)``); its yield is estimated by simulating built machines with
