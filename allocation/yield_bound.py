@@ -128,7 +128,8 @@ def pose_chain_bound(problem, yield_target: float, start, *, k: float = 3.0):
     Returns
     -------
     ChainBound or None
-        None for a machine with an item correlation.
+        None for a machine with an item correlation, or when ``start`` meets every pose's
+        chain (the row bound is then as tight).
     """
     machine = problem.machine
     if machine.correlation is not None:
@@ -139,6 +140,8 @@ def pose_chain_bound(problem, yield_target: float, start, *, k: float = 3.0):
         if not relaxation.add_violated(s):
             break
         s = relaxation.solve(s)
+    if not relaxation.chains:
+        return None
     return ChainBound(bound=relaxation.certified(s), tolerances=np.sqrt(s * relaxation.scale),
                       poses=np.array(sorted({p for p, _ in relaxation.chain_poses})),
                       rows=len(relaxation.rows))

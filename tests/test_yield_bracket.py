@@ -181,3 +181,11 @@ def test_chain_bound_is_below_every_allocation_reaching_the_yield(trunnion5):
             met += 1
             assert problem.cost.total(t) >= chain.bound
     assert met > 0
+
+
+def test_no_chain_bound_where_the_loosest_corner_meets_every_pose(trunnion5):
+    """At a yield the box's loosest corner reaches at every pose, the row optimum is that
+    corner and no chain adds to the row bound."""
+    problem = AllocationProblem.build(trunnion5, workspace_grid(trunnion5, 3),
+                                      side="two_sided", workspace="worst")
+    assert pose_chain_bound(problem, 0.05, problem.upper) is None
