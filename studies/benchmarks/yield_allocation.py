@@ -9,8 +9,8 @@ reading of a tolerance, on the 5-point grid and the default box, for every sampl
 seed it prints
 
 1. the cost bracket of :func:`allocation.allocate_for_yield`: the certified lower bound
-   (every row at FOSM probability Y), the feasible cost and the gap, all relative to the
-   initial allocation's cost;
+   (the larger of the row bound and the pose-chain bound, :mod:`allocation.yield_bound`),
+   the feasible cost and the gap, all relative to the initial allocation's cost;
 2. the verified yield interval of the allocation found (95 % Clopper–Pearson, from a fresh
    sample of built machines, the count stated), and the naive method's cost and verified
    yield;
