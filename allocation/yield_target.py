@@ -13,7 +13,9 @@ whose yield is at least Y and returns it inside a bracket:
   probability Y, :class:`~allocation.front.CommonTargetSolver`) is a lower bound on its
   cost. The row probability is the FOSM one (the linearised output read as normal with
   σ of Eq. 20, the truncated σ under the truncated reading), so the bound holds for that
-  model of a row, on the same grid; the yield itself is sampled on the exact model.
+  model of a row, on the same grid; the yield itself is sampled on the exact model. The
+  six rows of one pose must hold together, which gives a tighter bound
+  (:mod:`allocation.yield_bound`); the larger of the two is the lower bound.
 * **feasible side.** Every candidate is the certified optimum of the per-pose problem for
   six per-output two-sided targets (one per output, stated as required indices
   ``z_o = Φ⁻¹((1 + R_o)/2)``); its yield is estimated by simulating built machines with
@@ -82,6 +84,7 @@ from reliability.sampling.machine_yield import YieldModel
 from .convex import InfeasibleAllocationError, solve_convex_allocation
 from .front import CommonTargetSolver
 from .problem import DEFAULT_FACTORS, AllocationProblem
+from .yield_bound import pose_chain_bound
 from .yield_shape import shape_search
 
 #: Two-sided per-pose target the constraint rows are built and screened at: every target
@@ -100,6 +103,10 @@ FD_STEP = 0.15
 FIRST_STEP = 0.3
 #: A price ratio of this factor moves a target by one whole step.
 PRICE_SCALE = 4.0
+#: A machine's output is screened at its worst pose only when its ratio there is at least
+#: this share of the design quantile of the machines' worst ratios (or is the machine's
+#: worst): outputs far inside their limits do not decide a verdict near the yield's margin.
+SCREEN_FLOOR = 0.5
 #: Machines simulated by default (design and verification samples each).
 DEFAULT_MACHINES = 2000
 #: The samples of built machines, in the order of their streams
@@ -161,10 +168,15 @@ class YieldAllocation:
     design_yield, verified_yield : ProportionEstimate
         Its yield on the design sample and on the fresh verification sample.
     lower_bound : float
-        Certified lower bound on the cost of any allocation with yield ≥ Y (the relaxation:
-        every row at FOSM probability Y).
+        Certified lower bound on the cost of any allocation with yield ≥ Y: the larger of
+        :attr:`row_bound` and the pose-chain bound (:attr:`chain_bound`).
+    row_bound : float
+        The row relaxation's certified bound (every row at FOSM probability Y).
+    chain_bound : allocation.yield_bound.ChainBound or None
+        The pose-chain relaxation (:mod:`allocation.yield_bound`: the six outputs' joint
+        event at each pose); None for a machine with an item correlation.
     lower_bound_tolerances : ndarray (n_errors,)
-        The relaxation's optimum (every row at probability ≥ Y).
+        The row relaxation's optimum (every row at probability ≥ Y).
     naive : NaiveAllocation
     profile, distribution : str
         The error profile along travel and the reading of a tolerance.
@@ -177,8 +189,8 @@ class YieldAllocation:
         Candidates solved and simulated on the design sample, by both searches when the
         default factor box was searched too.
     seconds : dict
-        Wall time of the build, the two stages (summed over the searches) and the
-        verification.
+        Wall time of the build, the lower bounds, the two stages (summed over the
+        searches) and the verification.
     """
 
     problem: object = field(repr=False)
@@ -192,6 +204,8 @@ class YieldAllocation:
     design_yield: object
     verified_yield: object
     lower_bound: float
+    row_bound: float
+    chain_bound: object
     lower_bound_tolerances: np.ndarray
     naive: NaiveAllocation
     profile: str
@@ -240,7 +254,7 @@ class YieldAllocation:
             f"distribution {self.distribution}, {self.points}-point grid of "
             f"{len(self.problem.poses):,} poses, {self.problem.box_text()})",
             f"lower bound {self.lower_bound / initial:.4%} of the initial cost "
-            f"(every row at FOSM probability {self.yield_target:g}, certified)",
+            f"({self.bound_text()})",
             f"feasible cost {self.cost / initial:.4%} of the initial cost ({self.cost:.6g}); "
             f"gap {significant_percent(self.gap / initial)} of the initial cost "
             f"({significant_percent(self.relative_gap)} of the feasible cost)",
@@ -252,6 +266,15 @@ class YieldAllocation:
             f"naive method (one common per-pose target {self.naive.target:.6g}): cost "
             f"{self.naive.cost / initial:.4%} of the initial cost, verified yield "
             f"{n.estimate:.4f} [{n.lower:.4f}, {n.upper:.4f}]"])
+
+    def bound_text(self) -> str:
+        """What the lower bound rests on, in words."""
+        rows = (f"every (output, pose) row at probability {self.yield_target:g} alone: "
+                f"{self.row_bound / self.initial_cost:.4%}")
+        if self.lower_bound == self.row_bound:
+            return f"{rows}; FOSM two-sided, certified"
+        return (f"the six outputs' joint event at each pose, bounded through their fresh "
+                f"errors; {rows}; FOSM two-sided, certified")
 
     def narrower_box_text(self) -> str:
         """Where the search that gave the allocation ran, when not in the box asked for."""
@@ -338,6 +361,8 @@ def allocate_for_yield(machine, yield_target: float, *, profile=None, distributi
                                             design_target, gap_tol)]
     built = time.perf_counter()
     lower = _lower_bound(search, yield_target)
+    chain = pose_chain_bound(search.problem, yield_target, lower.t)
+    bounded = time.perf_counter()
     outcomes, unreachable = [], []
     for each in searches:
         try:
@@ -359,7 +384,8 @@ def allocate_for_yield(machine, yield_target: float, *, profile=None, distributi
         method="per-output targets" if chosen is found.best else "error shape",
         design_yield=all_within_share(chosen.passes),
         verified_yield=all_within_share(verify(chosen.t)),
-        lower_bound=float(lower.dual_bound),
+        lower_bound=max(float(lower.dual_bound), -np.inf if chain is None else chain.bound),
+        row_bound=float(lower.dual_bound), chain_bound=chain,
         lower_bound_tolerances=np.asarray(lower.t),
         naive=NaiveAllocation(target=float(two_sided_target(naive.z[0])),
                               tolerances=naive.t, cost=naive.cost,
@@ -367,7 +393,7 @@ def allocate_for_yield(machine, yield_target: float, *, profile=None, distributi
                               verified_yield=all_within_share(verify(naive.t))),
         profile=machine.profile, distribution=machine.distribution, points=int(points),
         machines=machines, seed=seed, evaluations=sum(each.evaluations for each in searches),
-        seconds={"build": built - started,
+        seconds={"build": built - started, "bound": bounded - built,
                  "targets": sum(outcome.seconds["targets"] for outcome in outcomes),
                  "shape": sum(outcome.seconds["shape"] for outcome in outcomes),
                  "verify": time.perf_counter() - searched})
@@ -417,22 +443,28 @@ def _stages(search, yield_target, naive_steps, rounds, restore_steps, shape_step
     """The naive start, the per-output search and the shape search in ``search``'s box."""
     started = time.perf_counter()
     naive = _confirmed(lambda: search.naive(naive_steps, yield_target), search, "design")
-    best = _confirmed(lambda: search.improve(naive, rounds, restore_steps), search, "design")
+    best = search.improve(naive, rounds, restore_steps)
     targets_found = time.perf_counter()
-    shaped = _confirmed(lambda: search.shape(best, shape_steps), search, "shape")
+    shaped = search.shape(best, shape_steps)
+    while shaped is not None and not search.confirm(shaped.t, "shape"):
+        shaped = search.shape(shaped, 1)  # its end point rescaled on the widened screen
+    if shaped is None or shaped.cost >= best.cost:
+        best = _confirmed(lambda: search.improve(naive, rounds, restore_steps), search,
+                          "design", best)
     chosen = best if shaped is None or shaped.cost >= best.cost else shaped
     return _Outcome(search=search, naive=naive, best=best, chosen=chosen,
                     seconds={"targets": targets_found - started,
                              "shape": time.perf_counter() - targets_found})
 
 
-def _confirmed(stage, search, sample):
-    """The point ``stage()`` ends at, run again until its screened verdicts on ``sample``
-    are the whole grid's (each failed check widens the screen, so this ends)."""
-    while True:
+def _confirmed(stage, search, sample, point=None):
+    """The point ``stage()`` ends at (``point`` when it has run already), run again until
+    its screened verdicts on ``sample`` are the whole grid's (each failed check widens the
+    screen, so this ends)."""
+    point = stage() if point is None else point
+    while point is not None and not search.confirm(point.t, sample):
         point = stage()
-        if point is None or search.confirm(point.t, sample):
-            return point
+    return point
 
 
 class YieldUnreachableError(InfeasibleAllocationError):
@@ -621,6 +653,7 @@ class _Search:
         self._start = None
         self._cache = {}
         self._poses = {}
+        self._grid = {}
 
     def _caps(self) -> np.ndarray:
         """Largest required index of each output the box can hold (all items at their
@@ -678,9 +711,18 @@ class _Search:
         u = self.draws(sample)
         if sample not in self._poses:
             ratios, where = self.model.output_ratios(u, t, with_poses=True)
-            self._poses[sample] = where
+            self._poses[sample] = self._screen(ratios, where)
             return ratios
         return self.model.ratios_at(u, t, self._poses[sample])[0]
+
+    def _screen(self, ratios, where) -> np.ndarray:
+        """The worst poses ``where (machines, 6)`` worth screening: a machine's pose of an
+        output whose ratio is below :data:`SCREEN_FLOOR` times the design quantile of the
+        machines' worst ratios becomes -1 (no pose), unless it is the machine's worst."""
+        level = max(self.design_target, 0.5)
+        floor = SCREEN_FLOOR * np.quantile(ratios.max(axis=1), level)
+        kept = (ratios >= floor) | (ratios == ratios.max(axis=1, keepdims=True))
+        return np.where(kept, where, -1)
 
     def worst_ratios(self, sample: str):
         """``t -> (ratio, row)``: each machine's worst ratio of ``t`` over its screened
@@ -691,12 +733,16 @@ class _Search:
     def confirm(self, t, sample: str) -> bool:
         """Whether the screened verdicts of ``t`` on ``sample`` are the whole grid's; when
         not, the grid's worst poses of ``t`` join every machine's screened poses and every
-        cached verdict is dropped."""
-        u = self.draws(sample)
-        if np.array_equal(self.model.output_ratios(u, t) < 1.0, self.verdicts(t, sample)):
+        cached verdict is dropped. The grid's verdicts of each ``t`` are kept, so a stage
+        that ends again at the same allocation is checked without the grid."""
+        key = (sample, np.asarray(t, dtype=float).tobytes())
+        if key not in self._grid:
+            ratios, where = self.model.output_ratios(self.draws(sample), t, with_poses=True)
+            self._grid[key] = (ratios < 1.0, self._screen(ratios, where))
+        grid, worst = self._grid[key]
+        if np.array_equal(grid, self.verdicts(t, sample)):
             return True
-        where = self.model.output_ratios(u, t, with_poses=True)[1]
-        self._poses[sample] = np.concatenate([self._poses[sample], where], axis=1)
+        self._poses[sample] = np.concatenate([self._poses[sample], worst], axis=1)
         self._cache.clear()
         return False
 

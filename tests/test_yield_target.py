@@ -60,12 +60,12 @@ def test_relaxation_rows_sit_at_the_yield_target(result):
     p = fosm_two_sided(problem.machine, problem.poses, result.lower_bound_tolerances)
     assert p.min() >= Y - 1e-7
     assert p.min() == pytest.approx(Y, abs=1e-6)
-    assert problem.cost.total(result.lower_bound_tolerances) >= result.lower_bound
+    assert problem.cost.total(result.lower_bound_tolerances) >= result.row_bound
 
 
 def test_lower_bound_holds_for_allocations_meeting_every_row(result):
     """Weak duality: any allocation in the box with every row at probability >= Y costs at
-    least the bound (random allocations in the box, scaled down until they meet Y)."""
+    least the row bound (random allocations in the box, scaled down until they meet Y)."""
     problem = result.problem
     rng = np.random.default_rng(3)
     low, high = problem.lower, problem.upper
@@ -77,7 +77,7 @@ def test_lower_bound_holds_for_allocations_meeting_every_row(result):
             t = np.maximum(low, 0.9 * t)
         if fosm_two_sided(problem.machine, problem.poses, t).min() >= Y:
             met += 1
-            assert problem.cost.total(t) >= result.lower_bound
+            assert problem.cost.total(t) >= result.row_bound
     assert met > 0
 
 

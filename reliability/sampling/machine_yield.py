@@ -445,42 +445,49 @@ class YieldModel:
         u : ndarray (R, dimension)
         tolerances : ndarray (n_errors,)
         poses : ndarray (R, W) of int
-            Grid pose indices (into ``experiment.poses``) of each machine.
+            Grid pose indices (into ``experiment.poses``) of each machine; a negative entry
+            is no pose (a machine may have fewer than ``W``).
 
         Returns
         -------
         ratios : ndarray (R, 6)
+            0 where a machine has no pose.
         where : ndarray (R, 6) of int
-            The pose (grid index) of each ratio, the first of ``poses[m]`` on a tie.
+            The pose (grid index) of each ratio, the first of ``poses[m]`` on a tie; -1
+            where a machine has no pose.
         """
         u = np.asarray(u, dtype=float)
         poses = np.asarray(poses, dtype=np.intp)
-        distinct, inverse = np.unique(poses, return_inverse=True)
-        inverse = inverse.reshape(poses.shape)
+        distinct = np.unique(poses[poses >= 0])
         chain = _PoseChains(self.machine, self.experiment.poses[distinct])
-        ratios = np.empty((len(u), len(OUTPUTS)))
-        where = np.empty((len(u), len(OUTPUTS)), dtype=np.intp)
+        ratios = np.zeros((len(u), len(OUTPUTS)))
+        where = np.full((len(u), len(OUTPUTS)), -1, dtype=np.intp)
         for part in chunks(len(u), 4 * 8 * 36 * poses.shape[1] * len(chain.adjoints),
                            self.memory):
+            machine, column = np.nonzero(poses[part] >= 0)  # pairs, machine by machine
+            if len(machine) == 0:
+                continue
+            pose = poses[part][machine, column]
             motion, assembly = self.errors(u[part], tolerances)
-            index = self._grid_index[poses[part]]  # (batch, W, n)
-            values = chain.evaluate(inverse[part], self._pose_errors(motion, assembly, index))
-            rows = np.abs(values) / self.machine.limits  # (batch, W, 6)
-            column = np.argmax(rows, axis=1)
-            ratios[part] = np.take_along_axis(rows, column[:, None, :], axis=1)[:, 0]
-            where[part] = np.take_along_axis(poses[part], column, axis=1)
+            x = self._pair_errors(motion, assembly, machine, self._grid_index[pose])
+            rows = np.abs(chain.evaluate(np.searchsorted(distinct, pose), x))
+            rows /= self.machine.limits  # (pairs, 6)
+            first = np.flatnonzero(np.diff(machine, prepend=-1))  # each machine's first pair
+            owner = machine[first] + part.start
+            ratios[owner] = np.maximum.reduceat(rows, first, axis=0)
+            attained = rows == ratios[machine + part.start]
+            pair = np.where(attained, np.arange(len(pose))[:, None], len(pose))
+            where[owner] = pose[np.minimum.reduceat(pair, first, axis=0)]
         return ratios, where
 
     @staticmethod
-    def _pose_errors(motion, assembly, index) -> np.ndarray:
-        """``(batch, W, n_errors)`` error vectors at each machine's poses: every axis'
-        motion errors at the pose's grid point, then the assembly errors."""
-        batch, width, n = index.shape
-        machine_index = np.arange(batch)[:, None]
-        at_pose = [motion[machine_index, a, index[:, :, a]] for a in range(n)]  # (b, W, 6)
-        fixed = np.broadcast_to(assembly.reshape(batch, 1, -1),
-                                (batch, width, assembly[0].size))
-        return np.concatenate(at_pose + [fixed], axis=-1)
+    def _pair_errors(motion, assembly, machine, index) -> np.ndarray:
+        """``(pairs, n_errors)`` error vectors of (machine, pose) pairs: every axis' motion
+        errors at the pose's grid point ``index (pairs, n)``, then the assembly errors."""
+        n = index.shape[1]
+        at_pose = [motion[machine, a, index[:, a]] for a in range(n)]  # (pairs, 6) each
+        return np.concatenate(at_pose + [assembly[machine].reshape(len(machine), -1)],
+                              axis=-1)
 
     def worst_rows(self, u, tolerances):
         """For each draw: whether the machine fails (``|y| ≥ I`` at some pose and output,

@@ -267,8 +267,8 @@ def describe_yield(result) -> str:
         f"machine yield target {result.yield_target:g}: profile {result.profile}; "
         f"{options.reading_text(result.problem.machine)}; workspace: the {result.points}-point "
         f"grid ({len(result.problem.poses):,} poses); box {result.problem.box_text()}",
-        f"lower bound {result.lower_bound / initial:.4%} of the initial cost (every (output, "
-        f"pose) row at probability {result.yield_target:g}, FOSM two-sided, certified)",
+        f"lower bound {result.lower_bound / initial:.4%} of the initial cost "
+        f"({result.bound_text()})",
         f"cost {result.cost:.6g} = {result.cost / initial:.4%} of the initial allocation "
         f"({initial:.6g}): the cheapest found by this search; not certified: see the lower "
         "bound",
