@@ -4,6 +4,7 @@ reads it: verify and report's as-measured machine and the compensation tables.""
 import json
 import shutil
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -15,6 +16,8 @@ from reliability.measured.measurement_files import write_measurements
 from reliability.measured.plans import parse_plan
 from reliability.measured.simulated_measurements import simulate_measurements
 from studies.cli.program import main
+from studies.report.as_measured_section import prior_allocation
+from studies.workflows.as_measured import as_measured
 
 MILL = Path(__file__).parent / "machines" / "mill3.toml"
 PROFILE = "gp:300"
@@ -104,3 +107,10 @@ def test_a_damaged_gp_folder_is_refused(mill, folder, tmp_path, spoil, message):
     spoil(copy)
     with pytest.raises(InputError, match=message):
         reliability.read_identification(copy, mill)
+
+
+def test_the_design_allocation_of_a_gp_identification_is_its_prior(mill, direct):
+    study = SimpleNamespace(machine=mill, reachable=False)
+    assert prior_allocation(study, direct) == "initial"
+    found = as_measured(mill, direct, points=2, draws=8, rng=0)
+    np.testing.assert_allclose(found.tolerances, mill.initial_allocation, rtol=1e-12)
