@@ -3,6 +3,7 @@ reads it: verify and report's as-measured machine and the compensation tables.""
 
 import json
 import shutil
+from dataclasses import replace
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -11,10 +12,12 @@ import pytest
 
 import reliability
 from reliability.basics.errors import InputError
+from reliability.compensation.compensation_files import read_compensation
 from reliability.measured.identification_files import COEFFICIENTS_FILE
 from reliability.measured.measurement_files import write_measurements
 from reliability.measured.plans import parse_plan
 from reliability.measured.simulated_measurements import simulate_measurements
+from studies.cli import options
 from studies.cli.program import main
 from studies.report.as_measured_section import prior_allocation
 from studies.workflows.as_measured import as_measured
@@ -22,6 +25,8 @@ from studies.workflows.as_measured import as_measured
 MILL = Path(__file__).parent / "machines" / "mill3.toml"
 PROFILE = "gp:300"
 SIX = ["dx", "dy", "dz", "ex", "ey", "ez"]
+#: Spacing of the compensation tables in the tests (mm).
+SPACING = 100.0
 
 
 def laser(name, axis, line, targets):
@@ -107,6 +112,43 @@ def test_a_damaged_gp_folder_is_refused(mill, folder, tmp_path, spoil, message):
     spoil(copy)
     with pytest.raises(InputError, match=message):
         reliability.read_identification(copy, mill)
+
+
+def test_compensation_tables_of_a_gp_folder_vary_along_travel(mill, folder, direct,
+                                                              tmp_path):
+    assert main(["compensate", str(MILL), "--identification", str(folder / "id"),
+                 "--out", str(tmp_path / "tables"), "--spacing-mm", str(SPACING)]) == 0
+    tables = read_compensation(tmp_path / "tables", mill)
+    for a, axis in enumerate(mill.axis_specs[:2]):
+        table = tables.axes[axis.name]
+        poses = np.tile(random_poses(mill, 1, seed=2), (len(table), 1))
+        poses[:, a] = table["position_mm"]
+        expected = direct.mean_at(poses)[:, 6 * a:6 * a + 6]
+        written = table[[mill.iso_names[i] for i in range(6 * a, 6 * a + 6)]].to_numpy()
+        np.testing.assert_allclose(written, expected, rtol=1e-5, atol=0.0)
+        prior = direct.coefficients.prior_sd[6 * a:6 * a + 6]
+        assert np.all(np.ptp(written, axis=0) > 0.05 * prior), axis.name
+
+
+def test_compensate_identifies_measurements_under_its_profile(mill, folder, tmp_path):
+    meas = str(folder / "meas.csv")
+    assert main(["compensate", str(MILL), "--measurements", meas, "--profile", PROFILE,
+                 "--out", str(tmp_path / "gp"), "--spacing-mm", str(SPACING)]) == 0
+    assert main(["compensate", str(MILL), "--identification", str(folder / "id"),
+                 "--profile", PROFILE, "--out", str(tmp_path / "no")]) == 2
+    along = read_compensation(tmp_path / "gp", mill).axes["X"]
+    assert np.ptp(along["EXX"]) > 0
+
+
+def test_verify_and_report_identify_measurements_under_the_profile(mill, folder):
+    args = SimpleNamespace(identification=None, measurements=str(folder / "meas.csv"))
+    found = options.as_measured_identification(args, replace(mill, profile=PROFILE))
+    assert found.profile == PROFILE and found.coefficients.varies
+    with pytest.raises(InputError, match="profile 'independent'.*cannot be identified"):
+        options.as_measured_identification(args, replace(mill, profile="independent"))
+    read = options.as_measured_identification(
+        SimpleNamespace(identification=str(folder / "id"), measurements=None), mill)
+    assert read.profile == PROFILE
 
 
 def test_the_design_allocation_of_a_gp_identification_is_its_prior(mill, direct):

@@ -52,10 +52,14 @@ def add_parser(subparsers):
     source.add_argument("--identification", metavar="DIR",
                         help="folder written by precrel identify --out")
     source.add_argument("--measurements", metavar="meas.csv",
-                        help="measurement file, identified here under the constant profile")
+                        help="measurement file, identified here under --profile")
     parser.add_argument("--tolerances", metavar="CSV",
                         help="with --measurements: allocation in force (default the "
                              "initial allocation)")
+    parser.add_argument("--profile", default=None, metavar="P",
+                        help="with --measurements: motion errors along travel, constant or "
+                             "gp:<length mm> (default: the machine file's [requirements] "
+                             "profile, else constant)")
     parser.add_argument("--out", required=True, metavar="DIR", help="folder of the tables")
     parser.add_argument("--spacing-mm", type=float, default=DEFAULT_SPACING_MM, metavar="H",
                         help=f"spacing along linear axes (default {DEFAULT_SPACING_MM:g} mm)")
@@ -78,9 +82,10 @@ def run(args) -> int:
     machine = options.machine(args)
     out = options.destination(args.out, args.overwrite, folder=True,
                               markers=table_file_names(machine))
-    if args.tolerances is not None and args.measurements is None:
-        raise InputError("--tolerances is used with --measurements only (an identification "
-                         "folder already holds its prior)")
+    for option, given in (("--tolerances", args.tolerances), ("--profile", args.profile)):
+        if given is not None and args.measurements is None:
+            raise InputError(f"{option} is used with --measurements only (an identification "
+                             f"folder already holds its prior and profile)")
     identification = _identification(args, machine)
     tables = compensation_tables(identification, spacing_mm=args.spacing_mm,
                                  spacing_deg=args.spacing_deg, items=args.items,
@@ -100,7 +105,7 @@ def _identification(args, machine):
         tolerances = None if args.tolerances is None else \
             options.read_tolerances(args.tolerances, machine)
         return identify(machine, read_measurements(args.measurements, machine),
-                        tolerances=tolerances)
+                        tolerances=tolerances, profile=options.identified_profile(machine))
     return read_identification(args.identification, machine)
 
 
