@@ -13,6 +13,7 @@ import pytest
 import reliability
 from reliability.basics.errors import InputError
 from reliability.compensation.compensation_files import read_compensation
+from reliability.compensation.residual import measured_residual, positioning_variance
 from reliability.measured.identification_files import COEFFICIENTS_FILE
 from reliability.measured.measurement_files import write_measurements
 from reliability.measured.plans import parse_plan
@@ -156,3 +157,11 @@ def test_the_design_allocation_of_a_gp_identification_is_its_prior(mill, direct)
     assert prior_allocation(study, direct) == "initial"
     found = as_measured(mill, direct, points=2, draws=8, rng=0)
     np.testing.assert_allclose(found.tolerances, mill.initial_allocation, rtol=1e-12)
+
+
+def test_a_compensated_gp_machine_keeps_its_posterior_sd_at_each_pose(mill, direct):
+    assert not positioning_variance(mill).any()
+    poses = random_poses(mill, 5, seed=4)
+    tables = reliability.compensation_tables(direct, spacing_mm=SPACING)
+    _, sigma = measured_residual(direct, tables, poses, frame="workpiece")
+    np.testing.assert_allclose(sigma, direct.predict(poses)[1], rtol=1e-9)
