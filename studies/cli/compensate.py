@@ -19,7 +19,7 @@ from reliability.compensation.compensated_machines import (residual_model_passes
                                                            simulate_compensated)
 from reliability.compensation.compensation_plans import read_compensation_plan
 from reliability.compensation.compensation_files import table_file_names, write_compensation
-from reliability.compensation.residual import measured_residual
+from reliability.compensation.residual import measured_residual, posterior_sigma
 from reliability.first_order.fosm import fosm
 from reliability.compensation.tables import (DEFAULT_SPACING_DEG, DEFAULT_SPACING_MM,
                                              compensation_tables)
@@ -52,10 +52,14 @@ def add_parser(subparsers):
     source.add_argument("--identification", metavar="DIR",
                         help="folder written by precrel identify --out")
     source.add_argument("--measurements", metavar="meas.csv",
-                        help="measurement file, identified here under the constant profile")
+                        help="measurement file, identified here under --profile")
     parser.add_argument("--tolerances", metavar="CSV",
                         help="with --measurements: allocation in force (default the "
                              "initial allocation)")
+    parser.add_argument("--profile", default=None, metavar="P",
+                        help="with --measurements: motion errors along travel, constant or "
+                             "gp:<length mm> (default: the machine file's [requirements] "
+                             "profile, else constant)")
     parser.add_argument("--out", required=True, metavar="DIR", help="folder of the tables")
     parser.add_argument("--spacing-mm", type=float, default=DEFAULT_SPACING_MM, metavar="H",
                         help=f"spacing along linear axes (default {DEFAULT_SPACING_MM:g} mm)")
@@ -78,9 +82,10 @@ def run(args) -> int:
     machine = options.machine(args)
     out = options.destination(args.out, args.overwrite, folder=True,
                               markers=table_file_names(machine))
-    if args.tolerances is not None and args.measurements is None:
-        raise InputError("--tolerances is used with --measurements only (an identification "
-                         "folder already holds its prior)")
+    for option, given in (("--tolerances", args.tolerances), ("--profile", args.profile)):
+        if given is not None and args.measurements is None:
+            raise InputError(f"{option} is used with --measurements only (an identification "
+                             f"folder already holds its prior and profile)")
     identification = _identification(args, machine)
     tables = compensation_tables(identification, spacing_mm=args.spacing_mm,
                                  spacing_deg=args.spacing_deg, items=args.items,
@@ -100,7 +105,7 @@ def _identification(args, machine):
         tolerances = None if args.tolerances is None else \
             options.read_tolerances(args.tolerances, machine)
         return identify(machine, read_measurements(args.measurements, machine),
-                        tolerances=tolerances)
+                        tolerances=tolerances, profile=options.identified_profile(machine))
     return read_identification(args.identification, machine)
 
 
@@ -109,9 +114,8 @@ def residual_text(identification, tables) -> str:
     machine = identification.machine
     poses = workspace_grid(machine, RESIDUAL_GRID)
     jac = machine.jacobian(poses, frame=machine.frame)
-    before = np.abs(jac @ identification.mean).max(axis=0)
-    before_sd = np.sqrt(np.einsum("poi,ij,poj->po", jac, identification.covariance,
-                                  jac)).max(axis=0)
+    before = np.abs(np.einsum("poi,pi->po", jac, identification.mean_at(poses))).max(axis=0)
+    before_sd = posterior_sigma(identification, poses).max(axis=0)
     mean, sigma = measured_residual(identification, tables, poses)
     frame = pd.DataFrame({"limit": machine.limits, "|mean| before": before,
                           "sd before": before_sd, "|mean| after": np.abs(mean).max(axis=0),

@@ -7,14 +7,15 @@ import json
 
 from reliability.basics.files import SIGNIFICANT, atomic_write_text, write_csv
 from reliability.measured.identification import identify
-from reliability.measured.identification_files import COVARIANCE_FILE, write_covariance
+from reliability.measured.identification_files import (COEFFICIENTS_FILE, COVARIANCE_FILE,
+                                                       write_coefficients, write_covariance)
 from reliability.measured.measurement_files import read_measurements
 
 from . import options
 
 #: The files written into ``--out DIR``.
 RESULT_FILES = ("errors.csv", "profiles.csv", "setup.csv", "residuals.csv", "summary.json",
-                COVARIANCE_FILE)
+                COVARIANCE_FILE, COEFFICIENTS_FILE)
 
 
 def add_parser(subparsers):
@@ -35,7 +36,8 @@ def add_parser(subparsers):
     parser.add_argument("--profile", default="constant", metavar="P",
                         help="motion errors along travel: constant (one value per machine, "
                              "the default) or gp:<length mm> (a Gaussian process along "
-                             "travel, docs/profiles.md; writes profiles.csv)")
+                             "travel, docs/profiles.md; writes profiles.csv and "
+                             "coefficients.npz)")
     parser.add_argument("--iterate", action="store_true",
                         help="re-linearise at the posterior mean on the exact chain "
                              "(Gauss-Newton) and say how much that changed")
@@ -78,6 +80,9 @@ def _write(result, out, overwrite) -> None:
     atomic_write_text(out / "summary.json", json.dumps(result.summary_dict(), indent=2) + "\n",
                       overwrite)
     write_covariance(result, out / COVARIANCE_FILE, overwrite)
-    written = [name for name in RESULT_FILES
-               if name in tables or name in ("summary.json", COVARIANCE_FILE)]
+    written = ["summary.json", COVARIANCE_FILE]
+    if result.coefficients.varies:
+        write_coefficients(result, out / COEFFICIENTS_FILE, overwrite)
+        written.append(COEFFICIENTS_FILE)
+    written = [name for name in RESULT_FILES if name in tables or name in written]
     print(f"\nwritten {', '.join(written)} into {out}")

@@ -344,14 +344,15 @@ def add_as_measured(parser) -> None:
                        help="also this machine's reliability as measured: the folder "
                             "'precrel identify --out' wrote (docs/measurements.md)")
     group.add_argument("--measurements", metavar="CSV",
-                       help="the same from a measurement file, identified first under the "
-                            "constant profile with the allocation in force as prior")
+                       help="the same from a measurement file, identified first under "
+                            "--profile (constant or gp:<length mm>) with the allocation in "
+                            "force as prior")
 
 
 def as_measured_identification(args, machine, tolerances=None):
-    """The identification of ``--identification`` or ``--measurements`` (identified with
-    ``tolerances`` as the prior's allocation, the initial one when None); None without
-    either."""
+    """The identification of ``--identification`` or ``--measurements`` (identified under
+    the machine's profile with ``tolerances`` as the prior's allocation, the initial one
+    when None); None without either."""
     if args.identification is not None:
         try:
             return read_identification(args.identification, machine)
@@ -359,5 +360,15 @@ def as_measured_identification(args, machine, tolerances=None):
             raise InputError(f"--identification {exc}") from None
     if args.measurements is not None:
         return identify(machine, read_measurements(args.measurements, machine),
-                        tolerances=tolerances)
+                        tolerances=tolerances, profile=identified_profile(machine))
     return None
+
+
+def identified_profile(machine) -> str:
+    """The profile readings are identified under: the machine's (``--profile``, else the
+    machine file's ``[requirements] profile``), refused when it is ``independent``."""
+    if machine.profile == "independent":
+        raise InputError("--measurements: profile 'independent' (--profile or the machine "
+                         "file's [requirements] profile) cannot be identified, a fresh value "
+                         "at every position; pass --profile constant or gp:<length mm>")
+    return machine.profile

@@ -135,7 +135,7 @@ def as_measured_text(machine, identification, tolerances, result, tests, args, w
     """This machine's reliability at the grid and the verification's worst poses, beside
     the design's (the design-time yield when the identification's prior is the allocation
     verified)."""
-    same = np.allclose(3.0 * np.asarray(identification.prior_sd), tolerances, rtol=1e-5,
+    same = np.allclose(3.0 * identification.coefficients.prior_sd, tolerances, rtol=1e-5,
                        atol=0.0)
     found = as_measured(machine, identification, points=args.points,
                         poses=result.worst_poses[list(machine.axes)].to_numpy(dtype=float),

@@ -46,7 +46,7 @@ def prior_allocation(study, identification) -> str | None:
     shown = {"initial": study.machine.initial_allocation}
     if study.reachable:
         shown["optimum"] = study.allocated
-    prior = 3.0 * np.asarray(identification.prior_sd)
+    prior = 3.0 * identification.coefficients.prior_sd
     for label, tolerances in shown.items():
         if prior.shape == np.shape(tolerances) and np.allclose(prior, tolerances, rtol=1e-5,
                                                                 atol=0.0):

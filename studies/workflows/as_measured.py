@@ -13,7 +13,7 @@ as it acts at each pose) and evaluated
   test's predicted result for this machine.
 
 Beside them stand the design-time numbers of the allocation in force (``t = 3 ×
-prior_sd``): FOSM at each output's worst pose of the same poses, the machine yield when the
+coefficients.prior_sd``, the prior σ of every error at any position): FOSM at each output's worst pose of the same poses, the machine yield when the
 caller has it, and the acceptance tests on machines built to that allocation.
 
 A motion error of axis ``a`` depends on ``q_a`` only (a profile along travel), so the draws
@@ -146,7 +146,7 @@ def as_measured(machine, identification, *, points: int = 5, poses=None,
     """
     draws = checks.positive_int(draws, "draws")
     workspace_rng, tests_rng, design_rng = streams.spawn(rng, 3)
-    tolerances = machine.check_tolerances(3.0 * np.asarray(identification.prior_sd))
+    tolerances = machine.check_tolerances(3.0 * identification.coefficients.prior_sd)
     experiment = GridExperiment(machine, points)
     extra = np.zeros((0, len(machine.axes))) if poses is None else \
         machine.check_positions(np.atleast_2d(poses))
