@@ -17,18 +17,27 @@ MACHINE_DIR = Path(__file__).parent / "machines"
 
 #: Modules whose tests take longest, longest first. They run first, so that the two
 #: workers share them from the start and no long test is left for one worker at the end.
-LONG_MODULES = ("test_reproduce", "test_plots", "test_profiles_study", "test_trust",
-                "test_continuous", "test_sampling", "test_acceptance", "test_cli",
+LONG_MODULES = ("test_reproduce", "test_cli", "test_plots", "test_trust", "test_continuous",
+                "test_acceptance", "test_sampling", "test_profiles_study",
                 "test_report_study", "test_bounds_table", "test_combinations")
 
 
+@pytest.hookimpl(tryfirst=True)
 def pytest_collection_modifyitems(items):
     """Run the tests of :data:`LONG_MODULES` first, each module's tests kept together and in
-    their order (a module's fixtures are built once)."""
+    their order, and give every test not already in an xdist group its module's: with
+    ``--dist loadgroup`` a module runs on one worker, so its module-scoped fixtures are built
+    once."""
+    def name(item):
+        return item.module.__name__.rsplit(".", 1)[-1]
+
     def rank(item):
-        name = item.module.__name__.rsplit(".", 1)[-1]
-        return LONG_MODULES.index(name) if name in LONG_MODULES else len(LONG_MODULES)
+        return LONG_MODULES.index(name(item)) if name(item) in LONG_MODULES else \
+            len(LONG_MODULES)
     items.sort(key=rank)
+    for item in items:
+        if item.get_closest_marker("xdist_group") is None:
+            item.add_marker(pytest.mark.xdist_group(name(item)))
 
 
 @pytest.fixture(scope="session", autouse=True)
@@ -64,6 +73,34 @@ def small_paper_study():
     from studies.paper import reproduce
     return reproduce.run_study(seed=7, repeats=3, wolves=8, iterations=10,
                                random_samples=2000)
+
+
+@pytest.fixture(scope="session")
+def lean_mill_report(tmp_path_factory):
+    """A report of mill3 without its optional sections (seed 4, small samples), written
+    under the umask 022: its folder and what the command printed. Its tests share the xdist
+    group ``lean_mill_report``, so that it is written once."""
+    import contextlib
+    import io
+    import os
+    from types import SimpleNamespace
+
+    from studies import cli
+
+    folder = tmp_path_factory.mktemp("lean") / "report"
+    printed, previous = io.StringIO(), os.umask(0o022)
+    try:
+        with contextlib.redirect_stdout(printed):
+            assert cli.main(["report", str(MACHINE_DIR / "mill3.toml"), "--out", str(folder),
+                             "--seed", "4", *LEAN_REPORT]) == 0
+    finally:
+        os.umask(previous)
+    return SimpleNamespace(folder=folder, printed=printed.getvalue())
+
+
+#: The options of :func:`lean_mill_report`.
+LEAN_REPORT = ("--repeats", "3", "--samples", "1000", "--points", "3", "--machines", "400",
+               "--skip", "front", "system", "rare", "profiles")
 
 
 @pytest.fixture(scope="session", params=["hobbing", "mill3", "trunnion5"])

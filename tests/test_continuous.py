@@ -317,14 +317,12 @@ def test_allocate_names_the_workspace(tmp_path, capsys):
                      str(tmp_path / "c_drawing.csv")]) == 0
 
 
-def test_report_summary_names_the_workspace(tmp_path, capsys):
-    continuous, grid = tmp_path / "c", tmp_path / "g"
-    assert cli.main(["report", MILL, "--out", str(continuous), *QUICK,
-                     "--skip", *EXTRAS]) == 0
+@pytest.mark.xdist_group("lean_mill_report")
+def test_report_summary_names_the_workspace(lean_mill_report, tmp_path):
+    continuous, grid = lean_mill_report.folder, tmp_path / "g"  # the default workspace
     assert cli.main(["report", MILL, "--out", str(grid), *QUICK, "--workspace", "grid",
                      "--skip", *EXTRAS]) == 0
-    printed = capsys.readouterr().out
-    assert "certified over the continuous workspace to 0.001" in printed
+    assert "certified over the continuous workspace to 0.001" in lean_mill_report.printed
     first = json.loads((continuous / "summary.json").read_text())
     second = json.loads((grid / "summary.json").read_text())
     assert first["workspace"] == "continuous" and first["workspace_certified"] is True

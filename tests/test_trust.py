@@ -60,25 +60,10 @@ def test_fosm_worst_pose_of_a_symmetric_machine_is_the_same_whatever_the_roundin
         assert rank[row] == rank[tied].min()
 
 
-@pytest.fixture(scope="module")
-def mill_report(tmp_path_factory):
-    """A report of the mill (seed 4), written under the umask 022; its tests share the xdist
-    group ``trust_mill_report``, so that it is written once."""
-    out = tmp_path_factory.mktemp("trust") / "report"
-    previous = os.umask(0o022)
-    try:
-        assert cli.main(["report", MILL, "--out", str(out), "--seed", "4", *QUICK,
-                         *SKIP_EXTRAS]) == 0
-    finally:
-        os.umask(previous)
-    return out
-
-
 # ----- one number per question -----------------------------------------------------------
-@pytest.mark.xdist_group("trust_mill_report")
-def test_report_and_verify_print_the_same_monte_carlo_numbers(mill_report, capsys):
-    out = mill_report
-    capsys.readouterr()
+@pytest.mark.xdist_group("lean_mill_report")
+def test_report_and_verify_print_the_same_monte_carlo_numbers(lean_mill_report, capsys):
+    out = lean_mill_report.folder
     assert cli.main(["verify", MILL, "--tolerances", str(out / "allocation.csv"),
                      "--seed", "4", *QUICK]) == 0
     printed = capsys.readouterr().out
@@ -123,10 +108,11 @@ def test_as_written_is_what_a_file_reads_back():
 
 
 # ----- files -----------------------------------------------------------------------------
-@pytest.mark.xdist_group("trust_mill_report")
-def test_files_and_report_folders_follow_the_umask(tmp_path, mill_report):
-    assert stat.S_IMODE(mill_report.stat().st_mode) == 0o755
-    assert {stat.S_IMODE(p.stat().st_mode) for p in mill_report.iterdir()} == {0o644}
+@pytest.mark.xdist_group("lean_mill_report")
+def test_files_and_report_folders_follow_the_umask(tmp_path, lean_mill_report):
+    folder = lean_mill_report.folder  # written under the umask 022
+    assert stat.S_IMODE(folder.stat().st_mode) == 0o755
+    assert {stat.S_IMODE(p.stat().st_mode) for p in folder.iterdir()} == {0o644}
     previous = os.umask(0o022)
     try:
         path = atomic_write_text(tmp_path / "a.txt", "x")
