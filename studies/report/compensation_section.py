@@ -4,8 +4,9 @@ the designer relax and what it cannot, and why (docs/compensation.md)."""
 
 from __future__ import annotations
 
-
 from allocation.compensated import allocate_compensated
+from reliability.basics.display import error_units, in_units, unit_symbol
+from reliability.model.iso_names import plain_names
 
 from .markdown import markdown_table
 from .section import Section
@@ -25,23 +26,37 @@ def compensation_section(study, plan, plan_name: str) -> Section:
     items["change"] = items["allocated"] / items["without compensation"] - 1.0
     table = items[["error", "iso", "without compensation", "allocated", "upper", "change",
                    "seen", "posterior_share", "limited_by"]]
-    relaxed = table[table["change"] > 1e-6].sort_values("change", ascending=False,
-                                                        kind="stable").reset_index(drop=True)
-    tight = table[table["limited_by"].isin(("targets", "lower bound"))].reset_index(drop=True)
+    shown = _for_people(table, study.problem.machine)
+    relaxed = shown[table["change"] > 1e-6].sort_values("change", ascending=False,
+                                                       kind="stable")
+    tight = shown[table["limited_by"].isin(("targets", "lower bound"))]
     formats = {name: "{:.4g}".format for name in ("without compensation", "allocated",
                                                   "upper", "posterior_share")}
     formats["change"] = "{:+.1%}".format
     text = "\n\n".join([
         _opening(found, plan, plan_name, len(study.problem.poses)),
-        f"**What compensation lets you relax** ({len(relaxed)} items; the largest):",
-        markdown_table(relaxed.head(SHOWN_ROWS), formats),
-        _tight_text(tight), markdown_table(tight.head(SHOWN_ROWS), formats) if len(tight)
-        else "", _model_text()])
+        f"**What compensation lets you relax** ({len(relaxed)} items; the largest; "
+        f"tolerances in the machine file's units, `compensation.csv` in mm and rad):",
+        markdown_table(relaxed.head(SHOWN_ROWS), formats, index=False),
+        _tight_text(tight), markdown_table(tight.head(SHOWN_ROWS), formats, index=False)
+        if len(tight) else "", _model_text()])
     return Section(TITLE, text, tables={"compensation.csv": table},
                    summary={"compensation_cost_ratio": found.cost / found.cost_without,
                             "compensation_lower_bound_ratio":
                                 found.lower_bound / found.cost_without,
                             "compensation_feasible": bool(found.feasible)})
+
+
+def _for_people(table, machine):
+    """The items with their plain names and the unit of each tolerance (the machine file's,
+    :func:`~reliability.basics.display.people_units`), tolerances converted to it."""
+    units = error_units(table["error"], machine.cost_coefficients.units)
+    shown = table.copy()
+    for column in ("without compensation", "allocated", "upper"):
+        shown[column] = in_units(table[column].to_numpy(dtype=float), units)
+    shown.insert(2, "name", plain_names(machine))
+    shown.insert(3, "unit", [unit_symbol(u) for u in units])
+    return shown
 
 
 def _opening(found, plan, plan_name, poses) -> str:
