@@ -17,9 +17,14 @@ MACHINE_DIR = Path(__file__).parent / "machines"
 
 #: Modules whose tests take longest, longest first. They run first, so that the two
 #: workers share them from the start and no long test is left for one worker at the end.
-LONG_MODULES = ("test_reproduce", "test_cli", "test_plots", "test_trust", "test_continuous",
-                "test_acceptance", "test_sampling", "test_profiles_study",
-                "test_report_study", "test_bounds_table", "test_combinations")
+LONG_MODULES = ("test_reproduce", "test_cli", "test_trust", "test_continuous", "test_rare",
+                "test_plots", "test_sampling", "test_acceptance", "test_system",
+                "test_combinations", "test_bounds_table", "test_report_study",
+                "test_correlation", "test_pose_sampling", "test_yield_target", "test_sweep",
+                "test_one_answer", "test_bad_inputs", "test_chunking", "test_layout",
+                "test_catalogue", "test_report_tables", "test_rare_section",
+                "test_compensation", "test_profiles_study", "test_yield_bracket",
+                "test_gp_identification", "test_as_measured", "test_zone_certificate")
 
 
 @pytest.hookimpl(tryfirst=True)
