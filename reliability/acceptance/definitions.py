@@ -20,11 +20,10 @@ written in µm: :func:`unit_warnings` lists such limits.
 from __future__ import annotations
 
 import math
-import tomllib
-from pathlib import Path
 from typing import Mapping
 
 from ..basics.errors import InputError
+from ..basics.files import read_toml
 from ..model.machine_checks import implausible_values
 from .prediction import KINDS, CircularTest, PositioningTest, RotaryTest, build_path
 
@@ -49,13 +48,7 @@ def read_tests(path, machine) -> tuple:
     -------
     tuple of CircularTest, PositioningTest, RotaryTest
     """
-    path = Path(path)
-    try:
-        data = tomllib.loads(path.read_text(encoding="utf-8"))
-    except tomllib.TOMLDecodeError as exc:
-        raise InputError(f"{path}: not valid TOML: {exc}") from None
-    except UnicodeDecodeError:
-        raise InputError(f"{path}: not a text file (UTF-8 TOML expected)") from None
+    data = read_toml(path)
     return parse_tests(data, machine, source=str(path))
 
 

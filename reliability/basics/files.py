@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import os
 import tempfile
+import tomllib
 from decimal import ROUND_DOWN, Decimal
 from pathlib import Path
 
@@ -76,6 +77,18 @@ def probability_text(value: float, digits: int = SIGNIFICANT) -> str:
 
 #: Permissions asked for a new file and a new folder, before the umask (as ``open``/``mkdir``).
 NEW_FILE_MODE, NEW_FOLDER_MODE = 0o666, 0o777
+
+
+def read_toml(path) -> dict:
+    """The TOML file at ``path``, parsed; :class:`InputError` naming the file if it is not
+    UTF-8 text or not valid TOML."""
+    path = Path(path)
+    try:
+        return tomllib.loads(path.read_text(encoding="utf-8"))
+    except tomllib.TOMLDecodeError as exc:
+        raise InputError(f"{path}: not valid TOML: {exc}") from None
+    except UnicodeDecodeError:
+        raise InputError(f"{path}: not a text file (UTF-8 TOML expected)") from None
 
 
 def current_umask() -> int:

@@ -5,17 +5,16 @@ informs), ``max_correction_mm`` and ``max_correction_rad`` (docs/compensation.md
 
 from __future__ import annotations
 
-import tomllib
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Mapping
 
 import numpy as np
 
 from ..basics.errors import InputError
+from ..basics.files import read_toml
+from ..measured.identification import plan_information
 from ..measured.plans import parse_plan
-from .residual import (output_sigma, plan_information, positioning_variance,
-                       residual_covariance, two_sided)
+from .residual import output_sigma, positioning_variance, residual_covariance, two_sided
 from .tables import (DEFAULT_SPACING_DEG, DEFAULT_SPACING_MM, compensation_tables,
                      correction_limits, tabled_mask)
 
@@ -94,11 +93,7 @@ class CompensationPlan:
 
 def read_compensation_plan(path, machine) -> CompensationPlan:
     """Read a plan file with its ``[compensation]`` table."""
-    path = Path(path)
-    try:
-        data = tomllib.loads(path.read_text(encoding="utf-8"))
-    except tomllib.TOMLDecodeError as exc:
-        raise InputError(f"{path}: not valid TOML: {exc}") from None
+    data = read_toml(path)
     return parse_compensation_plan(data, machine, source=str(path))
 
 

@@ -28,36 +28,6 @@ from scipy import linalg
 from scipy.stats import norm
 
 from ..model.kinematics import comprehensive_error
-from ..measured.identification import information_blocks, setup_columns
-from ..measured.measurement_files import Measurements
-
-
-def plan_information(machine, plan) -> np.ndarray:
-    """``(n_errors, n_errors)``: the plan's information about the errors once each run's
-    set-up is estimated, ``AᵀWA − (BᵀWA)ᵀ(BᵀWB)⁻¹BᵀWA``; it depends on the plan's poses,
-    quantities and ``u`` only."""
-    measurements = planned_readings(plan)
-    setups = setup_columns(machine, measurements)
-    blocks = information_blocks(machine, measurements, setups)
-    gain = linalg.solve(blocks["BB"], blocks["BA"], assume_a="pos")
-    information = blocks["AA"] - blocks["BA"].T @ gain
-    return 0.5 * (information + information.T)
-
-
-def planned_readings(plan) -> Measurements:
-    """The plan's readings with value 0: where, what and how well each is read."""
-    parts = {"run": [], "poses": [], "quantity": [], "centre": [], "u": []}
-    for run in plan:
-        count = len(run.poses) * len(run.quantities)
-        parts["run"].append(np.full(count, run.name, dtype=object))
-        parts["poses"].append(np.repeat(run.poses, len(run.quantities), axis=0))
-        parts["quantity"].append(np.tile(np.array(run.quantities, dtype=object),
-                                         len(run.poses)))
-        centre = np.full(3, np.nan) if run.centre is None else run.centre
-        parts["centre"].append(np.repeat(centre[None, :], count, axis=0))
-        parts["u"].append(np.tile(run.u, len(run.poses)))
-    joined = {key: np.concatenate(values) for key, values in parts.items()}
-    return Measurements(value=np.zeros(len(joined["u"])), **joined)
 
 
 def posterior_covariance(prior_sd, information) -> np.ndarray:

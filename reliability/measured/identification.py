@@ -36,6 +36,7 @@ from ..basics.chunks import chunks, jacobian_bytes
 from ..basics.errors import InputError
 from .measurement_files import QUANTITIES, Measurements
 from .information import add_readings, eliminate_setups, empty_blocks, setup_effect, solve
+from .plans import planned_readings
 from .relinearisation import gauss_newton
 from .travel_bases import Coefficients, travel_bases
 
@@ -399,6 +400,17 @@ def information_blocks(machine, measurements, setups, memory=None) -> dict:
         add_readings(out, setups, part, reading_rows(machine, measurements, part),
                      measurements.value[part], measurements.u[part])
     return out
+
+
+def plan_information(machine, runs) -> np.ndarray:
+    """``(n_errors, n_errors)``: what the plan's ``runs`` tell about the errors (one value
+    each along travel) once each run's set-up is estimated, the Schur complement
+    ``AᵀWA − (BᵀWA)ᵀ(BᵀWB)⁻¹BᵀWA``; it depends on the plan's poses, quantities and ``u``
+    only, not on what is read."""
+    readings = planned_readings(runs)
+    setups = setup_columns(machine, readings)
+    blocks = information_blocks(machine, readings, setups)
+    return eliminate_setups(blocks, setups.names)[2]
 
 
 def _first_order_blocks(machine, measurements, setups, coefficients, memory):

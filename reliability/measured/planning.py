@@ -6,8 +6,8 @@ read and how well, not on what they read. With the errors scaled by their prior 
 (``S = diag σ``, σ = t/3 of the allocation in force), a run ``r`` adds the information
 ``G_r = S F_r S`` (``F_r`` its information about the errors once its own set-up is
 estimated; set-ups are per run, so the information of a plan is the sum of its runs'), and
-the scaled posterior covariance of a plan ``P`` is ``(I + Σ_{r∈P} G_r)⁻¹``. ``G_r`` is read
-from :func:`reliability.identify` on the run alone: ``inv(S⁻¹ C_r S⁻¹) − I``.
+the scaled posterior covariance of a plan ``P`` is ``(I + Σ_{r∈P} G_r)⁻¹``. ``F_r`` is
+:func:`~reliability.measured.identification.plan_information` of the run alone.
 
 What decides the limits is each output's σ at its worst pose: the grid pose where the
 prior σ of the output (machine frame) is largest. The plan minimises
@@ -29,21 +29,19 @@ from __future__ import annotations
 import heapq
 import itertools
 import math
-import tomllib
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Mapping
 
 import numpy as np
 import pandas as pd
 
 from ..basics.errors import InputError
+from ..basics.files import read_toml
 from ..model.kinematics import output_variance
 from ..model.machine import OUTPUTS
 from ..model.poses import workspace_grid
-from .identification import identify
+from .identification import plan_information
 from .plans import parse_plan
-from .simulated_measurements import simulate_measurements
 
 #: Every affordable subset is searched when there are at most this many candidates.
 EXHAUSTIVE_CANDIDATES = 12
@@ -138,11 +136,7 @@ class MeasurementPlan:
 
 def read_candidates(path, machine) -> tuple[Candidate, ...]:
     """Read a plan file whose tests may carry ``cost`` (default 1) as candidate runs."""
-    path = Path(path)
-    try:
-        data = tomllib.loads(path.read_text(encoding="utf-8"))
-    except tomllib.TOMLDecodeError as exc:
-        raise InputError(f"{path}: not valid TOML: {exc}") from None
+    data = read_toml(path)
     return parse_candidates(data, machine, source=str(path))
 
 
@@ -194,7 +188,7 @@ def plan_measurements(machine, candidates, budget: float, *, tolerances=None,
         raise InputError(f"budget: expected a number > 0; got {budget!r}")
     t = machine.initial_allocation if tolerances is None else machine.check_tolerances(tolerances)
     prior_sd = np.asarray(t, dtype=float) / 3.0
-    information = [run_information(machine, c.run, t, prior_sd) for c in candidates]
+    information = [run_information(machine, c.run, prior_sd) for c in candidates]
     rows, worst = worst_rows(machine, prior_sd, points)
     score = _Objective(rows, information, machine.limits)
     costs = np.array([c.cost for c in candidates])
@@ -221,15 +215,9 @@ def plan_measurements(machine, candidates, budget: float, *, tolerances=None,
         alone=np.array([score(()) - score((i,)) for i in everything]))
 
 
-def run_information(machine, run, tolerances, prior_sd) -> np.ndarray:
+def run_information(machine, run, prior_sd) -> np.ndarray:
     """``G_r = S F_r S``: the prior-scaled information one run gives about the errors."""
-    readings = simulate_measurements(machine, (run,), tolerances, profile="constant",
-                                     rng=0).measurements
-    covariance = identify(machine, readings, tolerances=tolerances).covariance
-    scaled = covariance / np.outer(prior_sd, prior_sd)
-    values, vectors = np.linalg.eigh(0.5 * (scaled + scaled.T))
-    values = np.clip(values, np.finfo(float).tiny, 1.0)
-    return (vectors * (1.0 / values - 1.0)) @ vectors.T
+    return plan_information(machine, (run,)) * np.outer(prior_sd, prior_sd)
 
 
 def worst_rows(machine, prior_sd, points) -> tuple[np.ndarray, np.ndarray]:

@@ -9,9 +9,7 @@ its axis, a rotary test ``dx dy dz``; a line run reads its ``quantities`` at its
 from __future__ import annotations
 
 import math
-import tomllib
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Mapping
 
 import numpy as np
@@ -19,6 +17,8 @@ import numpy as np
 from ..acceptance.definitions import parse_tests
 from ..acceptance.prediction import PositioningTest, build_path, tool_point
 from ..basics.errors import InputError
+from ..basics.files import read_toml
+from .measurement_files import Measurements
 
 #: Quantities read in mm (``u``) and in rad (``u_angle``).
 TRANSLATIONS = ("dx", "dy", "dz")
@@ -55,11 +55,7 @@ class PlannedRun:
 
 def read_plan(path, machine) -> tuple[PlannedRun, ...]:
     """Read and check a plan file against ``machine``."""
-    path = Path(path)
-    try:
-        data = tomllib.loads(path.read_text(encoding="utf-8"))
-    except tomllib.TOMLDecodeError as exc:
-        raise InputError(f"{path}: not valid TOML: {exc}") from None
+    data = read_toml(path)
     return parse_plan(data, machine, source=str(path))
 
 
@@ -134,3 +130,20 @@ def _uncertainty(entry, key, where) -> float:
         raise InputError(f"{where}, key {key!r}: expected the standard uncertainty of a "
                          f"reading, a number > 0 {unit}; got {value!r}")
     return float(value)
+
+
+def planned_readings(plan) -> Measurements:
+    """Every reading of the plan's runs, value 0: its run, pose, quantity, nominal ballbar
+    centre (NaN off ``radial`` readings) and ``u``; where, what and how well each is read."""
+    parts = {"run": [], "poses": [], "quantity": [], "centre": [], "u": []}
+    for run in plan:
+        count = len(run.poses) * len(run.quantities)
+        parts["run"].append(np.full(count, run.name, dtype=object))
+        parts["poses"].append(np.repeat(run.poses, len(run.quantities), axis=0))
+        parts["quantity"].append(np.tile(np.array(run.quantities, dtype=object),
+                                         len(run.poses)))
+        centre = np.full(3, np.nan) if run.centre is None else run.centre
+        parts["centre"].append(np.repeat(centre[None, :], count, axis=0))
+        parts["u"].append(np.tile(run.u, len(run.poses)))
+    joined = {key: np.concatenate(values) for key, values in parts.items()}
+    return Measurements(value=np.zeros(len(joined["u"])), **joined)

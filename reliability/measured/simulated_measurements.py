@@ -9,7 +9,7 @@ ballbar's length change) plus its zero and noise of standard deviation ``u``.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import pandas as pd
@@ -19,6 +19,7 @@ from ..basics import streams
 from ..model.kinematics import comprehensive_error
 from ..model.profiles import axis_profiles, to_marginal
 from .measurement_files import QUANTITIES, Measurements
+from .plans import planned_readings
 
 #: Set-ups are drawn with this many times each reading's ``u`` as standard deviation.
 SETUP_SPREAD = 10.0
@@ -60,32 +61,15 @@ def simulate_measurements(machine, plan, tolerances=None, *, profile="constant",
     """
     rng = streams.generator(rng)
     t = machine.initial_allocation if tolerances is None else machine.check_tolerances(tolerances)
-    layout = _layout(machine, plan)
-    errors, truth = _draw_errors(machine, layout["poses"], t, profile, rng)
-    exact = comprehensive_error(machine, layout["poses"], errors, frame="workpiece")
+    layout = planned_readings(plan)
+    errors, truth = _draw_errors(machine, layout.poses, t, profile, rng)
+    exact = comprehensive_error(machine, layout.poses, errors, frame="workpiece")
     value = _exact_readings(machine, layout, exact)
     setup, setup_truth = _draw_setups(machine, layout, rng)
-    value = value + setup + layout["u"] * rng.standard_normal(len(value))
-    measurements = Measurements(run=layout["run"], poses=layout["poses"],
-                                quantity=layout["quantity"], centre=layout["centre"],
-                                value=value, u=layout["u"])
+    value = value + setup + layout.u * rng.standard_normal(len(value))
+    measurements = replace(layout, value=value)
     return SimulatedMachine(measurements, pd.concat([truth, setup_truth], ignore_index=True),
                             errors)
-
-
-def _layout(machine, plan) -> dict:
-    """Every reading of the plan: run, pose, quantity, nominal centre, ``u``."""
-    parts = {"run": [], "poses": [], "quantity": [], "centre": [], "u": []}
-    for run in plan:
-        count = len(run.poses) * len(run.quantities)
-        parts["run"].append(np.full(count, run.name, dtype=object))
-        parts["poses"].append(np.repeat(run.poses, len(run.quantities), axis=0))
-        parts["quantity"].append(np.tile(np.array(run.quantities, dtype=object),
-                                         len(run.poses)))
-        centre = np.full(3, np.nan) if run.centre is None else run.centre
-        parts["centre"].append(np.repeat(centre[None, :], count, axis=0))
-        parts["u"].append(np.tile(run.u, len(run.poses)))
-    return {key: np.concatenate(values) for key, values in parts.items()}
 
 
 def _draw_errors(machine, poses, tolerances, profile, rng) -> tuple[np.ndarray, pd.DataFrame]:
@@ -114,13 +98,13 @@ def _draw_errors(machine, poses, tolerances, profile, rng) -> tuple[np.ndarray, 
 
 
 def _exact_readings(machine, layout, exact) -> np.ndarray:
-    quantity = layout["quantity"]
+    quantity = layout.quantity
     radial = quantity == "radial"
     index = np.array([QUANTITIES.index(q) if q != "radial" else 0 for q in quantity])
     value = exact[np.arange(len(index)), index]
     if radial.any():
-        nominal = tool_point(machine, layout["poses"][radial])
-        arm = nominal - layout["centre"][radial]
+        nominal = tool_point(machine, layout.poses[radial])
+        arm = nominal - layout.centre[radial]
         moved = arm + exact[radial, :3]
         value[radial] = np.linalg.norm(moved, axis=1) - np.linalg.norm(arm, axis=1)
     return value
@@ -128,19 +112,19 @@ def _exact_readings(machine, layout, exact) -> np.ndarray:
 
 def _draw_setups(machine, layout, rng) -> tuple[np.ndarray, pd.DataFrame]:
     """Each run's zeros (and ballbar centre offsets) and their effect on every reading."""
-    effect = np.zeros(len(layout["u"]))
+    effect = np.zeros(len(layout.u))
     rows = []
-    keys = pd.DataFrame({"run": layout["run"], "quantity": layout["quantity"]})
+    keys = pd.DataFrame({"run": layout.run, "quantity": layout.quantity})
     for (run, quantity), group in keys.groupby(["run", "quantity"], sort=False):
         chosen = group.index.to_numpy()
-        spread = SETUP_SPREAD * layout["u"][chosen[0]]
+        spread = SETUP_SPREAD * layout.u[chosen[0]]
         if quantity != "radial":
             zero = spread * rng.standard_normal()
             effect[chosen] = zero
             rows.append((f"{run}:{quantity}", np.nan, zero))
             continue
         offset = spread * rng.standard_normal(3)
-        arm = tool_point(machine, layout["poses"][chosen]) - layout["centre"][chosen]
+        arm = tool_point(machine, layout.poses[chosen]) - layout.centre[chosen]
         length = np.linalg.norm(arm, axis=1)
         effect[chosen] = np.linalg.norm(arm - offset, axis=1) - length
         rows += [(f"{run}:centre_{axis}", np.nan, v) for axis, v in zip("xyz", offset)]

@@ -26,7 +26,7 @@ from allocation import AllocationProblem
 from allocation.compensated import allocate_compensated
 from reliability.compensation.compensation_plans import (CompensationPlan,
                                                          read_compensation_plan)
-from reliability.compensation.residual import plan_information
+from reliability.measured.identification import plan_information
 from reliability.model.poses import workspace_grid
 from studies.workflows.timing import one_blas_thread
 
