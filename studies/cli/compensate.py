@@ -23,9 +23,6 @@ from reliability.compensation.residual import measured_residual, posterior_sigma
 from reliability.first_order.fosm import fosm
 from reliability.compensation.tables import (DEFAULT_SPACING_DEG, DEFAULT_SPACING_MM,
                                              compensation_tables)
-from reliability.measured.identification import identify
-from reliability.measured.identification_files import read_identification
-from reliability.measured.measurement_files import read_measurements
 from reliability.model.poses import workspace_grid
 from studies.report.compensation_section import compensation_section
 from studies.report.writer import SIGNIFICANT
@@ -101,12 +98,9 @@ def run(args) -> int:
 
 
 def _identification(args, machine):
-    if args.measurements is not None:
-        tolerances = None if args.tolerances is None else \
-            options.read_tolerances(args.tolerances, machine)
-        return identify(machine, read_measurements(args.measurements, machine),
-                        tolerances=tolerances, profile=options.identified_profile(machine))
-    return read_identification(args.identification, machine)
+    tolerances = None if args.tolerances is None else \
+        options.read_tolerances(args.tolerances, machine)
+    return options.as_measured_identification(args, machine, tolerances)
 
 
 def residual_text(identification, tables) -> str:
