@@ -98,21 +98,9 @@ def measured_residual(identification, tables, poses, frame=None
     jac = machine.jacobian(poses, frame=frame or machine.frame)
     left = identification.mean_at(poses) - tables.values_at(poses)
     mean = np.einsum("...oi,...i->...o", jac, left)
-    variance = posterior_sigma(identification, poses, frame) ** 2 + \
-        np.square(jac) @ positioning_variance(machine)
+    posterior = identification.predict(poses, frame=frame or machine.frame)[1]
+    variance = posterior ** 2 + np.square(jac) @ positioning_variance(machine)
     return mean, np.sqrt(variance)
-
-
-def posterior_sigma(identification, poses, frame=None) -> np.ndarray:
-    """σ ``(..., 6)`` of one measured machine's outputs at ``poses`` under its posterior,
-    first order, each error as it acts at the pose (a motion error at the pose's position
-    along its axis), in ``frame`` (default the machine's)."""
-    machine = identification.machine
-    poses = machine.check_positions(poses)
-    rows = identification.coefficients.rows(
-        machine.jacobian(poses, frame=frame or machine.frame), poses)
-    variance = np.sum((rows @ identification.theta_covariance) * rows, axis=-1)
-    return np.sqrt(np.maximum(variance, 0.0))
 
 
 def compensated_deviation(machine, poses, errors, tables, rng, frame=None) -> np.ndarray:

@@ -184,12 +184,12 @@ class Identification:
         """Upper-tail probability of ``chi2`` under χ²(``dof``)."""
         return float(stats.chi2.sf(self.chi2, self.dof)) if self.dof > 0 else 1.0
 
-    def predict(self, poses) -> tuple[np.ndarray, np.ndarray]:
-        """Posterior mean and σ ``(..., 6)`` of the six outputs in the workpiece frame at
-        ``poses`` ``(..., n_axes)``, first order, each error taken at the pose's position
-        along its axis."""
+    def predict(self, poses, frame: str = "workpiece") -> tuple[np.ndarray, np.ndarray]:
+        """Posterior mean and σ ``(..., 6)`` of the six outputs in ``frame`` (the workpiece
+        frame, where readings are taken, by default) at ``poses`` ``(..., n_axes)``, first
+        order, each error taken at the pose's position along its axis."""
         if not self.coefficients.varies:
-            jac = self.machine.jacobian(poses, frame="workpiece")
+            jac = self.machine.jacobian(poses, frame=frame)
             variance = np.einsum("...oi,ij,...oj->...o", jac, self.covariance, jac)
             return jac @ self.mean, np.sqrt(np.maximum(variance, 0.0))
         poses = self.machine.check_positions(poses)
@@ -197,8 +197,8 @@ class Identification:
         mean, sd = np.empty((len(flat), 6)), np.empty((len(flat), 6))
         width = 6 * 8 * (self.coefficients.size + 2 * self.machine.n_errors)
         for part in chunks(len(flat), width):
-            rows = self.coefficients.rows(self.machine.jacobian(flat[part],
-                                                                frame="workpiece"), flat[part])
+            rows = self.coefficients.rows(self.machine.jacobian(flat[part], frame=frame),
+                                          flat[part])
             mean[part] = rows @ self.theta
             sd[part] = np.sqrt(np.maximum(np.sum((rows @ self.theta_covariance) * rows,
                                                  axis=-1), 0.0))

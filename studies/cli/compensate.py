@@ -19,7 +19,7 @@ from reliability.compensation.compensated_machines import (residual_model_passes
                                                            simulate_compensated)
 from reliability.compensation.compensation_plans import read_compensation_plan
 from reliability.compensation.compensation_files import table_file_names, write_compensation
-from reliability.compensation.residual import measured_residual, posterior_sigma
+from reliability.compensation.residual import measured_residual
 from reliability.first_order.fosm import fosm
 from reliability.compensation.tables import (DEFAULT_SPACING_DEG, DEFAULT_SPACING_MM,
                                              compensation_tables)
@@ -107,12 +107,11 @@ def residual_text(identification, tables) -> str:
     """Worst mean and σ of each output before and after compensation on the grid."""
     machine = identification.machine
     poses = workspace_grid(machine, RESIDUAL_GRID)
-    jac = machine.jacobian(poses, frame=machine.frame)
-    before = np.abs(np.einsum("poi,pi->po", jac, identification.mean_at(poses))).max(axis=0)
-    before_sd = posterior_sigma(identification, poses).max(axis=0)
+    before, before_sd = identification.predict(poses, frame=machine.frame)
     mean, sigma = measured_residual(identification, tables, poses)
-    frame = pd.DataFrame({"limit": machine.limits, "|mean| before": before,
-                          "sd before": before_sd, "|mean| after": np.abs(mean).max(axis=0),
+    frame = pd.DataFrame({"limit": machine.limits,
+                          "|mean| before": np.abs(before).max(axis=0),
+                          "sd before": before_sd.max(axis=0), "|mean| after": np.abs(mean).max(axis=0),
                           "sd after": sigma.max(axis=0)},
                          index=pd.Index(machine.outputs, name="output"))
     return (f"this machine's outputs ({machine.frame} frame) on the {RESIDUAL_GRID}-point "
