@@ -11,6 +11,7 @@ import numpy as np
 from ..basics import streams
 from ..measured.identification import identify
 from ..measured.simulated_measurements import simulate_measurements
+from ..model.error_draws import psd_factor
 from .residual import compensated_deviation, positioning_draws
 
 
@@ -47,13 +48,12 @@ def residual_model_passes(plan, tolerances, poses, draws: int, rng=None,
     machine = plan.machine
     rng = streams.generator(rng)
     poses = machine.check_positions(poses)
-    values, vectors = np.linalg.eigh(plan.residual_covariance(tolerances))
-    factor = vectors * np.sqrt(np.maximum(values, 0.0))
+    factor = psd_factor(plan.residual_covariance(tolerances))
     jac = machine.jacobian(poses, frame=machine.frame)
     out = np.empty(draws, dtype=bool)
     for first in range(0, draws, chunk):
         count = min(chunk, draws - first)
-        residual = rng.standard_normal((count, len(values))) @ factor.T
+        residual = rng.standard_normal((count, len(factor))) @ factor.T
         residual = residual[:, None, :] + positioning_draws(machine, (count, len(poses)), rng)
         outputs = np.einsum("poi,npi->npo", jac, residual)
         out[first:first + count] = np.all(np.abs(outputs) <= machine.limits, axis=(1, 2))

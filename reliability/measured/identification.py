@@ -34,6 +34,7 @@ from ..acceptance.prediction import tool_point
 from ..basics import streams
 from ..basics.chunks import chunks, jacobian_bytes
 from ..basics.errors import InputError
+from ..model.error_draws import psd_factor
 from .measurement_files import QUANTITIES, Measurements
 from .information import add_readings, eliminate_setups, empty_blocks, setup_effect, solve
 from .plans import planned_readings
@@ -208,7 +209,7 @@ class Identification:
     def sample(self, n: int, rng) -> np.ndarray:
         """``(n, n_errors)`` draws of the rows of :attr:`errors` from the posterior (the
         errors themselves under ``constant``)."""
-        factor = _psd_factor(self.covariance)
+        factor = psd_factor(self.covariance)
         normals = streams.generator(rng).standard_normal((n, len(self.mean)))
         return self.mean + normals @ factor.T
 
@@ -230,7 +231,7 @@ class Identification:
             shape = (n,) + (1,) * (poses.ndim - 1) + drawn.shape[1:]
             return np.broadcast_to(drawn.reshape(shape),
                                    (n,) + poses.shape[:-1] + drawn.shape[1:]).copy()
-        factor = _psd_factor(self.theta_covariance)
+        factor = psd_factor(self.theta_covariance)
         normals = streams.generator(rng).standard_normal((n, len(self.theta)))
         return self.coefficients.values(self.theta + normals @ factor.T, poses)
 
@@ -543,8 +544,3 @@ def _combination(names, row) -> str:
         terms.append(f"{sign} {size}{name}")
     text = " ".join(terms)
     return text[2:] if text.startswith("+ ") else text
-
-
-def _psd_factor(covariance) -> np.ndarray:
-    values, vectors = np.linalg.eigh(covariance)
-    return vectors * np.sqrt(np.maximum(values, 0.0))

@@ -80,6 +80,14 @@ def correlation_factor(correlation) -> np.ndarray:
         return (vectors * np.sqrt(np.maximum(values, 0.0))) @ vectors.T
 
 
+def psd_factor(covariance) -> np.ndarray:
+    """``L = V √Λ`` with ``L Lᵀ`` the covariance, from its eigen-decomposition: a singular
+    covariance (a direction the readings pin down, a combination they cannot see) is
+    allowed, its round-off negative eigenvalues taken as 0."""
+    values, vectors = np.linalg.eigh(np.asarray(covariance, dtype=float))
+    return vectors * np.sqrt(np.maximum(values, 0.0))
+
+
 def correlate_items(z, cholesky) -> np.ndarray:
     """Correlated standard normals ``L z`` over the last axis of independent ones ``z``.
 

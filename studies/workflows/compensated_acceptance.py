@@ -26,6 +26,7 @@ from reliability.acceptance.suggested_limits import suggest_limits
 from reliability.basics import checks, streams
 from reliability.basics.chunks import chunks
 from reliability.compensation.compensation_plans import K
+from reliability.model.error_draws import psd_factor
 
 #: The suffix of the columns after compensation in ``acceptance.csv``.
 SUFFIX = "_compensated"
@@ -69,7 +70,7 @@ def compensated_acceptance(plan, tests, tolerances=None, *, machines: int = 2000
     tests = tuple(tests)
     poses = np.concatenate([build_path(machine, test).poses for test in tests])
     weights = deviation_weights(machine, poses)
-    factor = covariance_factor(plan.residual_covariance(t))
+    factor = psd_factor(plan.residual_covariance(t))
     rng = streams.generator(rng)
     values = []
     for part in chunks(machines, 8 * len(poses) * (3 + machine.n_errors)):
@@ -82,12 +83,6 @@ def compensated_acceptance(plan, tests, tolerances=None, *, machines: int = 2000
                             profile=RESIDUAL_PROFILE, distribution="normal", k=K,
                             confidence=confidence)
 
-
-def covariance_factor(covariance) -> np.ndarray:
-    """``L`` with ``L Lᵀ`` the covariance, from its eigenvectors (a covariance that is
-    singular, as a plan that pins an item down leaves it, is allowed)."""
-    values, vectors = np.linalg.eigh(np.asarray(covariance, dtype=float))
-    return vectors * np.sqrt(np.maximum(values, 0.0))
 
 
 def comparison_frame(before: AcceptanceResult, after: AcceptanceResult,
