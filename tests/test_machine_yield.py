@@ -20,10 +20,13 @@ from reliability.basics.errors import InputError
 from reliability.first_order.fosm import fosm
 from reliability.model.error_draws import draw_errors
 from reliability.sampling.grid_experiment import GridExperiment
-from reliability.sampling.machine_yield import RowEvents, YieldModel, machine_yield
+from reliability.model.profiles import axis_profiles
+from reliability.sampling.machine_yield import (RowEvents, YieldModel, deciding_points,
+                                                machine_yield)
 from studies import cli
 from studies.workflows import machine_study
 
+ROOT = Path(__file__).resolve().parents[1]
 MILL = Path(__file__).parent / "machines" / "mill3.toml"
 Z = 4.0
 
@@ -120,8 +123,10 @@ def test_output_ratios_are_the_exact_chain_per_machine(machine_name, profile, di
     those of the exact chain evaluated pose by pose, and worst_ratios is their largest,
     with a row at which the chain reaches it."""
     machine = request.getfixturevalue(machine_name)
+    kept = deciding_points(machine, axis_profiles(machine, profile), 3)
+    poses = 3 ** len(machine.axes) if kept is None else np.prod([len(k) for k in kept])
     model = YieldModel(machine, profile=profile, distribution=distribution,
-                       points_per_axis=3, memory=2 * 4 * 6 * 8 * 3 ** len(machine.axes))
+                       points_per_axis=3, memory=2 * 4 * 6 * 8 * int(poses))
     assert model.batch == 2
     t = 1.3 * machine.initial_allocation
     u = model.draws(5, rng=11)
@@ -137,6 +142,44 @@ def test_output_ratios_are_the_exact_chain_per_machine(machine_name, profile, di
     failed, rows = model.worst_rows(u, t)
     np.testing.assert_array_equal(failed, ~(ratios < 1.0).all(axis=1))
     np.testing.assert_array_equal(rows, worst)
+
+
+@pytest.mark.parametrize("path, distribution", [
+    ("tests/machines/swivel5.toml", "normal"), ("tests/machines/trunnion5.toml", "truncated")])
+def test_the_deciding_poses_give_the_whole_grids_largest_ratios(path, distribution):
+    """Under a constant profile only the ends of each linear axis are evaluated (2 of 3
+    points on each of three linear axes here), and every machine's largest ratio per output
+    is the exact chain's over the whole grid, reached at the pose returned (swivel5 reads
+    its outputs in the workpiece frame)."""
+    machine = load_machine(ROOT / path)
+    kept = deciding_points(machine, axis_profiles(machine, "constant"), 3)
+    linear = [spec.kind == "linear" for spec in machine.axis_specs]
+    assert [len(k) for k in kept] == [2 if lin else 3 for lin in linear]
+    model = YieldModel(machine, profile="constant", distribution=distribution,
+                       points_per_axis=3)
+    t = 4.0 * machine.initial_allocation
+    u = model.draws(6, rng=5)
+    ratios, poses = model.output_ratios(u, t, with_poses=True)
+    np.testing.assert_allclose(ratios, chain_ratios(model, u, t), rtol=1e-12)
+    full = np.abs(model.experiment.evaluate(*model.errors(u, t))) / machine.limits
+    reached = np.take_along_axis(full, poses[:, None, :], axis=1)[:, 0]
+    np.testing.assert_allclose(reached, ratios, rtol=1e-12)
+
+
+def test_the_ends_of_a_linear_axis_do_not_decide_when_its_errors_vary_along_it():
+    """The reduction rests on errors constant along travel: under the independent profile
+    the grid of the linear axes' ends misses larger ratios inside, and none is made."""
+    machine = load_machine(ROOT / "tests/machines/trunnion5.toml")
+    assert deciding_points(machine, axis_profiles(machine, "independent"), 3) is None
+    kept = [np.array([0, 2]) if spec.kind == "linear" else np.arange(3)
+            for spec in machine.axis_specs]
+    ends = GridExperiment(machine, 3, "independent", kept_points=kept)
+    model = YieldModel(machine, profile="independent", points_per_axis=3)
+    u = model.draws(20, rng=5)
+    errors = model.errors(u, 4.0 * machine.initial_allocation)
+    at_ends = np.max(np.abs(ends.evaluate(*errors)), axis=1)
+    whole = np.max(np.abs(model.experiment.evaluate(*errors)), axis=1)
+    assert np.all(at_ends <= whole * (1 + 1e-12)) and np.any(at_ends < 0.99 * whole)
 
 
 def test_draws_come_from_the_seed_through_the_stream_door(mill):

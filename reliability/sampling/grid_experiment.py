@@ -47,8 +47,9 @@ READ[4, 0, 2], READ[4, 2, 0] = 0.5, -0.5
 READ[5, 1, 0], READ[5, 0, 1] = 0.5, -0.5
 
 
-def _grid_shape(position: int, dims: int, points: int) -> tuple[int, ...]:
-    return tuple(points if d == position else 1 for d in range(dims))
+def _grid_shape(position: int, counts) -> tuple[int, ...]:
+    """Broadcast shape of the axis at ``position`` among axes of ``counts`` points each."""
+    return tuple(count if d == position else 1 for d, count in enumerate(counts))
 
 
 class GridExperiment:
@@ -73,12 +74,17 @@ class GridExperiment:
         Bytes one batch of experiments may take (default
         :data:`reliability.basics.checks.DEFAULT_BUDGET`); ``P^n`` is checked against it here,
         ``batch × P^n`` and the counts of all repeats in :meth:`run`.
+    kept_points : sequence of array_like of int, optional
+        Per axis, the indices of its ``P`` grid points the experiment evaluates (all by
+        default): the poses are then the product of the kept points, in grid order, and
+        errors are still given at all ``P`` points of every axis. Not with a work zone.
     """
 
     def __init__(self, machine, points_per_axis: int = 5, profile="independent",
-                 systematic=None, *, budget: int | None = None):
+                 systematic=None, *, budget: int | None = None, kept_points=None):
         self.machine = machine
         self.points = grid_axis_points(machine, points_per_axis)
+        self._kept = self._check_kept(kept_points, len(self.points[0]))
         checks.require_size(len(self.points[0]) ** len(self.points), 6 * 8, budget,
                             f"one experiment on a {len(self.points[0])}-point grid of "
                             f"{len(self.points)} axes",
@@ -96,16 +102,39 @@ class GridExperiment:
         tail_factors, self._tail_gaps = self._segment(self.n_head, n)
         self._head_transports = transports(head_factors)
         self._tail_transports = transports(tail_factors)
-        self._tail_ideal = self._product(tail_factors, n - self.n_head)
+        self._tail_ideal = self._product(tail_factors, self.counts[self.n_head:])
         self._tail_ideal_inverse = rigid_inverse(self._tail_ideal)
         self._zone_rows = self._rows_in_zone()
         self._rotation = ideal_rotation(machine, self.poses) \
             if machine.frame == "workpiece" else None  # outputs in the workpiece frame
 
+    def _check_kept(self, kept_points, points: int) -> list[np.ndarray]:
+        n = len(self.machine.axis_specs)
+        if kept_points is None:
+            return [np.arange(points)] * n
+        if self.machine.work_zone is not None:
+            raise InputError("kept_points cannot be combined with a work zone")
+        kept = [np.asarray(k, dtype=np.intp) for k in kept_points]
+        if len(kept) != n:
+            raise InputError(f"kept_points must give one index array per axis ({n}); "
+                             f"got {len(kept)}")
+        for axis, k in zip(self.machine.axes, kept):
+            if k.ndim != 1 or len(k) == 0 or np.any(np.diff(k) <= 0) or k[0] < 0 \
+                    or k[-1] >= points:
+                raise InputError(f"kept_points of axis {axis} must be increasing indices in "
+                                 f"[0, {points - 1}]; got {k.tolist()}")
+        return kept
+
+    @property
+    def counts(self) -> tuple[int, ...]:
+        """Points evaluated on each axis: ``P`` each, or the kept points' counts."""
+        return tuple(len(k) for k in self._kept)
+
     @property
     def n_grid(self) -> int:
-        """``P^n``, the whole grid: 15 625 for the paper's machine."""
-        return self.points_per_axis ** len(self.machine.axis_specs)
+        """The grid's poses, ``P^n`` (15 625 for the paper's machine), or the product of
+        the kept points' counts."""
+        return int(np.prod(self.counts))
 
     @property
     def n_poses(self) -> int:
@@ -122,8 +151,15 @@ class GridExperiment:
         """The row of each of :attr:`poses` in the whole grid, ``(n_poses,)``."""
         return np.arange(self.n_grid) if self._zone_rows is None else self._zone_rows
 
+    def full_grid_rows(self) -> np.ndarray:
+        """The row of each of :attr:`poses` in the grid of all ``P^n`` points (with kept
+        points, their rows in it; otherwise :meth:`pose_rows`)."""
+        full = (len(self.points[0]),) * len(self._kept)
+        index = np.meshgrid(*self._kept, indexing="ij")
+        return np.ravel_multi_index([i.ravel() for i in index], full)[self.pose_rows()]
+
     def _whole_grid(self) -> np.ndarray:
-        mesh = np.meshgrid(*self.points, indexing="ij")
+        mesh = np.meshgrid(*[p[k] for p, k in zip(self.points, self._kept)], indexing="ij")
         return np.stack([m.ravel() for m in mesh], axis=-1)
 
     def _rows_in_zone(self) -> np.ndarray | None:
@@ -141,7 +177,7 @@ class GridExperiment:
         assembly error of the joint into its first axis.
         """
         specs = self.machine.axis_specs
-        dims, points = stop - first, self.points_per_axis
+        counts = self.counts[first:stop]
         factors, gaps = [np.eye(4)], []
         if first > 0:
             gaps.append(("joint", first - 1))
@@ -149,7 +185,7 @@ class GridExperiment:
         for i in range(first, stop):
             factors[-1] = factors[-1] @ offset_transform(specs[i].offset)
             gaps.append(("motion", i))
-            position = self.points[i].reshape(_grid_shape(i - first, dims, points))
+            position = self.points[i][self._kept[i]].reshape(_grid_shape(i - first, counts))
             factors.append(ideal_motion(specs[i], position))
             if i < stop - 1:
                 gaps.append(("joint", i))
@@ -158,12 +194,11 @@ class GridExperiment:
             factors[-1] = factors[-1] @ offset_transform(self.machine.tool_offset)
         return factors, gaps
 
-    def _product(self, factors, dims: int) -> np.ndarray:
+    def _product(self, factors, counts) -> np.ndarray:
         out = factors[0]
         for factor in factors[1:]:
             out = out @ factor
-        shape = (self.points_per_axis,) * dims
-        return np.broadcast_to(out, shape + (4, 4)).reshape(-1, 4, 4)
+        return np.broadcast_to(out, tuple(counts) + (4, 4)).reshape(-1, 4, 4)
 
     # ----- evaluation --------------------------------------------------------------
     def evaluate(self, motion_errors, assembly_errors) -> np.ndarray:
@@ -203,14 +238,17 @@ class GridExperiment:
 
     def _deviation(self, adjoints, gaps, first: int, motion, assembly) -> np.ndarray:
         """Deviation of a segment for every repeat and every combination of its points."""
-        dims = len([g for g in gaps if g[0] == "motion"])
+        counts = self.counts[first:first + len([g for g in gaps if g[0] == "motion"])]
         twists = []
         for kind, index in gaps:
             if kind == "motion":
-                shape = _grid_shape(index - first, dims, self.points_per_axis)
-                twists.append(motion[:, index].reshape((-1,) + shape + (6,)))
+                shape = _grid_shape(index - first, counts)
+                kept = self._kept[index]
+                at_points = motion[:, index] if len(kept) == motion.shape[2] \
+                    else motion[:, index, kept]
+                twists.append(at_points.reshape((-1,) + shape + (6,)))
             else:
-                twists.append(assembly[:, index].reshape((-1,) + (1,) * dims + (6,)))
+                twists.append(assembly[:, index].reshape((-1,) + (1,) * len(counts) + (6,)))
         if not twists:
             return np.zeros((motion.shape[0], 1, 4, 4))
         return deviation_from_transports(adjoints, twists)
@@ -222,8 +260,8 @@ class GridExperiment:
         all the poses at once: the simple reference the benchmark compares against.
         """
         motion, assembly = self._check_draws(motion_errors, assembly_errors)
-        index = np.stack(np.meshgrid(*[np.arange(self.points_per_axis)] * motion.shape[1],
-                                     indexing="ij"), axis=-1).reshape(-1, motion.shape[1])
+        index = np.stack(np.meshgrid(*self._kept, indexing="ij"),
+                         axis=-1).reshape(-1, motion.shape[1])
         index = index[self.pose_rows()]
         per_pose = motion[:, np.arange(motion.shape[1]), index]  # (R, P^n, n_axes, 6)
         x = np.concatenate([per_pose.reshape(motion.shape[0], len(index), -1),

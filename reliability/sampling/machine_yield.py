@@ -119,7 +119,7 @@ from ..model.error_draws import check_reading, grid_factors, normal_to_marginal
 from ..model.kinematics import (chain_factors, deviation_from_transports, ideal_rotation,
                                 transports, vectors_in_frame)
 from ..model.machine import OUTPUTS
-from ..model.profiles import axis_profiles, travel_factors
+from ..model.profiles import ConstantProfile, axis_profiles, travel_factors
 from ..model.transforms import read_pose_error
 from .grid_experiment import GridExperiment
 
@@ -322,7 +322,11 @@ class YieldModel:
         self.distribution = distribution
         self.experiment = GridExperiment(machine, points_per_axis, profile)
         self.memory = memory
-        self.batch = chunk_size(4 * 6 * 8 * self.experiment.n_grid, memory)
+        kept = deciding_points(machine, self.profiles, self.experiment.points_per_axis)
+        self._deciding = self.experiment if kept is None else GridExperiment(
+            machine, points_per_axis, profile, kept_points=kept)
+        self._deciding_rows = self._deciding.full_grid_rows()
+        self.batch = chunk_size(4 * 6 * 8 * self._deciding.n_grid, memory)
         n, points = len(machine.axis_specs), self.experiment.points_per_axis
         self._travel = travel_factors(machine, self.profiles, self.experiment.points)
         if machine.correlation is None:
@@ -412,21 +416,20 @@ class YieldModel:
         Notes
         -----
         Machines are evaluated in batches of :attr:`batch` (temporary arrays within the
-        model's memory budget); nothing loops over machines or poses in Python.
+        model's memory budget); nothing loops over machines or poses in Python. Only the
+        grid poses that can hold a maximum are evaluated (:func:`deciding_points`).
         """
         u = np.asarray(u, dtype=float)
         ratios = np.empty((len(u), len(OUTPUTS)))
         where = np.empty((len(u), len(OUTPUTS)), dtype=np.intp)
         for start in range(0, len(u), self.batch):
             part = slice(start, start + self.batch)
-            values = self.experiment.evaluate(*self.errors(u[part], tolerances))
+            values = self._deciding.evaluate(*self.errors(u[part], tolerances))
             rows = np.abs(values, out=values)
-            rows /= self.machine.limits  # (batch, n_poses, 6)
+            rows /= self.machine.limits  # (batch, deciding poses, 6)
             if with_poses:
-                by_output = np.ascontiguousarray(rows.transpose(0, 2, 1))
-                where[part] = np.argmax(by_output, axis=2)
-                ratios[part] = np.take_along_axis(by_output, where[part][..., None],
-                                                  axis=2)[..., 0]
+                where[part] = self._deciding_rows[np.argmax(rows, axis=1)]
+                ratios[part] = np.max(rows, axis=1)
             else:
                 ratios[part] = _largest_over_poses(rows)
         return (ratios, where) if with_poses else ratios
@@ -772,6 +775,33 @@ def machine_yield(machine, tolerances, *, profile=None, distribution=None,
                        points_per_axis=points_per_axis, k=k, memory=memory)
     return model.estimate(tolerances, machines=machines, rng=rng, method=method,
                           confidence=confidence, target_cov=target_cov)
+
+
+def deciding_points(machine, profiles, points: int) -> list[np.ndarray] | None:
+    """Per axis, the grid points at which a machine's largest ``|y_o|/I_o`` over the grid
+    can be reached: the two ends of the stroke on a linear axis whose errors are constant
+    along its travel, every point on the others; None when that is every point.
+
+    Why. Hold the errors fixed (a built machine under a constant profile on that axis: none
+    of the machine's errors then changes along it) and move one linear axis, every other
+    axis fixed. The axis enters the chain as one translation ``Trans(q d)``, so the actual
+    and the ideal tool poses are ``A Trans(q d) C`` with ``A``, ``C`` free of ``q``: their
+    positions are affine in ``q`` and their orientations do not depend on it. The exact
+    deviation (Eq. 18; its translation is the ideal orientation's transpose times the
+    difference of the positions, its rotation ``R_idealᵀ R_actual``) is therefore affine in
+    ``q``, in the workpiece frame as well (the ideal orientation does not change along a
+    linear axis). ``|y_o|`` is then convex in ``q``, and its largest value over points
+    ``q_1 < … < q_P`` of the line is at ``q_1`` or ``q_P``; on a tie the first in grid order
+    is ``q_1``. So the largest ratio over the whole grid, and the first pose reaching it,
+    are those over the grid of kept points (to rounding). Not with a work zone (its lines
+    are cut by the zone).
+    """
+    if machine.work_zone is not None or points <= 2:
+        return None
+    kept = [np.array([0, points - 1]) if spec.kind == "linear"
+            and isinstance(profile, ConstantProfile) else np.arange(points)
+            for spec, profile in zip(machine.axis_specs, profiles)]
+    return None if all(len(k) == points for k in kept) else kept
 
 
 def _largest_over_poses(rows) -> np.ndarray:
