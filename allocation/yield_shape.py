@@ -100,12 +100,7 @@ def shape_search(model, cost, lower, upper, start, design_target, u, *,
     ShapeResult or None
         None when no scale of ``start`` inside the box meets the design yield.
     """
-    level = int(np.ceil(design_target * len(u))) - 1  # machines below it must pass
-    band = max(1, int(BAND * len(u)))
-    if worst_ratios is None:
-        def worst_ratios(t):
-            return model.worst_ratios(u, t)
-    judge = (model, worst_ratios, u, level, band)
+    judge = _judge(model, design_target, u, worst_ratios)
     current = _scaled(judge, cost, lower, upper, np.asarray(start, dtype=float))
     if current is None:
         return None
@@ -126,6 +121,51 @@ def shape_search(model, cost, lower, upper, start, design_target, u, *,
     return ShapeResult(tolerances=current["t"], cost=current["cost"],
                        design_yield=current["design_yield"], evaluations=evaluations,
                        steps=steps)
+
+
+def scaled_to_yield(model, lower, upper, shape, target, u) -> dict | None:
+    """``clip(s · shape, box)`` with the scale ``s`` at which its yield on the sample ``u``
+    reaches ``target`` with at most :data:`SLACK` to spare in the quantile of the worst
+    ratios, judged on the whole grid of the exact chain.
+
+    The scale is found by the fixed-point steps ``s ← s (1 − SLACK/2) / q(s)`` (``q`` the
+    sample quantile of the worst ratios that must lie below 1): one step when nothing is
+    held at a bound (the ratios are homogeneous in the tolerances), a few otherwise.
+
+    Returns
+    -------
+    dict or None
+        ``t``, ``scale`` and ``yield`` (the share of ``u``'s machines that pass, at least
+        ``target``); None when no scale inside :data:`RESCALES` steps reaches ``target``.
+    """
+    level = int(np.ceil(target * len(u))) - 1  # machines below it must pass
+    shape = np.asarray(shape, dtype=float)
+    scale = 1.0
+    for attempt in range(RESCALES):
+        t = np.clip(scale * shape, lower, upper)
+        ratio = model.worst_ratios(u, t)[0]
+        quantile = np.partition(ratio, level)[level]
+        if 1.0 - SLACK <= quantile < 1.0:
+            break
+        following = scale * (1.0 - 0.5 * SLACK) / quantile
+        if np.array_equal(np.clip(following * shape, lower, upper), t) \
+                or attempt == RESCALES - 1:
+            break
+        scale = following
+    if quantile >= 1.0:
+        return None
+    return {"t": t, "scale": scale, "yield": float(np.mean(ratio < 1.0))}
+
+
+def _judge(model, target, u, worst_ratios):
+    """The model, the evaluation of the worst ratios (the whole grid's by default), the
+    draws, the rank of the quantile that must lie below 1 and the band's half-width."""
+    level = int(np.ceil(target * len(u))) - 1  # machines below it must pass
+    band = max(1, int(BAND * len(u)))
+    if worst_ratios is None:
+        def worst_ratios(t):
+            return model.worst_ratios(u, t)
+    return model, worst_ratios, u, level, band
 
 
 def _projected(direction, t, lower, upper) -> np.ndarray:

@@ -10,7 +10,8 @@ seed it prints
 
 1. the cost bracket of :func:`allocation.allocate_for_yield`: the certified lower bound
    (the larger of the row bound and the pose-chain bound, :mod:`allocation.yield_bound`),
-   the feasible cost and the gap, all relative to the initial allocation's cost;
+   the feasible cost (and the search's before its calibration) and the gap, all relative to
+   the initial allocation's cost;
 2. the verified yield interval of the allocation found (95 % Clopper–Pearson, from a fresh
    sample of built machines, the count stated), and the naive method's cost and verified
    yield;
@@ -72,7 +73,8 @@ def show(machine, yield_target, machines, seed, at_target) -> float:
     margin = equal_yield_margin(result, level=yield_target if at_target else None)
     print(f"  N {machines}, seed {seed}: bracket [{result.lower_bound / initial:.2%}, "
           f"{result.cost / initial:.2%}] of the initial cost, gap {result.relative_gap:.1%} "
-          f"of the feasible cost ({result.method}); verified {v.estimate:.4f} "
+          f"of the feasible cost ({result.method}, {result.search_cost / initial:.2%} "
+          f"before calibration); verified {v.estimate:.4f} "
           f"[{v.lower:.4f}, {v.upper:.4f}] {'verified' if result.verified else 'NOT verified'}"
           f"; naive {result.naive.cost / initial:.2%}, verified {n.estimate:.4f} "
           f"[{n.lower:.4f}, {n.upper:.4f}]")
@@ -81,7 +83,8 @@ def show(machine, yield_target, machines, seed, at_target) -> float:
           f"time {wall:.1f} s wall, {cpu:.1f} s CPU ({result.evaluations} candidates; "
           f"build {result.seconds['build']:.1f} s, bound {result.seconds['bound']:.1f} s, "
           f"targets {result.seconds['targets']:.1f} s, "
-          f"shape {result.seconds['shape']:.1f} s, verification "
+          f"shape {result.seconds['shape']:.1f} s, calibration "
+          f"{result.seconds['calibration']:.1f} s, verification "
           f"{result.seconds['verify']:.1f} s); peak memory {peak / 2 ** 20:.0f} MiB")
     return margin["margin"]
 

@@ -246,7 +246,7 @@ def run_yield(args) -> int:
     machine = options.machine(args)
     options.say(f"allocating for machine yield {args.yield_target:g} on the {args.points}-point"
                 f" grid, {options.box_words(machine, bounds)}, profile {machine.profile}, "
-                f"{args.machines:,} built machines per sample (design and verification)")
+                f"{args.machines:,} built machines per sample (design, calibration and verification)")
     result = allocate_for_yield(machine, args.yield_target, points=args.points, bounds=bounds,
                                 machines=args.machines, seed=args.seed)
     print(describe_yield(result))
@@ -274,13 +274,14 @@ def describe_yield(result) -> str:
         "bound",
         f"gap {display.significant_percent(result.gap / initial)} of the initial cost "
         f"({display.significant_percent(result.relative_gap)} of the cost)",
+        result.calibration_text(),
         f"verified yield {v.estimate:.4f}, 95% Clopper-Pearson [{v.lower:.4f}, {v.upper:.4f}] "
         f"from {v.n:,} fresh built machines: {verdict}",
         f"found by the {result.method} stage{result.narrower_box_text()}; per-output "
         "per-pose targets of the first stage: " + ", ".join(
             f"{name} {target:.6g}" for name, target in zip(OUTPUTS, result.output_targets)),
-        f"naive method (one common per-pose target {naive.target:.6g}): cost "
-        f"{naive.cost / initial:.4%} of the initial allocation, verified yield "
+        f"naive method (one common per-pose target {naive.target:.6g}, calibrated the same "
+        f"way): cost {naive.cost / initial:.4%} of the initial allocation, verified yield "
         f"{n.estimate:.4f} [{n.lower:.4f}, {n.upper:.4f}] from {n.n:,} machines",
         f"search: {result.evaluations} candidates on {result.machines:,} design machines "
         f"(aimed at yield {result.design_yield_target:.4f} there), seed {result.seed}"]
