@@ -135,8 +135,9 @@ def scaled_to_yield(model, lower, upper, shape, target, u) -> dict | None:
     Returns
     -------
     dict or None
-        ``t``, ``scale`` and ``yield`` (the share of ``u``'s machines that pass, at least
-        ``target``); None when no scale inside :data:`RESCALES` steps reaches ``target``.
+        ``t``, ``scale`` and ``passes`` (per machine of ``u``: it holds every limit at
+        every pose; their share is at least ``target``); None when no scale inside
+        :data:`RESCALES` steps reaches ``target``.
     """
     level = int(np.ceil(target * len(u))) - 1  # machines below it must pass
     shape = np.asarray(shape, dtype=float)
@@ -154,7 +155,7 @@ def scaled_to_yield(model, lower, upper, shape, target, u) -> dict | None:
         scale = following
     if quantile >= 1.0:
         return None
-    return {"t": t, "scale": scale, "yield": float(np.mean(ratio < 1.0))}
+    return {"t": t, "scale": scale, "passes": ratio < 1.0}
 
 
 def _judge(model, target, u, worst_ratios):

@@ -435,22 +435,22 @@ def allocate_for_yield(machine, yield_target: float, *, profile=None, distributi
     return YieldAllocation(
         problem=search.problem, search_problem=found.search.problem,
         yield_target=yield_target,
-        design_yield_target=float(design_target), tolerances=final.t, cost=final.cost,
+        design_yield_target=float(design_target), tolerances=final[0], cost=final[1],
         search_tolerances=chosen.t, search_cost=chosen.cost,
         output_targets=two_sided_target(found.best.z),
         method="per-output targets" if chosen is found.best else "error shape",
         design_yield=all_within_share(chosen.passes),
-        calibrated=final is not chosen, calibration_yield=all_within_share(final.passes),
-        verified_yield=all_within_share(verify(final.t)),
+        calibrated=final[3], calibration_yield=all_within_share(final[2]),
+        verified_yield=all_within_share(verify(final[0])),
         lower_bound=max(float(lower.dual_bound), -np.inf if chain is None else chain.bound),
         row_bound=float(lower.dual_bound), chain_bound=chain,
         lower_bound_tolerances=np.asarray(lower.t),
         naive=NaiveAllocation(target=float(two_sided_target(naive.z[0])),
-                              tolerances=naive_final.t, cost=naive_final.cost,
+                              tolerances=naive_final[0], cost=naive_final[1],
                               search_cost=naive.cost,
                               design_yield=all_within_share(naive.passes),
-                              calibration_yield=all_within_share(naive_final.passes),
-                              verified_yield=all_within_share(verify(naive_final.t))),
+                              calibration_yield=all_within_share(naive_final[2]),
+                              verified_yield=all_within_share(verify(naive_final[0]))),
         profile=machine.profile, distribution=machine.distribution, points=int(points),
         machines=machines, seed=seed, evaluations=sum(each.evaluations for each in searches),
         seconds={"build": built - started, "bound": bounded - built,
@@ -807,22 +807,20 @@ class _Search:
         self._cache.clear()
         return False
 
-    def calibrate(self, point) -> _Point:
+    def calibrate(self, point) -> tuple[np.ndarray, float, np.ndarray, bool]:
         """``point``'s allocation times one factor (inside the box) at which its yield on
         the calibration sample is the design yield
-        (:func:`allocation.yield_shape.scaled_to_yield`, the whole grid), with that sample's
-        verdicts; ``point`` itself, judged there, when no scale inside the box reaches
-        it."""
+        (:func:`allocation.yield_shape.scaled_to_yield`, the whole grid): its tolerances,
+        cost, per-machine verdicts there and True; ``point``'s own, judged there, and False
+        when no factor inside the box reaches it."""
         u = self.draws("calibration")
         found = scaled_to_yield(self.model, np.asarray(self.problem.lower),
                                 np.asarray(self.problem.upper), point.t, self.design_target,
                                 u)
-        t = point.t if found is None else found["t"]
-        verdicts = self.model.output_ratios(u, t) < 1.0
         if found is None:
-            return replace(point, verdicts=verdicts)
-        return _Point(z=point.z, t=t, cost=float(self.problem.cost.total(t)),
-                      verdicts=verdicts)
+            passes = (self.model.output_ratios(u, point.t) < 1.0).all(axis=1)
+            return point.t, point.cost, passes, False
+        return found["t"], float(self.problem.cost.total(found["t"])), found["passes"], True
 
     def verification_sample(self):
         """Per-machine verdicts of an allocation on the fresh sample, on the whole grid
