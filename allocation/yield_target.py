@@ -51,8 +51,9 @@ to the machine yield in a wider box: at the same targets it is cheaper, but it l
 items further, so more outputs come near their limits at more poses at once; its machine
 yield is lower, and the search starts from higher targets and ends elsewhere. So the stages also run in the default factor box
 ([0.5, 1.5] × the initial allocation) intersected with the box asked for, when that is a
-different, non-empty box, exactly as a search asked for that box would run, and the cheaper
-of the two results is kept: the result never costs more than the result for that
+different, non-empty box, exactly as a search asked for that box would run, each result is
+calibrated in its own box (below), and the cheaper calibrated one is kept: the result never
+costs more than the result for that
 intersection (a box containing the default one never costs more than the default one). It
 is the cheapest allocation this search found, not a certified optimum: only the lower bound
 is certified.
@@ -426,10 +427,12 @@ def allocate_for_yield(machine, yield_target: float, *, profile=None, distributi
             unreachable.append(error)
     if not outcomes:
         raise unreachable[0]
-    found = min(outcomes, key=lambda outcome: outcome.chosen.cost)
     searched = time.perf_counter()
+    finals = [outcome.search.calibrate(outcome.chosen) for outcome in outcomes]
+    cheapest = int(np.argmin([final[1] for final in finals]))
+    found, final = outcomes[cheapest], finals[cheapest]
     chosen, naive = found.chosen, found.naive
-    final, naive_final = found.search.calibrate(chosen), found.search.calibrate(naive)
+    naive_final = found.search.calibrate(naive)
     calibrated = time.perf_counter()
     verify = found.search.verification_sample()
     return YieldAllocation(
