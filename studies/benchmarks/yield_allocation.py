@@ -5,7 +5,8 @@ Run as ``python -m studies.benchmarks.yield_allocation [--yield 0.95] [--machine
 (``reliability/machines/hobbing.toml``), the 5-axis trunnion mill of the tests
 (``tests/machines/trunnion5.toml``) and the 5-axis machine with a C table and a B swivel
 head (``tests/machines/swivel5.toml``), under the ``constant`` error profile and each file's
-reading of a tolerance, on the 5-point grid and the default box, for every sample size and
+reading of a tolerance, on the 5-point grid and each file's box (its ``[bounds]`` table, else
+the default [0.5, 1.5] × the initial allocation), for every sample size and
 seed it prints
 
 1. the cost bracket of :func:`allocation.allocate_for_yield`: the certified lower bound
@@ -41,6 +42,7 @@ import numpy as np
 import allocation
 import reliability
 from allocation.yield_target import equal_yield_margin
+from reliability.model.poses import workspace_grid
 from studies.workflows.timing import one_blas_thread
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -50,6 +52,11 @@ MACHINES = {"paper": ("paper (hobbing.toml)",
                          ROOT / "tests" / "machines" / "trunnion5.toml"),
             "swivel": ("5-axis swivel head (swivel5.toml)",
                        ROOT / "tests" / "machines" / "swivel5.toml")}
+
+
+def box_words(machine) -> str:
+    """The box the allocation searches, as its problem states it."""
+    return allocation.AllocationProblem.build(machine, workspace_grid(machine, 2)[:1]).box_text()
 
 
 def timed_allocation(machine, yield_target, machines, seed):
@@ -103,7 +110,7 @@ def main(argv=None):
     for label, path in (MACHINES[name] for name in args.only):
         machine = reliability.load_machine(path)
         print(f"\n== {label}: yield {args.yield_target:g}, profile constant, distribution "
-              f"{machine.distribution}, 5-point grid, default box")
+              f"{machine.distribution}, 5-point grid, box {box_words(machine)}")
         for machines in args.machines:
             margins = []
             for seed in args.seeds:
