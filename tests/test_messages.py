@@ -150,7 +150,8 @@ def test_a_gap_is_shown_to_three_digits():
         profile="constant", points=3, problem=problem, lower_bound=0.5, cost=2.42,
         gap=1.921888, relative_gap=0.7941686, method="shape", output_targets=[0.999] * 6,
         evaluations=10, machines=100, design_yield_target=0.995, seed=0,
-        narrower_box_text=lambda: "", bound_text=lambda: "every row alone")
+        narrower_box_text=lambda: "", bound_text=lambda: "every row alone",
+        calibration_text=lambda: "calibrated")
     assert "gap 192 % of the initial cost (79.4 % of the cost)" in describe_yield(result)
 
 

@@ -325,7 +325,9 @@ class YieldModel:
         kept = deciding_points(machine, self.profiles, self.experiment.points_per_axis)
         self._deciding = self.experiment if kept is None else GridExperiment(
             machine, points_per_axis, profile, kept_points=kept)
-        self._deciding_rows = self._deciding.full_grid_rows()
+        # each evaluated pose's index into experiment.poses (the whole grid when kept)
+        self._deciding_rows = np.arange(self.experiment.n_poses) if kept is None \
+            else self._deciding.full_grid_rows()
         self.batch = chunk_size(4 * 6 * 8 * self._deciding.n_grid, memory)
         n, points = len(machine.axis_specs), self.experiment.points_per_axis
         self._travel = travel_factors(machine, self.profiles, self.experiment.points)
