@@ -256,12 +256,12 @@ def run_yield(args) -> int:
     bounds = options.check_bounds(args.bounds)
     out = options.destination(args.out, args.overwrite)
     drawing = drawing_destination(args, out)
-    executor = yield_executor(args)
+    executor, where = yield_executor(args)
     machine = options.machine(args)
     options.say(f"allocating for machine yield {args.yield_target:g} on the {args.points}-point"
                 f" grid, {options.box_words(machine, bounds)}, profile {machine.profile}, "
                 f"{args.machines:,} built machines per sample (design, calibration and "
-                f"verification)")
+                f"verification), simulated {where}")
     with executor as client:
         result = allocate_for_yield(machine, args.yield_target, points=args.points,
                                     bounds=bounds, machines=args.machines, seed=args.seed,
@@ -290,8 +290,9 @@ def add_yield_executor(parser) -> None:
 
 
 def yield_executor(args):
-    """The context of ``--yield``'s Dask client (None: here), after checking that
-    ``--executor``, ``--workers`` and ``--scheduler`` go together."""
+    """The context of ``--yield``'s Dask client (None: here) and where it simulates, in
+    words, after checking that ``--executor``, ``--workers`` and ``--scheduler`` go
+    together."""
     dask = args.executor == "dask" or (args.executor is None and args.scheduler is not None)
     if args.scheduler is not None and not dask:
         raise InputError(f"--scheduler needs --executor dask (or no --executor); got "
@@ -302,9 +303,12 @@ def yield_executor(args):
         raise InputError(f"--workers sizes a local Dask cluster; the scheduler at --scheduler "
                          f"{args.scheduler} has its own workers: give one of the two")
     if not dask:
-        return contextlib.nullcontext()
-    option = "--scheduler" if args.scheduler is not None else "--executor dask"
-    return options.dask_client(args.scheduler, args.workers, option)
+        return contextlib.nullcontext(), "here"
+    if args.scheduler is not None:
+        return (options.dask_client(args.scheduler, option="--scheduler"),
+                f"on the Dask scheduler at {args.scheduler}")
+    return (options.dask_client(workers=args.workers),
+            f"on a local Dask cluster of {args.workers or options.DASK_WORKERS} workers")
 
 
 def describe_yield(result) -> str:

@@ -336,18 +336,22 @@ def say(text: str) -> None:
     print(text, file=sys.stderr, flush=True)
 
 
+#: Workers of a local Dask cluster when ``--workers`` is not given.
+DASK_WORKERS = 2
+
+
 @contextlib.contextmanager
 def dask_client(scheduler=None, workers=None, option: str = "--executor dask"):
     """A Dask client of the running scheduler at ``scheduler``, else of a local cluster of
-    ``workers`` (default 2) one-thread workers, closed afterwards; Dask (the ``dask``
-    extra) is imported here, and its absence is refused naming ``option``."""
+    ``workers`` (default :data:`DASK_WORKERS`) one-thread workers, closed afterwards; Dask
+    (the ``dask`` extra) is imported here, and its absence is refused naming ``option``."""
     try:
         from distributed import Client, LocalCluster
     except ImportError:
         raise InputError(f"{option} needs the dask extra: "
                          f"pip install 'precision-reliability[dask]'") from None
     if scheduler is None:
-        with LocalCluster(n_workers=workers or 2, threads_per_worker=1,
+        with LocalCluster(n_workers=workers or DASK_WORKERS, threads_per_worker=1,
                           dashboard_address=None) as cluster, Client(cluster) as client:
             yield client
         return
