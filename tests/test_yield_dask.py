@@ -97,6 +97,8 @@ def test_cli_simulates_on_the_scheduler_it_is_given(client, tmp_path, monkeypatc
     (["--yield", "0.9", "--workers", "2", "--scheduler", "tcp://127.0.0.1:1"],
      "--workers sizes a local Dask cluster"),
     (["--yield", "0.9", "--workers", "0", "--executor", "dask"], "--workers"),
+    (["--yield", "0.9", "--scheduler", "nowhere:port"],
+     "--scheduler nowhere:port: no Dask scheduler answers there"),
 ])
 def test_cli_refuses_bad_dask_options_by_name(tmp_path, capsys, extra, words):
     code = cli.main(["allocate", MACHINE, "--points", "3", "--out", str(tmp_path / "a.csv"),

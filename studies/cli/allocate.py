@@ -75,8 +75,8 @@ def add_parser(subparsers):
                         metavar="Y",
                         help="allocate for a machine yield Y in (0, 1) instead of per-pose "
                              "targets (with --profile, --machines, --scheduler; not with "
-                             "--target, "
-                             "--side one_sided, --lock, --method gwo or --catalogue)")
+                             "--target, --side one_sided, --lock, --method gwo or "
+                             "--catalogue)")
     options.add_yield_model(parser)
     add_yield_executor(parser)
     parser.add_argument("--catalogue", metavar="CAT.toml",
@@ -258,11 +258,11 @@ def run_yield(args) -> int:
     drawing = drawing_destination(args, out)
     executor, where = yield_executor(args)
     machine = options.machine(args)
-    options.say(f"allocating for machine yield {args.yield_target:g} on the {args.points}-point"
-                f" grid, {options.box_words(machine, bounds)}, profile {machine.profile}, "
-                f"{args.machines:,} built machines per sample (design, calibration and "
-                f"verification), simulated {where}")
     with executor as client:
+        options.say(f"allocating for machine yield {args.yield_target:g} on the "
+                    f"{args.points}-point grid, {options.box_words(machine, bounds)}, profile "
+                    f"{machine.profile}, {args.machines:,} built machines per sample (design, "
+                    f"calibration and verification), simulated {where}")
         result = allocate_for_yield(machine, args.yield_target, points=args.points,
                                     bounds=bounds, machines=args.machines, seed=args.seed,
                                     executor=client)

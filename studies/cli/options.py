@@ -357,7 +357,7 @@ def dask_client(scheduler=None, workers=None, option: str = "--executor dask"):
         return
     try:
         client = Client(scheduler)
-    except OSError as error:
+    except (OSError, ValueError) as error:  # no answer; not an address
         raise InputError(f"--scheduler {scheduler}: no Dask scheduler answers there "
                          f"({error})") from None
     with client:
