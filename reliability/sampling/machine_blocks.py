@@ -13,10 +13,10 @@ the same arrays of every block
 and returns the blocks' results in block order, so both give the same bytes.
 
 On a client, the object that evaluates (the model) and the draws ``u`` are sent to the
-workers once (``client.scatter``) and kept there while the caller keeps the same Python
-object: a search that judges many allocations on one sample of machines ships that sample
-once, not once per allocation. What varies per call (the tolerances, a block's poses)
-travels with the tasks.
+workers once (``client.scatter`` of a copy) and kept there while the caller keeps the same
+Python object: a search that judges many allocations on one sample of machines ships that
+sample once, not once per allocation. What varies per call (the tolerances, a block's
+poses) travels with the tasks.
 
 Dask is optional (the ``dask`` extra): this module imports nothing of it; the caller hands
 over a client it made.
@@ -24,6 +24,7 @@ over a client it made.
 
 from __future__ import annotations
 
+import copy
 import weakref
 
 from ..basics.errors import InputTypeError
@@ -58,7 +59,8 @@ class MachineBlocks:
         function : callable
             A module-level function or a class's function (Dask pickles it by name).
         owner : object
-            Its first argument, e.g. the model; sent to the workers once.
+            Its first argument, e.g. the model (an object that takes weak references);
+            sent to the workers once.
         u : ndarray (machines, ...)
             The draws of the machines; sent to the workers once.
         blocks : list of slice
@@ -83,13 +85,18 @@ class MachineBlocks:
         return self.client.gather(tasks)
 
     def _on_workers(self, value):
-        """The future of ``value`` on every worker, scattered on first use and forgotten
-        (released on the cluster) when ``value`` itself is."""
+        """The future of a copy of ``value`` on every worker, sent on first use; released on
+        the cluster once ``value`` is gone (at the next call) or this object is.
+
+        The workers get a deep copy, so that workers in this process hold no reference to
+        ``value`` itself (nor to this object, which a copy of the owner holds only as a
+        local one: :meth:`__getstate__`)."""
+        self._shipped = {key: (alive, future) for key, (alive, future)
+                         in self._shipped.items() if alive() is not None}
         key = id(value)
-        if key not in self._shipped:
-            future = self.client.scatter(value, broadcast=True, hash=False)
-            forget = weakref.ref(value, lambda _: self._shipped.pop(key, None))
-            self._shipped[key] = (forget, future)
+        if key not in self._shipped or self._shipped[key][0]() is not value:
+            future = self.client.scatter(copy.deepcopy(value), broadcast=True, hash=False)
+            self._shipped[key] = (weakref.ref(value), future)
         return self._shipped[key][1]
 
 
