@@ -94,7 +94,7 @@ class MachineBlocks:
         self._shipped = {key: (alive, future) for key, (alive, future)
                          in self._shipped.items() if alive() is not None}
         key = id(value)
-        if key not in self._shipped or self._shipped[key][0]() is not value:
+        if key not in self._shipped:  # a live entry under this id is this object
             future = self.client.scatter(copy.deepcopy(value), broadcast=True, hash=False)
             self._shipped[key] = (weakref.ref(value), future)
         return self._shipped[key][1]
