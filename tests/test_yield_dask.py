@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 from allocation import allocate_for_yield
+from allocation.yield_target import SAMPLES
 from reliability.basics import chunks
 from reliability.basics.errors import InputError, InputTypeError
 from reliability.sampling.machine_blocks import MachineBlocks
@@ -48,7 +49,7 @@ def share(estimate) -> tuple:
 
 def test_allocation_on_dask_is_the_local_one(mill3, client, several_blocks, monkeypatch):
     """Every number of the result is the local run's, the blocks ran as tasks of the client,
-    and the workers got four objects: the model and the three samples of built machines."""
+    and the workers got the model and each sample of built machines, once each."""
     local = allocate_for_yield(mill3, 0.9, **SMALL)
     scattered = []
 
@@ -64,12 +65,14 @@ def test_allocation_on_dask_is_the_local_one(mill3, client, several_blocks, monk
         assert getattr(remote, name) == getattr(local, name), name
     assert np.array_equal(remote.naive.tolerances, local.naive.tolerances)
     assert (remote.naive.target, remote.naive.cost) == (local.naive.target, local.naive.cost)
+    assert remote.summary() == local.summary()
     for mine, theirs in ((remote, local), (remote.naive, local.naive)):
         for sample in ("design_yield", "verified_yield"):
             assert share(getattr(mine, sample)) == share(getattr(theirs, sample)), sample
     ran = [task for task in tasks.data if task["key"].startswith("_block")]
     assert len(ran) > 3 * len(scattered)
-    assert [type(value).__name__ for value in scattered] == ["YieldModel", *["ndarray"] * 3]
+    assert [type(value).__name__ for value in scattered] == \
+        ["YieldModel", *["ndarray"] * len(SAMPLES)]
 
 
 def test_cli_simulates_on_the_scheduler_it_is_given(client, tmp_path, monkeypatch):
