@@ -347,7 +347,7 @@ def allocate_for_yield(machine, yield_target: float, *, profile=None, distributi
                        points: int = 5, bounds=None, machines: int = DEFAULT_MACHINES,
                        seed: int = 0, rounds: int = 6, naive_steps: int = 8,
                        restore_steps: int = 4, shape_steps: int = 20,
-                       gap_tol: float = 1e-6) -> YieldAllocation:
+                       gap_tol: float = 1e-6, executor=None) -> YieldAllocation:
     """The cheapest allocation found whose machine yield reaches ``yield_target``.
 
     Parameters
@@ -384,6 +384,10 @@ def allocate_for_yield(machine, yield_target: float, *, profile=None, distributi
         search (:func:`allocation.yield_shape.shape_search`; 0: none).
     gap_tol : float
         Relative duality gap accepted by the convex solves.
+    executor : distributed.Client, optional
+        Simulate the built machines as tasks of this Dask client (each sample sent to its
+        workers once), with the same result as without it
+        (:mod:`reliability.sampling.machine_blocks`); None simulates them here.
 
     Returns
     -------
@@ -411,9 +415,10 @@ def allocate_for_yield(machine, yield_target: float, *, profile=None, distributi
     design_target = min(yield_target + DESIGN_Z * np.sqrt(yield_target * (1 - yield_target)
                                                            / machines),
                         1.0 - 0.5 / machines)
-    search = _Search(machine, points, bounds, machines, seed, design_target, gap_tol)
+    search = _Search(machine, points, bounds, machines, seed, design_target, gap_tol,
+                     executor=executor)
     searches = [search, *_narrower_searches(machine, points, search.problem, machines, seed,
-                                            design_target, gap_tol)]
+                                            design_target, gap_tol, executor)]
     built = time.perf_counter()
     lower = _lower_bound(search, yield_target)
     chain = pose_chain_bound(search.problem, yield_target, lower.t)
@@ -477,7 +482,8 @@ def _lower_bound(search, yield_target):
             f"tolerance at its lower bound); widen the box (bounds)") from None
 
 
-def _narrower_searches(machine, points, problem, machines, seed, design_target, gap_tol):
+def _narrower_searches(machine, points, problem, machines, seed, design_target, gap_tol,
+                       executor=None):
     """The search in the default factor box intersected with ``problem``'s box, built as a
     search given that box would build it: none when the intersection is the box itself or
     empty."""
@@ -488,7 +494,7 @@ def _narrower_searches(machine, points, problem, machines, seed, design_target, 
     if same or np.any(lower > upper):
         return []
     return [_Search(machine, points, None, machines, seed, design_target, gap_tol,
-                    box={"lower": lower, "upper": upper})]
+                    box={"lower": lower, "upper": upper}, executor=executor)]
 
 
 @dataclass(frozen=True, eq=False)
@@ -698,7 +704,7 @@ class _Search:
     :meth:`~reliability.sampling.machine_yield.YieldModel.output_ratios`."""
 
     def __init__(self, machine, points, bounds, machines, seed, design_target,
-                 gap_tol=1e-6, problem=None, box=None):
+                 gap_tol=1e-6, problem=None, box=None, executor=None):
         self.problem = problem if problem is not None else AllocationProblem.build(
             machine, workspace_grid(machine, points), side="two_sided", workspace="worst",
             bounds=bounds, targets=dict.fromkeys(OUTPUTS, BUILD_TARGET), **(box or {}))
@@ -706,7 +712,7 @@ class _Search:
         self.solver = CommonTargetSolver(self.problem, gap_tol)
         self.gap_tol = gap_tol
         self.z_build = float(self.problem.required_index[0])
-        self.model = YieldModel(machine, points_per_axis=points)
+        self.model = YieldModel(machine, points_per_axis=points, executor=executor)
         self.streams = streams.yield_allocation_streams(seed)
         self._draws = {}
         self.machines = machines

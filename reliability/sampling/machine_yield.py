@@ -13,7 +13,8 @@ The API (stable)::
                   points_per_axis=5, machines=DEFAULT_MACHINES, rng=None, method="auto",
                   confidence=0.95, k=3.0, target_cov=0.1, memory=None) -> YieldEstimate
 
-    model = YieldModel(machine, profile=None, distribution=None, points_per_axis=5, k=3.0)
+    model = YieldModel(machine, profile=None, distribution=None, points_per_axis=5, k=3.0,
+                       memory=None, executor=None)
     model.estimate(tolerances, machines=..., rng=..., method=..., ...) -> YieldEstimate
     model.first_order_bounds(tolerances) -> (lower, upper)
     model.linear_failure(tolerances, rng=None) -> float   # the linearised model's, no chain
@@ -37,7 +38,9 @@ machine and output, the largest ``|y_o|/I_o``; the machine passes when all six a
 of ``precrel report``, :func:`reliability.sampling.verification.verify`), both stages of
 :func:`allocation.allocate_for_yield` (per-output targets and error shape, on fixed draws:
 common random numbers), its naive method and its verification sample all use it, so the
-same draws give the same verdicts wherever they are judged.
+same draws give the same verdicts wherever they are judged. Machines are independent, so
+it evaluates them in fixed batches, here or, with ``executor=client``, as tasks of a Dask
+client (:mod:`reliability.sampling.machine_blocks`), with the same bytes either way.
 
 Estimators
 ----------
@@ -122,6 +125,7 @@ from ..model.machine import OUTPUTS
 from ..model.profiles import ConstantProfile, axis_profiles, travel_factors
 from ..model.transforms import read_pose_error
 from .grid_experiment import GridExperiment
+from .machine_blocks import MachineBlocks
 
 #: Built machines simulated when not told otherwise (the command line's ``--machines``).
 DEFAULT_MACHINES = 4000
@@ -310,10 +314,14 @@ class YieldModel:
     memory : int, optional
         Bytes of temporary arrays per batch of machines
         (:data:`reliability.basics.chunks.MEMORY_BUDGET` by default).
+    executor : distributed.Client, optional
+        Evaluate the batches of machines of :meth:`output_ratios` and :meth:`ratios_at` as
+        tasks of this Dask client (:mod:`reliability.sampling.machine_blocks`: the same
+        batches and the same bytes as without it); None evaluates them here.
     """
 
     def __init__(self, machine, *, profile=None, distribution=None, points_per_axis: int = 5,
-                 k: float = 3.0, memory: int | None = None):
+                 k: float = 3.0, memory: int | None = None, executor=None):
         distribution = machine.distribution if distribution is None else distribution
         self.k = check_reading(distribution, k)
         profile = machine.profile if profile is None else profile
@@ -322,6 +330,8 @@ class YieldModel:
         self.distribution = distribution
         self.experiment = GridExperiment(machine, points_per_axis, profile)
         self.memory = memory
+        self.blocks = MachineBlocks(executor)
+        self._last_block = None
         kept = deciding_points(machine, self.profiles, self.experiment.points_per_axis)
         self._deciding = self.experiment if kept is None else GridExperiment(
             machine, points_per_axis, profile, kept_points=kept)
@@ -418,23 +428,35 @@ class YieldModel:
         Notes
         -----
         Machines are evaluated in batches of :attr:`batch` (temporary arrays within the
-        model's memory budget); nothing loops over machines or poses in Python. Only the
-        grid poses that can hold a maximum are evaluated (:func:`deciding_points`).
+        model's memory budget), here or on the model's Dask client, with the same bytes;
+        nothing loops over machines or poses in Python. Only the grid poses that can hold a
+        maximum are evaluated (:func:`deciding_points`).
         """
         u = np.asarray(u, dtype=float)
-        ratios = np.empty((len(u), len(OUTPUTS)))
-        where = np.empty((len(u), len(OUTPUTS)), dtype=np.intp)
-        for start in range(0, len(u), self.batch):
-            part = slice(start, start + self.batch)
-            values = self._deciding.evaluate(*self.errors(u[part], tolerances))
-            rows = np.abs(values, out=values)
-            rows /= self.machine.limits  # (batch, deciding poses, 6)
-            if with_poses:
-                where[part] = self._deciding_rows[np.argmax(rows, axis=1)]
-                ratios[part] = np.max(rows, axis=1)
-            else:
-                ratios[part] = _largest_over_poses(rows)
-        return (ratios, where) if with_poses else ratios
+        blocks = [slice(start, min(start + self.batch, len(u)))
+                  for start in range(0, len(u), self.batch)]
+        parts = self.blocks.map(YieldModel._output_block, self, u, blocks,
+                                (tolerances, with_poses))
+        self._last_block = None
+        ratios = _joined([ratios for ratios, _ in parts], (0, len(OUTPUTS)), float)
+        if not with_poses:
+            return ratios
+        return ratios, _joined([where for _, where in parts], (0, len(OUTPUTS)), np.intp)
+
+    def _output_block(self, u, tolerances, with_poses):
+        """:meth:`output_ratios` of one block of machines (``where`` is None without
+        ``with_poses``).
+
+        Its largest array is kept until the next block has been evaluated: freed at every
+        block, the allocator hands that memory back to the system and faults it in again
+        for the next block, about a third slower over the whole grid."""
+        values = self._deciding.evaluate(*self.errors(u, tolerances))
+        self._last_block = values
+        rows = np.abs(values, out=values)
+        rows /= self.machine.limits  # (batch, deciding poses, 6)
+        if not with_poses:
+            return _largest_over_poses(rows), None
+        return np.max(rows, axis=1), self._deciding_rows[np.argmax(rows, axis=1)]
 
     def ratios_at(self, u, tolerances, poses):
         """Each built machine's worst ratio per output over its own grid poses: ``max over
@@ -465,24 +487,32 @@ class YieldModel:
         poses = np.asarray(poses, dtype=np.intp)
         distinct = np.unique(poses[poses >= 0])
         chain = _PoseChains(self.machine, self.experiment.poses[distinct])
+        blocks = chunks(len(u), 4 * 8 * 36 * poses.shape[1] * len(chain.adjoints),
+                        self.memory)
+        parts = self.blocks.map(YieldModel._ratios_block, self, u, blocks,
+                                (tolerances, chain, distinct), (poses,))
+        return (_joined([ratios for ratios, _ in parts], (0, len(OUTPUTS)), float),
+                _joined([where for _, where in parts], (0, len(OUTPUTS)), np.intp))
+
+    def _ratios_block(self, u, tolerances, chain, distinct, poses):
+        """:meth:`ratios_at` of one block of machines, with the chain at the ``distinct``
+        poses of all of them."""
         ratios = np.zeros((len(u), len(OUTPUTS)))
         where = np.full((len(u), len(OUTPUTS)), -1, dtype=np.intp)
-        for part in chunks(len(u), 4 * 8 * 36 * poses.shape[1] * len(chain.adjoints),
-                           self.memory):
-            machine, column = np.nonzero(poses[part] >= 0)  # pairs, machine by machine
-            if len(machine) == 0:
-                continue
-            pose = poses[part][machine, column]
-            motion, assembly = self.errors(u[part], tolerances)
-            x = self._pair_errors(motion, assembly, machine, self._grid_index[pose])
-            rows = np.abs(chain.evaluate(np.searchsorted(distinct, pose), x))
-            rows /= self.machine.limits  # (pairs, 6)
-            first = np.flatnonzero(np.diff(machine, prepend=-1))  # each machine's first pair
-            owner = machine[first] + part.start
-            ratios[owner] = np.maximum.reduceat(rows, first, axis=0)
-            attained = rows == ratios[machine + part.start]
-            pair = np.where(attained, np.arange(len(pose))[:, None], len(pose))
-            where[owner] = pose[np.minimum.reduceat(pair, first, axis=0)]
+        machine, column = np.nonzero(poses >= 0)  # pairs, machine by machine
+        if len(machine) == 0:
+            return ratios, where
+        pose = poses[machine, column]
+        motion, assembly = self.errors(u, tolerances)
+        x = self._pair_errors(motion, assembly, machine, self._grid_index[pose])
+        rows = np.abs(chain.evaluate(np.searchsorted(distinct, pose), x))
+        rows /= self.machine.limits  # (pairs, 6)
+        first = np.flatnonzero(np.diff(machine, prepend=-1))  # each machine's first pair
+        owner = machine[first]
+        ratios[owner] = np.maximum.reduceat(rows, first, axis=0)
+        attained = rows == ratios[machine]
+        pair = np.where(attained, np.arange(len(pose))[:, None], len(pose))
+        where[owner] = pose[np.minimum.reduceat(pair, first, axis=0)]
         return ratios, where
 
     @staticmethod
@@ -816,6 +846,12 @@ def _largest_over_poses(rows) -> np.ndarray:
         np.maximum(rows[:, :half], rows[:, count - half:count], out=rows[:, :half])
         count -= half
     return rows[:, 0].copy()
+
+
+def _joined(parts, empty_shape, dtype) -> np.ndarray:
+    """The blocks' arrays one after the other (an empty array of ``empty_shape`` for no
+    block)."""
+    return np.concatenate(parts) if parts else np.empty(empty_shape, dtype=dtype)
 
 
 def _worst_of(ratios, poses):

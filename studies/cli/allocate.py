@@ -6,6 +6,7 @@ whose machine yield reaches Y, with its cost bracket."""
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 from pathlib import Path
 
@@ -28,6 +29,10 @@ from studies.report.writer import SIGNIFICANT
 
 from . import compensate, options
 
+#: Where ``--yield`` simulates its built machines.
+YIELD_EXECUTORS = ("serial", "dask")
+YIELD_EXECUTOR_OPTIONS = ("--executor", "--workers", "--scheduler")
+
 
 def add_parser(subparsers):
     parser = subparsers.add_parser(
@@ -46,7 +51,8 @@ def add_parser(subparsers):
                     "found whose machine yield (share of built machines within every limit at "
                     "every grid pose, under --profile) reaches Y, verified on fresh machines, "
                     "between a certified lower bound on the cost and the naive method "
-                    "(docs/yield-allocation.md).")
+                    "(docs/yield-allocation.md); --scheduler ADDRESS simulates the built "
+                    "machines on a running Dask cluster, with the same result.")
     options.add_machine(parser)
     parser.add_argument("--out", required=True, metavar="CSV",
                         help="allocation file to write (columns error, reference, allocated);"
@@ -68,9 +74,11 @@ def add_parser(subparsers):
     parser.add_argument("--yield", dest="yield_target", type=options.probability,
                         metavar="Y",
                         help="allocate for a machine yield Y in (0, 1) instead of per-pose "
-                             "targets (with --profile, --machines; not with --target, "
-                             "--side one_sided, --lock, --method gwo or --catalogue)")
+                             "targets (with --profile, --machines, --scheduler; not with "
+                             "--target, --side one_sided, --lock, --method gwo or "
+                             "--catalogue)")
     options.add_yield_model(parser)
+    add_yield_executor(parser)
     parser.add_argument("--catalogue", metavar="CAT.toml",
                         help="choose one class per component of this catalogue instead of "
                              "continuous tolerances, on the grid poses (no --bounds, --lock, "
@@ -97,6 +105,11 @@ def add_parser(subparsers):
 
 
 def run(args) -> int:
+    if args.yield_target is None:
+        for option in YIELD_EXECUTOR_OPTIONS:
+            if getattr(args, option[2:]) is not None:
+                raise InputError(f"{option} is used with --yield only: it says where the "
+                                 f"built machines of the machine yield are simulated")
     if args.compensation is not None:
         return compensate.run_allocation(args)
     if args.yield_target is not None:
@@ -243,16 +256,59 @@ def run_yield(args) -> int:
     bounds = options.check_bounds(args.bounds)
     out = options.destination(args.out, args.overwrite)
     drawing = drawing_destination(args, out)
+    executor, where = yield_executor(args)
     machine = options.machine(args)
-    options.say(f"allocating for machine yield {args.yield_target:g} on the {args.points}-point"
-                f" grid, {options.box_words(machine, bounds)}, profile {machine.profile}, "
-                f"{args.machines:,} built machines per sample (design, calibration and verification)")
-    result = allocate_for_yield(machine, args.yield_target, points=args.points, bounds=bounds,
-                                machines=args.machines, seed=args.seed)
+    with executor as client:
+        options.say(f"allocating for machine yield {args.yield_target:g} on the "
+                    f"{args.points}-point grid, {options.box_words(machine, bounds)}, profile "
+                    f"{machine.profile}, {args.machines:,} built machines per sample (design, "
+                    f"calibration and verification), simulated {where}")
+        result = allocate_for_yield(machine, args.yield_target, points=args.points,
+                                    bounds=bounds, machines=args.machines, seed=args.seed,
+                                    executor=client)
     print(describe_yield(result))
     print(changes_text(result))
     write_files(args, result, out, drawing, targets=False)
     return 0
+
+
+def add_yield_executor(parser) -> None:
+    """``--executor``, ``--workers`` and ``--scheduler``: where ``--yield`` simulates its
+    built machines (as ``precrel sweep`` runs its tasks)."""
+    parser.add_argument("--executor", choices=YIELD_EXECUTORS, default=None,
+                        help="with --yield: simulate the built machines here (serial, the "
+                             "default) or on Dask (dask: a local cluster of --workers "
+                             "workers, or the scheduler at --scheduler); the result printed "
+                             "and written is the same")
+    parser.add_argument("--workers", type=options.positive_int, default=None, metavar="N",
+                        help="with --executor dask: workers of the local Dask cluster "
+                             "(default 2)")
+    parser.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                        help="with --yield: simulate the built machines on the running Dask "
+                             "scheduler at ADDRESS, e.g. tcp://10.0.0.5:8786 (--executor "
+                             "dask implied)")
+
+
+def yield_executor(args):
+    """The context of ``--yield``'s Dask client (None: here) and where it simulates, in
+    words, after checking that ``--executor``, ``--workers`` and ``--scheduler`` go
+    together."""
+    dask = args.executor == "dask" or (args.executor is None and args.scheduler is not None)
+    if args.scheduler is not None and not dask:
+        raise InputError(f"--scheduler needs --executor dask (or no --executor); got "
+                         f"--executor {args.executor}")
+    if args.workers is not None and not dask:
+        raise InputError("--workers needs --executor dask: it sizes the local Dask cluster")
+    if args.workers is not None and args.scheduler is not None:
+        raise InputError(f"--workers sizes a local Dask cluster; the scheduler at --scheduler "
+                         f"{args.scheduler} has its own workers: give one of the two")
+    if not dask:
+        return contextlib.nullcontext(), "here"
+    if args.scheduler is not None:
+        return (options.dask_client(args.scheduler, option="--scheduler"),
+                f"on the Dask scheduler at {args.scheduler}")
+    return (options.dask_client(workers=args.workers),
+            f"on a local Dask cluster of {args.workers or options.DASK_WORKERS} workers")
 
 
 def describe_yield(result) -> str:

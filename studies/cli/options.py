@@ -6,6 +6,7 @@ in terms of options, and printing. The computations live in the library."""
 from __future__ import annotations
 
 import argparse
+import contextlib
 import dataclasses
 import sys
 from pathlib import Path
@@ -333,6 +334,34 @@ def print_warnings(texts) -> None:
 def say(text: str) -> None:
     """A progress line on stderr."""
     print(text, file=sys.stderr, flush=True)
+
+
+#: Workers of a local Dask cluster when ``--workers`` is not given.
+DASK_WORKERS = 2
+
+
+@contextlib.contextmanager
+def dask_client(scheduler=None, workers=None, option: str = "--executor dask"):
+    """A Dask client of the running scheduler at ``scheduler``, else of a local cluster of
+    ``workers`` (default :data:`DASK_WORKERS`) one-thread workers, closed afterwards; Dask
+    (the ``dask`` extra) is imported here, and its absence is refused naming ``option``."""
+    try:
+        from distributed import Client, LocalCluster
+    except ImportError:
+        raise InputError(f"{option} needs the dask extra: "
+                         f"pip install 'precision-reliability[dask]'") from None
+    if scheduler is None:
+        with LocalCluster(n_workers=workers or DASK_WORKERS, threads_per_worker=1,
+                          dashboard_address=None) as cluster, Client(cluster) as client:
+            yield client
+        return
+    try:
+        client = Client(scheduler)
+    except (OSError, ValueError) as error:  # no answer; not an address
+        raise InputError(f"--scheduler {scheduler}: no Dask scheduler answers there "
+                         f"({error})") from None
+    with client:
+        yield client
 
 
 # ----- this machine as measured -------------------------------------------------------

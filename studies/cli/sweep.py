@@ -83,15 +83,5 @@ def _executor(args):
         finally:  # on an interrupt, do not wait for tasks that have not started
             pool.shutdown(wait=True, cancel_futures=True)
     else:
-        try:
-            from distributed import Client, LocalCluster
-        except ImportError:
-            raise InputError("--executor dask needs the dask extra: "
-                             "pip install 'precision-reliability[dask]'") from None
-        if args.scheduler is not None:
-            with Client(args.scheduler) as client:
-                yield client
-        else:
-            with LocalCluster(n_workers=args.workers or 2, threads_per_worker=1,
-                              dashboard_address=None) as cluster, Client(cluster) as client:
-                yield client
+        with options.dask_client(args.scheduler, args.workers) as client:
+            yield client
