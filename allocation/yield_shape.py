@@ -46,6 +46,8 @@ SMALLEST_STEP = 0.004
 SLACK = 1e-3
 #: ... within this many rescalings.
 RESCALES = 6
+#: Bisections on the scale when the rescalings are held up by tolerances at their bounds.
+BISECTIONS = 10
 
 
 @dataclass(frozen=True)
@@ -124,28 +126,35 @@ def shape_search(model, cost, lower, upper, start, design_target, u, *,
 
 
 def scaled_to_yield(model, lower, upper, shape, target, u) -> dict | None:
-    """``clip(s · shape, box)`` with the scale ``s`` at which its yield on the sample ``u``
-    reaches ``target`` with at most :data:`SLACK` to spare in the quantile of the worst
-    ratios, judged on the whole grid of the exact chain.
+    """``clip(s · shape, box)`` with the largest scale ``s`` at which its yield on the
+    sample ``u`` reaches ``target``, judged on the whole grid of the exact chain.
 
-    The scale is found by the fixed-point steps ``s ← s (1 − SLACK/2) / q(s)`` (``q`` the
+    The scale comes from the fixed-point steps ``s ← s (1 − SLACK/2) / q(s)`` (``q`` the
     sample quantile of the worst ratios that must lie below 1): one step when nothing is
-    held at a bound (the ratios are homogeneous in the tolerances), a few otherwise.
+    held at a bound (the ratios are homogeneous in the tolerances), a few otherwise, until
+    ``q`` lies within :data:`SLACK` below 1. When tolerances held at their lower bounds
+    keep the steps from reaching ``target``, :data:`BISECTIONS` bisections in ``log s``
+    between the last scale and the one that puts every tolerance at its lower bound find
+    the largest scale that does.
 
     Returns
     -------
     dict or None
         ``t``, ``scale`` and ``passes`` (per machine of ``u``: it holds every limit at
-        every pose; their share is at least ``target``); None when no scale inside
-        :data:`RESCALES` steps reaches ``target``.
+        every pose; their share is at least ``target``); None when not even every
+        tolerance at its lower bound reaches ``target``.
     """
     level = int(np.ceil(target * len(u))) - 1  # machines below it must pass
     shape = np.asarray(shape, dtype=float)
-    scale = 1.0
-    for attempt in range(RESCALES):
+
+    def judged(scale):
         t = np.clip(scale * shape, lower, upper)
         ratio = model.worst_ratios(u, t)[0]
-        quantile = np.partition(ratio, level)[level]
+        return t, ratio, np.partition(ratio, level)[level]
+
+    scale = 1.0
+    for attempt in range(RESCALES):
+        t, ratio, quantile = judged(scale)
         if 1.0 - SLACK <= quantile < 1.0:
             break
         following = scale * (1.0 - 0.5 * SLACK) / quantile
@@ -154,8 +163,29 @@ def scaled_to_yield(model, lower, upper, shape, target, u) -> dict | None:
             break
         scale = following
     if quantile >= 1.0:
-        return None
+        found = _bisected(judged, scale, float(np.min(lower / shape)))
+        if found is None:
+            return None
+        scale, (t, ratio, quantile) = found
     return {"t": t, "scale": scale, "passes": ratio < 1.0}
+
+
+def _bisected(judged, failing, lowest):
+    """The largest scale between ``lowest`` (every tolerance at its lower bound) and the
+    ``failing`` one whose quantile is below 1, with what ``judged`` says of it; None when
+    not even ``lowest`` gives one."""
+    at_lowest = judged(lowest)
+    if at_lowest[2] >= 1.0:
+        return None
+    low, high, best = np.log(lowest), np.log(failing), (lowest, at_lowest)
+    for _ in range(BISECTIONS):
+        middle = 0.5 * (low + high)
+        trial = judged(np.exp(middle))
+        if trial[2] < 1.0:
+            low, best = middle, (np.exp(middle), trial)
+        else:
+            high = middle
+    return best
 
 
 def _judge(model, target, u, worst_ratios):

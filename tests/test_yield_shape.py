@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from allocation import AllocationProblem
-from allocation.yield_shape import shape_search
+from allocation.yield_shape import scaled_to_yield, shape_search
 from reliability import load_machine, workspace_grid
 from reliability.sampling.machine_yield import YieldModel
 
@@ -59,3 +59,21 @@ def test_shape_search_meets_the_design_yield_in_the_box(setting):
     first = shape_search(model, problem.cost, lower, upper, start, 0.9, u, iterations=1)
     assert first.steps == 0 and found.cost <= first.cost
     assert found.cost == pytest.approx(problem.cost.total(found.tolerances))
+
+
+def test_scaling_to_a_yield_finds_the_largest_scale_when_lower_bounds_hold_items():
+    """Half the tolerances may tighten by 10 % only, so the quantile's fixed-point steps
+    stall; the scale found is then bisected: its yield reaches the target on the sample, a
+    scale 1 % larger misses it, and the allocation is the clipped multiple of the shape."""
+    machine = load_machine(Path(__file__).parent / "machines" / "trunnion5.toml")
+    model = YieldModel(machine, profile="constant", points_per_axis=3)
+    u = model.draws(300, 4)
+    shape = np.asarray(machine.initial_allocation, dtype=float)
+    lower, upper = 0.2 * shape, 10.0 * shape
+    lower[::2] = 0.9 * shape[::2]
+    found = scaled_to_yield(model, lower, upper, shape, 0.95, u)
+    assert found["passes"].mean() >= 0.95
+    np.testing.assert_array_equal(found["t"], np.clip(found["scale"] * shape, lower, upper))
+    looser = np.clip(1.01 * found["scale"] * shape, lower, upper)
+    assert (model.output_ratios(u, looser) < 1.0).all(axis=1).mean() < 0.95
+    assert scaled_to_yield(model, lower, upper, shape, 0.999, u) is None
