@@ -852,14 +852,20 @@ class _Search:
         capping = OUTPUTS[int(np.argmin(self.cap))]
         failures = (~high.verdicts).sum(axis=0)
         failing = OUTPUTS[int(np.argmax(failures))]
-        return (f"machine yield {yield_target:g} unreachable inside the box "
+        tightest = (self.model.output_ratios(self.draws("design"), self.problem.lower)
+                    < 1.0).all(axis=1).mean()
+        where = "inside the box" if tightest < self.design_target else \
+            "for this search (its naive start) inside the box"
+        return (f"machine yield {yield_target:g} unreachable {where} "
                 f"{self.problem.box_text()}: the most precise common per-pose target it "
                 f"holds, {two_sided_target(self.cap.min()):.6g} (output {capping}'s rows reach "
                 f"their limits with every tolerance at its lower bound), gives a yield of "
                 f"{high.passes.mean():.4f} on {self.machines} machines, short of the design "
                 f"yield {self.design_target:.4f} every candidate must reach there; output "
-                f"{failing} fails most of them ({failures.max()} of {self.machines}); "
-                f"widen the box (bounds)")
+                f"{failing} fails most of them ({failures.max()} of {self.machines}); every "
+                f"tolerance at its lower bound gives {tightest:.4f}; widen the box (bounds)"
+                + ("" if tightest < self.design_target else
+                   " or simulate more machines (a smaller margin above Y)"))
 
     def _smallest_shift(self, base, low, high, best, steps) -> _Point:
         """Bisection on the shift ``s`` of ``base + s`` between a failing ``low`` and a
