@@ -348,6 +348,13 @@ def test_unreachable_yield_names_yield_box_and_outputs(gantry5_tool):
     for words in ("machine yield 0.95 unreachable", "the machine file's [bounds]",
                   "output dy's rows reach their limits", "on 200 machines", "fails most"):
         assert words in message
+    tightest = re.search(r"every tolerance at its lower bound gives ([\d.]+)", message)
+    lowest = _Search(gantry5_tool, 3, None, 200, 0, 0.0)
+    u = lowest.draws("design")
+    passes = (lowest.model.output_ratios(u, lowest.problem.lower) < 1.0).all(axis=1)
+    assert float(tightest.group(1)) == pytest.approx(passes.mean(), abs=5e-5)
+    design = min(0.95 + DESIGN_Z * np.sqrt(0.95 * 0.05 / 200), 1.0 - 0.5 / 200)
+    assert ("unreachable inside the box" in message) == (passes.mean() < design)
 
 
 @pytest.fixture(scope="module")
