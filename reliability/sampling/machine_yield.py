@@ -456,7 +456,10 @@ class YieldModel:
         rows /= self.machine.limits  # (batch, deciding poses, 6)
         if not with_poses:
             return _largest_over_poses(rows), None
-        return np.max(rows, axis=1), self._deciding_rows[np.argmax(rows, axis=1)]
+        by_output = np.ascontiguousarray(rows.transpose(0, 2, 1))  # reduced along memory
+        where = np.argmax(by_output, axis=2)
+        ratios = np.take_along_axis(by_output, where[..., None], axis=2)[..., 0]
+        return ratios, self._deciding_rows[where]
 
     def ratios_at(self, u, tolerances, poses):
         """Each built machine's worst ratio per output over its own grid poses: ``max over
