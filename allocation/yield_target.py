@@ -61,15 +61,18 @@ is certified.
 Calibration. The search chooses among many candidates on its design samples, so the
 yield of the allocation it ends at is biased upwards there (on the paper's machine at 4 000
 machines the fresh samples saw about one standard error less). The allocation is therefore
-scaled, as the shape stage scales its candidates (its worst ratios are homogeneous of
-degree one in the tolerances; tolerances at a bound of the box do not scale), until its
-yield on a *calibration* sample of N fresh machines is ``Y_d``. That sample is used for
+multiplied by one factor, inside the box (:func:`allocation.yield_shape.scaled_to_yield`:
+the worst ratios are homogeneous of degree one in the tolerances, so the factor comes from
+their quantile, bisected when tolerances held at their bounds stall that), until its yield
+on a *calibration* sample of N fresh machines is ``Y_d``. That sample is used for
 nothing else, so the calibrated yield is an honest estimate, and the verification sample
 then differs from it by sampling noise alone: the difference of two independent samples
 of N (standard deviation ``√2`` standard errors). ``DESIGN_Z`` = 1.96 + 1.96·√2 ≈ 4.73
 standard errors, so the verification's 95 % Clopper–Pearson interval clears Y in about
-97.5 % of runs. When no scale inside the box reaches ``Y_d`` on the calibration sample the
-search's allocation is kept as it is (:attr:`YieldAllocation.calibrated` is False).
+97.5 % of runs. When no factor reaches ``Y_d`` on the calibration sample, not even every
+tolerance at its lower bound, the search's allocation is kept as it is
+(:attr:`YieldAllocation.calibrated` is False). The naive allocation is calibrated the same
+way.
 
 One engine. Every yield of both stages, of the verification and of the naive method is a
 share of built machines judged by
