@@ -144,8 +144,11 @@ class NaiveAllocation:
     ----------
     target : float
         The common two-sided per-pose target R.
+    toward_lower : float
+        0, or, when even the largest R the box holds misses the design yield, the share of
+        the way from that R's allocation to the box's lower bounds it was moved.
     tolerances : ndarray (n_errors,)
-        The allocation of that target, calibrated.
+        The allocation of that target (moved), calibrated.
     cost : float
     search_cost : float
         The cost of the allocation of the target, before the calibration.
@@ -156,12 +159,23 @@ class NaiveAllocation:
     """
 
     target: float
+    toward_lower: float
     tolerances: np.ndarray
     cost: float
     search_cost: float
     design_yield: object
     calibration_yield: object
     verified_yield: object
+
+
+    def text(self) -> str:
+        """The target, and how far it was moved, in words."""
+        common = f"one common per-pose target {self.target:.6g}"
+        if self.toward_lower == 0.0:
+            return common
+        return (f"{common}, the most precise the box holds, moved {self.toward_lower:.1%} of "
+                f"the way to the box's lower bounds: the target alone misses the design "
+                f"yield")
 
 
 @dataclass(frozen=True, eq=False)
@@ -307,9 +321,9 @@ class YieldAllocation:
             "the cheapest found by this search; not certified: see the lower bound",
             f"found by the {self.method} stage{self.narrower_box_text()}; per-output "
             f"per-pose targets of the first stage: {targets}",
-            f"naive method (one common per-pose target {self.naive.target:.6g}, calibrated "
-            f"the same way): cost {self.naive.cost / initial:.4%} of the initial cost, "
-            f"verified yield {n.estimate:.4f} [{n.lower:.4f}, {n.upper:.4f}]"])
+            f"naive method ({self.naive.text()}, calibrated the same way): cost "
+            f"{self.naive.cost / initial:.4%} of the initial cost, verified yield "
+            f"{n.estimate:.4f} [{n.lower:.4f}, {n.upper:.4f}]"])
 
     def calibration_text(self) -> str:
         """How the search's allocation became the result, in words."""
@@ -457,6 +471,7 @@ def allocate_for_yield(machine, yield_target: float, *, profile=None, distributi
         row_bound=float(lower.dual_bound), chain_bound=chain,
         lower_bound_tolerances=np.asarray(lower.t),
         naive=NaiveAllocation(target=float(two_sided_target(naive.z[0])),
+                              toward_lower=float(found.search.toward_lower),
                               tolerances=naive_final[0], cost=naive_final[1],
                               search_cost=naive.cost,
                               design_yield=all_within_share(naive.passes),
@@ -564,7 +579,8 @@ def equal_yield_margin(result: YieldAllocation, *, level: float | None = None,
     were tuned to (their allocations' yields); ``yield_target`` gives the comparison at Y.
 
     Each method is a family of allocations along a common shift of its required indices
-    (naive: the common target; the result: its six targets, or, when the error-shape stage
+    (naive: the common target, or the share of the way to the lower bounds when its start
+    was moved there; the result: its six targets, or, when the error-shape stage
     gave it, its tolerances scaled by ``z/(z + shift)`` inside the box with ``z`` the naive
     required index). On a fresh sample (common
     random numbers for every allocation) each family is moved from shift 0 outwards in
@@ -596,7 +612,7 @@ def equal_yield_margin(result: YieldAllocation, *, level: float | None = None,
                      problem=result.search_problem)
     sample = search.verification_sample()
     z_naive = np.full(6, required_index(result.naive.target, "two_sided"))
-    families = {"naive": lambda shift: search.solve(z_naive + shift),
+    families = {"naive": _naive_family(result, search, z_naive),
                 "result": _result_family(result, search, float(z_naive[0]))}
     shifts, costs, passes = {}, {}, {}
     for name, allocate in families.items():
@@ -617,6 +633,23 @@ def equal_yield_margin(result: YieldAllocation, *, level: float | None = None,
             "machines": machines, "shifts": shifts, "costs": costs,
             "yields": {name: passes[name].mean(axis=1) for name in families},
             "evaluations": sum(len(s) for s in shifts.values())}
+
+
+def _naive_family(result, search, z):
+    """The naive allocation at a shift: its common target shifted, or, when it was moved
+    towards the box's lower bounds, that share shifted: past the most precise target (share
+    0) the common target falls, past the lower bounds (share 1) nothing moves."""
+    if result.naive.toward_lower == 0.0:
+        return lambda shift: search.solve(z + shift)
+    cap, lower = search.solve(z), np.asarray(result.search_problem.lower)
+
+    def moved(shift):
+        share = result.naive.toward_lower + shift
+        if share <= 0.0:
+            return search.solve(z + share)
+        t = cap.t + min(share, 1.0) * (lower - cap.t)
+        return _Point(z=z, t=t, cost=float(result.search_problem.cost.total(t)))
+    return moved
 
 
 def _result_family(result, search, z):
@@ -723,6 +756,7 @@ class _Search:
         self.floor = float(required_index(0.5, "two_sided"))
         self.cap = self._caps()
         self.evaluations = 0
+        self.toward_lower = 0.0
         self._start = None
         self._cache = {}
         self._poses = {}
@@ -841,13 +875,42 @@ class _Search:
         return lambda t: (self.model.output_ratios(u, t) < 1.0).all(axis=1)
 
     def naive(self, steps, yield_target) -> _Point:
-        """One common required index, bisected to the smallest meeting the design yield;
-        :class:`YieldUnreachableError` for ``yield_target`` when the largest the box holds
-        misses it."""
+        """One common required index, bisected to the smallest meeting the design yield.
+
+        When even the largest the box holds misses it, that index's allocation is moved
+        towards the box's lower bounds, ``t + λ (lower − t)``, with ``λ`` bisected to the
+        smallest share meeting it (:attr:`toward_lower`); :class:`YieldUnreachableError`
+        for ``yield_target`` when not even every tolerance at its lower bound does."""
+        self.toward_lower = 0.0
         high = self.evaluate(np.full(6, self.cap.min()))
-        if not high.meets(self.design_target):
+        if high.meets(self.design_target):
+            return self._smallest_shift(np.zeros(6), self.floor, self.cap.min(), high, steps)
+        lowered = self._toward_lower_bounds(high, steps)
+        if lowered is None:
             raise YieldUnreachableError(self._unreachable(high, yield_target))
-        return self._smallest_shift(np.zeros(6), self.floor, self.cap.min(), high, steps)
+        return lowered
+
+    def _toward_lower_bounds(self, high, steps) -> _Point | None:
+        """``high``'s allocation moved the smallest share ``λ`` (bisected ``steps`` times)
+        of the way to the box's lower bounds at which it meets the design yield; None
+        when the lower bounds themselves miss it."""
+        def point(share):
+            t = high.t + share * (np.asarray(self.problem.lower) - high.t)
+            return _Point(z=high.z, t=t, cost=float(self.problem.cost.total(t)),
+                          verdicts=self.verdicts(t, "design"))
+        best = point(1.0)
+        if not best.meets(self.design_target):
+            return None
+        low, high_share = 0.0, 1.0
+        for _ in range(steps):
+            middle = 0.5 * (low + high_share)
+            trial = point(middle)
+            if trial.meets(self.design_target):
+                high_share, best = middle, trial
+            else:
+                low = middle
+        self.toward_lower = high_share
+        return best
 
     def _unreachable(self, high, yield_target) -> str:
         """Why ``yield_target`` is out of reach: the yield, the box, the output whose rows
@@ -857,18 +920,15 @@ class _Search:
         failing = OUTPUTS[int(np.argmax(failures))]
         tightest = (self.model.output_ratios(self.draws("design"), self.problem.lower)
                     < 1.0).all(axis=1).mean()
-        where = "inside the box" if tightest < self.design_target else \
-            "for this search (its naive start) inside the box"
-        return (f"machine yield {yield_target:g} unreachable {where} "
+        return (f"machine yield {yield_target:g} unreachable inside the box "
                 f"{self.problem.box_text()}: the most precise common per-pose target it "
                 f"holds, {two_sided_target(self.cap.min()):.6g} (output {capping}'s rows reach "
                 f"their limits with every tolerance at its lower bound), gives a yield of "
                 f"{high.passes.mean():.4f} on {self.machines} machines, short of the design "
                 f"yield {self.design_target:.4f} every candidate must reach there; output "
-                f"{failing} fails most of them ({failures.max()} of {self.machines}); every "
-                f"tolerance at its lower bound gives {tightest:.4f}; widen the box (bounds)"
-                + ("" if tightest < self.design_target else
-                   " or simulate more machines (a smaller margin above Y)"))
+                f"{failing} fails most of them ({failures.max()} of {self.machines}), and "
+                f"every tolerance at its lower bound gives {tightest:.4f}; widen the box "
+                f"(bounds) or simulate more machines (a smaller margin above Y)")
 
     def _smallest_shift(self, base, low, high, best, steps) -> _Point:
         """Bisection on the shift ``s`` of ``base + s`` between a failing ``low`` and a

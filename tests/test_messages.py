@@ -146,7 +146,7 @@ def test_a_gap_is_shown_to_three_digits():
     check = SimpleNamespace(estimate=0.99, lower=0.98, upper=0.995, n=1000)
     result = SimpleNamespace(
         initial_cost=1.0, verified_yield=check, naive=SimpleNamespace(
-            verified_yield=check, target=0.999, cost=2.5), verified=True, yield_target=0.99,
+            verified_yield=check, target=0.999, cost=2.5, text=lambda: "target"), verified=True, yield_target=0.99,
         profile="constant", points=3, problem=problem, lower_bound=0.5, cost=2.42,
         gap=1.921888, relative_gap=0.7941686, method="shape", output_targets=[0.999] * 6,
         evaluations=10, machines=100, design_yield_target=0.995, seed=0,

@@ -385,3 +385,24 @@ def test_result_is_not_called_the_cheapest_without_qualification(result, nested_
     assert ("of the search in this box intersected with the default factor box [0.5, 1.5] × "
             "the initial allocation ([0.5, 1.5] × the initial allocation), cheaper than this "
             "box's own search") in wide.summary()
+
+
+def test_naive_start_moves_towards_the_lower_bounds_when_its_target_cannot():
+    """In swivel5's [bounds] box the most precise common target misses the design yield on
+    300 machines while every tolerance at its lower bound meets it: the naive start is that
+    target's allocation moved part of the way to the lower bounds, the search goes on from
+    there, and the summary says so."""
+    swivel5 = reliability.load_machine(MACHINE_DIR / "swivel5.toml")
+    result = allocate_for_yield(swivel5, Y, points=3, machines=MACHINES, seed=0, rounds=2,
+                                shape_steps=6)
+    share = result.naive.toward_lower
+    assert 0.0 < share < 1.0
+    search = _Search(swivel5, 3, None, MACHINES, 0, result.design_yield_target)
+    cap = search.solve(np.full(6, search.cap.min()))
+    assert not search.evaluate(cap.z).meets(result.design_yield_target)
+    moved = cap.t + share * (search.problem.lower - cap.t)
+    assert result.naive.search_cost == pytest.approx(search.problem.cost.total(moved))
+    assert result.naive.design_yield.estimate >= result.design_yield_target
+    assert f"moved {share:.1%} of the way to the box's lower bounds" in result.summary()
+    assert result.search_cost <= result.naive.search_cost
+    assert np.isfinite(equal_yield_margin(result)["naive"])  # its family passes through it

@@ -336,8 +336,8 @@ def describe_yield(result) -> str:
         f"found by the {result.method} stage{result.narrower_box_text()}; per-output "
         "per-pose targets of the first stage: " + ", ".join(
             f"{name} {target:.6g}" for name, target in zip(OUTPUTS, result.output_targets)),
-        f"naive method (one common per-pose target {naive.target:.6g}, calibrated the same "
-        f"way): cost {naive.cost / initial:.4%} of the initial allocation, verified yield "
+        f"naive method ({naive.text()}, calibrated the same way): cost "
+        f"{naive.cost / initial:.4%} of the initial allocation, verified yield "
         f"{n.estimate:.4f} [{n.lower:.4f}, {n.upper:.4f}] from {n.n:,} machines",
         f"search: {result.evaluations} candidates on {result.machines:,} design machines "
         f"(aimed at yield {result.design_yield_target:.4f} there), seed {result.seed}"]
