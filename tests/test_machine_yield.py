@@ -333,3 +333,13 @@ def test_yields_near_one_are_printed_with_their_failure_probability():
     assert yield_text(0.835) == "0.8350"
     assert yield_text(1 - 2.5e-7) == "0.99999975"
     assert yield_text(1 - 1e-12) != "1" and yield_text(1.0) == "1"
+
+
+def test_kept_points_are_checked_by_axis_before_any_work():
+    machine = load_machine(ROOT / "tests/machines/trunnion5.toml")
+    with pytest.raises(InputError, match=r"one index array per axis \(5\); got 1"):
+        GridExperiment(machine, 3, "constant", kept_points=[[0, 2]])
+    bad = [np.arange(3)] * 4 + [np.array([2, 0])]
+    with pytest.raises(InputError, match=rf"kept_points of axis {machine.axes[4]} must be "
+                                         r"increasing indices in \[0, 2\]; got \[2, 0\]"):
+        GridExperiment(machine, 3, "constant", kept_points=bad)

@@ -109,6 +109,7 @@ class GridExperiment:
             if machine.frame == "workpiece" else None  # outputs in the workpiece frame
 
     def _check_kept(self, kept_points, points: int) -> list[np.ndarray]:
+        """Per axis, the indices of the grid points evaluated (all by default), checked."""
         n = len(self.machine.axis_specs)
         if kept_points is None:
             return [np.arange(points)] * n
