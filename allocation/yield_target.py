@@ -87,6 +87,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field, replace
+from typing import NamedTuple
 
 import numpy as np
 from scipy.stats import norm
@@ -451,7 +452,7 @@ def allocate_for_yield(machine, yield_target: float, *, profile=None, distributi
         raise unreachable[0]
     searched = time.perf_counter()
     finals = [outcome.search.calibrate(outcome.chosen) for outcome in outcomes]
-    cheapest = int(np.argmin([final[1] for final in finals]))
+    cheapest = int(np.argmin([final.cost for final in finals]))
     found, final = outcomes[cheapest], finals[cheapest]
     chosen, naive = found.chosen, found.naive
     naive_final = found.search.calibrate(naive)
@@ -460,23 +461,23 @@ def allocate_for_yield(machine, yield_target: float, *, profile=None, distributi
     return YieldAllocation(
         problem=search.problem, search_problem=found.search.problem,
         yield_target=yield_target,
-        design_yield_target=float(design_target), tolerances=final[0], cost=final[1],
+        design_yield_target=float(design_target), tolerances=final.t, cost=final.cost,
         search_tolerances=chosen.t, search_cost=chosen.cost,
         output_targets=two_sided_target(found.best.z),
         method="per-output targets" if chosen is found.best else "error shape",
         design_yield=all_within_share(chosen.passes),
-        calibrated=final[3], calibration_yield=all_within_share(final[2]),
-        verified_yield=all_within_share(verify(final[0])),
+        calibrated=final.calibrated, calibration_yield=all_within_share(final.passes),
+        verified_yield=all_within_share(verify(final.t)),
         lower_bound=max(float(lower.dual_bound), -np.inf if chain is None else chain.bound),
         row_bound=float(lower.dual_bound), chain_bound=chain,
         lower_bound_tolerances=np.asarray(lower.t),
         naive=NaiveAllocation(target=float(two_sided_target(naive.z[0])),
                               toward_lower=float(found.search.toward_lower),
-                              tolerances=naive_final[0], cost=naive_final[1],
+                              tolerances=naive_final.t, cost=naive_final.cost,
                               search_cost=naive.cost,
                               design_yield=all_within_share(naive.passes),
-                              calibration_yield=all_within_share(naive_final[2]),
-                              verified_yield=all_within_share(verify(naive_final[0]))),
+                              calibration_yield=all_within_share(naive_final.passes),
+                              verified_yield=all_within_share(verify(naive_final.t))),
         profile=machine.profile, distribution=machine.distribution, points=int(points),
         machines=machines, seed=seed, evaluations=sum(each.evaluations for each in searches),
         seconds={"build": built - started, "bound": bounded - built,
@@ -731,6 +732,16 @@ class _Point:
         return self.passes.mean() >= target
 
 
+class _Calibrated(NamedTuple):
+    """An allocation after :meth:`_Search.calibrate`: its tolerances, cost, per-machine
+    verdicts on the calibration sample, and whether a factor was found."""
+
+    t: np.ndarray
+    cost: float
+    passes: np.ndarray
+    calibrated: bool
+
+
 class _Search:
     """The per-output-target family of allocations, solved and simulated with CRN.
 
@@ -853,20 +864,20 @@ class _Search:
         self._cache.clear()
         return False
 
-    def calibrate(self, point) -> tuple[np.ndarray, float, np.ndarray, bool]:
+    def calibrate(self, point) -> _Calibrated:
         """``point``'s allocation times one factor (inside the box) at which its yield on
         the calibration sample is the design yield
-        (:func:`allocation.yield_shape.scaled_to_yield`, the whole grid): its tolerances,
-        cost, per-machine verdicts there and True; ``point``'s own, judged there, and False
-        when no factor inside the box reaches it."""
+        (:func:`allocation.yield_shape.scaled_to_yield`, the whole grid); ``point``'s own,
+        judged there, when no factor inside the box reaches it."""
         u = self.draws("calibration")
         found = scaled_to_yield(self.model, np.asarray(self.problem.lower),
                                 np.asarray(self.problem.upper), point.t, self.design_target,
                                 u)
         if found is None:
             passes = (self.model.output_ratios(u, point.t) < 1.0).all(axis=1)
-            return point.t, point.cost, passes, False
-        return found["t"], float(self.problem.cost.total(found["t"])), found["passes"], True
+            return _Calibrated(point.t, point.cost, passes, calibrated=False)
+        return _Calibrated(found["t"], float(self.problem.cost.total(found["t"])),
+                           found["passes"], calibrated=True)
 
     def verification_sample(self):
         """Per-machine verdicts of an allocation on the fresh sample, on the whole grid
