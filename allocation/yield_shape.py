@@ -144,7 +144,7 @@ def scaled_to_yield(model, lower, upper, shape, target, u) -> dict | None:
         every pose; their share is at least ``target``); None when not even every
         tolerance at its lower bound reaches ``target``.
     """
-    level = int(np.ceil(target * len(u))) - 1  # machines below it must pass
+    level = _passing_rank(target, len(u))
     shape = np.asarray(shape, dtype=float)
 
     def judged(scale):
@@ -188,10 +188,16 @@ def _bisected(judged, failing, lowest):
     return best
 
 
+def _passing_rank(target, machines) -> int:
+    """Rank of the worst ratio that must lie below 1 for a yield of ``target`` among
+    ``machines`` (the machines ranked below it pass too)."""
+    return int(np.ceil(target * machines)) - 1
+
+
 def _judge(model, target, u, worst_ratios):
     """The model, the evaluation of the worst ratios (the whole grid's by default), the
     draws, the rank of the quantile that must lie below 1 and the band's half-width."""
-    level = int(np.ceil(target * len(u))) - 1  # machines below it must pass
+    level = _passing_rank(target, len(u))
     band = max(1, int(BAND * len(u)))
     if worst_ratios is None:
         def worst_ratios(t):
