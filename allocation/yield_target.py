@@ -72,7 +72,9 @@ standard errors, so the verification's 95 % Clopper–Pearson interval clears Y 
 97.5 % of runs. When no factor reaches ``Y_d`` on the calibration sample, not even every
 tolerance at its lower bound, the search's allocation is kept as it is
 (:attr:`YieldAllocation.calibrated` is False). The naive allocation is calibrated the same
-way.
+way, and when it is then cheaper than the search's calibrated allocation, the naive start
+is the result (:attr:`YieldAllocation.method` ``'naive start'``): on small samples the
+search fits its design draws and its allocation can lose more on the calibration sample.
 
 One engine. Every yield of both stages, of the verification and of the naive method is a
 share of built machines judged by
@@ -199,26 +201,32 @@ class YieldAllocation:
     design_yield_target : float
         ``Y_d``, the yield every candidate had to reach on the design sample.
     tolerances : ndarray (n_errors,)
-        The allocation found: the search's, calibrated (:attr:`calibrated`).
+        The allocation found: the search's, calibrated (:attr:`calibrated`), or the naive
+        start's, calibrated, when that is cheaper (:attr:`method` ``'naive start'``).
     cost : float
         Its cost (Eq. 28).
     search_tolerances : ndarray (n_errors,)
         The allocation the search ended at, before the calibration.
     search_cost : float
+    search_calibrated_cost : float
+        The cost of :attr:`search_tolerances` calibrated: :attr:`cost`, unless the naive
+        start was kept.
     output_targets : ndarray (6,)
         The per-output two-sided per-pose targets the per-output search ended at.
     method : str
         Which stage gave the allocation: ``'per-output targets'`` (the certified per-pose
-        optimum of :attr:`output_targets`) or ``'error shape'`` (the shape search over
-        every tolerance, which started there and found a cheaper allocation).
+        optimum of :attr:`output_targets`), ``'error shape'`` (the shape search over
+        every tolerance, which started there and found a cheaper allocation) or
+        ``'naive start'`` (the search's allocation, once calibrated, costs more than the
+        naive start calibrated the same way, :attr:`naive`, which is then the result).
     design_yield : ProportionEstimate
         The search's allocation's yield on its design sample (the design sample of the
-        stage that gave it).
+        stage it ended in).
     calibrated : bool
-        The search's allocation was scaled to the design yield on the calibration sample
-        (False when no scale inside the box reaches it: the search's allocation is kept).
+        The result was scaled to the design yield on the calibration sample (False when
+        no scale inside the box reaches it: the allocation is kept as it is).
     calibration_yield : ProportionEstimate
-        The allocation's yield on the calibration sample.
+        The result's yield on the calibration sample.
     verified_yield : ProportionEstimate
         Its yield on the fresh verification sample.
     lower_bound : float
@@ -255,6 +263,7 @@ class YieldAllocation:
     cost: float
     search_tolerances: np.ndarray
     search_cost: float
+    search_calibrated_cost: float
     output_targets: np.ndarray
     method: str
     design_yield: object
@@ -301,37 +310,55 @@ class YieldAllocation:
         return self.gap / self.cost
 
     def summary(self) -> str:
-        """The bracket, the verified yield and the naive method beside it, in words."""
+        """The model, the bracket, the verified yield and the naive method beside it, in
+        words."""
+        return "\n".join([self.model_text(), *self.finding_lines()])
+
+    def model_text(self) -> str:
+        """What the yield is of: target, profile, reading, grid and box."""
+        return (f"allocation for machine yield {self.yield_target:g} (profile {self.profile}, "
+                f"distribution {self.distribution}, {self.points}-point grid of "
+                f"{len(self.problem.poses):,} poses, {self.problem.box_text()})")
+
+    def finding_lines(self) -> list[str]:
+        """The bracket, how the result was found and calibrated, its verified yield and
+        the naive method's, one line each."""
         initial = self.initial_cost
         v, n = self.verified_yield, self.naive.verified_yield
-        verdict = "verified" if self.verified else "NOT verified (interval reaches below Y)"
+        verdict = "verified" if self.verified else \
+            "NOT verified: the interval reaches below the target"
         targets = ", ".join(f"{name} {target:.6g}" for name, target
                             in zip(OUTPUTS, self.output_targets))
-        return "\n".join([
-            f"allocation for machine yield {self.yield_target:g} (profile {self.profile}, "
-            f"distribution {self.distribution}, {self.points}-point grid of "
-            f"{len(self.problem.poses):,} poses, {self.problem.box_text()})",
+        return [
             f"lower bound {self.lower_bound / initial:.4%} of the initial cost "
             f"({self.bound_text()})",
-            f"feasible cost {self.cost / initial:.4%} of the initial cost ({self.cost:.6g}); "
+            f"cost {self.cost:.6g} = {self.cost / initial:.4%} of the initial allocation "
+            f"({initial:.6g}): the cheapest found by this search; not certified: see the "
+            f"lower bound",
             f"gap {significant_percent(self.gap / initial)} of the initial cost "
-            f"({significant_percent(self.relative_gap)} of the feasible cost)",
+            f"({significant_percent(self.relative_gap)} of the cost)",
             self.calibration_text(),
-            f"verified yield {v.estimate:.4f}, 95% Clopper–Pearson [{v.lower:.4f}, "
-            f"{v.upper:.4f}] from {v.n:,} fresh machines: {verdict}",
-            "the cheapest found by this search; not certified: see the lower bound",
+            f"verified yield {v.estimate:.4f}, 95% Clopper-Pearson [{v.lower:.4f}, "
+            f"{v.upper:.4f}] from {v.n:,} fresh built machines: {verdict}",
             f"found by the {self.method} stage{self.narrower_box_text()}; per-output "
             f"per-pose targets of the first stage: {targets}",
             f"naive method ({self.naive.text()}, calibrated the same way): cost "
-            f"{self.naive.cost / initial:.4%} of the initial cost, verified yield "
-            f"{n.estimate:.4f} [{n.lower:.4f}, {n.upper:.4f}]"])
+            f"{self.naive.cost / initial:.4%} of the initial allocation, verified yield "
+            f"{n.estimate:.4f} [{n.lower:.4f}, {n.upper:.4f}] from {n.n:,} machines"]
 
     def calibration_text(self) -> str:
-        """How the search's allocation became the result, in words."""
+        """How the search's allocation (or the naive start's) became the result, in
+        words."""
+        initial = self.initial_cost
         c = self.calibration_yield
-        search = (f"the search ended at {self.search_cost / self.initial_cost:.4%} of the "
+        search = (f"the search ended at {self.search_cost / initial:.4%} of the "
                   f"initial cost (yield {self.design_yield.estimate:.4f} on its "
                   f"{self.design_yield.n:,} design machines)")
+        if self.method == "naive start":
+            return (f"{search}, {self.search_calibrated_cost / initial:.4%} once scaled to "
+                    f"the design yield {self.design_yield_target:.4f} on {c.n:,} fresh "
+                    f"calibration machines: dearer than the naive start scaled the same "
+                    f"way, which is the result (yield {c.estimate:.4f} there)")
         if not self.calibrated:
             return (f"{search}; no scale inside the box reaches the design yield "
                     f"{self.design_yield_target:.4f} on the {c.n:,} calibration machines "
@@ -453,9 +480,11 @@ def allocate_for_yield(machine, yield_target: float, *, profile=None, distributi
     searched = time.perf_counter()
     finals = [outcome.search.calibrate(outcome.chosen) for outcome in outcomes]
     cheapest = int(np.argmin([final.cost for final in finals]))
-    found, final = outcomes[cheapest], finals[cheapest]
+    found, searched_final = outcomes[cheapest], finals[cheapest]
     chosen, naive = found.chosen, found.naive
     naive_final = found.search.calibrate(naive)
+    naive_kept = naive_final.cost < searched_final.cost
+    final = naive_final if naive_kept else searched_final
     calibrated = time.perf_counter()
     verify = found.search.verification_sample()
     return YieldAllocation(
@@ -463,8 +492,9 @@ def allocate_for_yield(machine, yield_target: float, *, profile=None, distributi
         yield_target=yield_target,
         design_yield_target=float(design_target), tolerances=final.t, cost=final.cost,
         search_tolerances=chosen.t, search_cost=chosen.cost,
+        search_calibrated_cost=searched_final.cost,
         output_targets=two_sided_target(found.best.z),
-        method="per-output targets" if chosen is found.best else "error shape",
+        method=_method(found, naive_kept),
         design_yield=all_within_share(chosen.passes),
         calibrated=final.calibrated, calibration_yield=all_within_share(final.passes),
         verified_yield=all_within_share(verify(final.t)),
@@ -485,6 +515,13 @@ def allocate_for_yield(machine, yield_target: float, *, profile=None, distributi
                  "shape": sum(outcome.seconds["shape"] for outcome in outcomes),
                  "calibration": calibrated - searched,
                  "verify": time.perf_counter() - calibrated})
+
+
+def _method(found, naive_kept: bool) -> str:
+    """Which stage gave the result (:attr:`YieldAllocation.method`)."""
+    if naive_kept:
+        return "naive start"
+    return "per-output targets" if found.chosen is found.best else "error shape"
 
 
 def _lower_bound(search, yield_target):

@@ -27,12 +27,12 @@ MACHINE_DIR = Path(__file__).parent / "machines"
 Y = 0.9
 MACHINES = 300
 Z = 4.0  # standard errors allowed between two independent yield estimates
-# Every candidate reaches Y plus a margin on its own design sample, but whether 300 fresh
-# machines confirm Y is a chance event, not a guarantee: on so small a design sample the
-# error-shape stage fits its draws (seeds 12-31 were confirmed 13 times in 20). So the
-# verdict is checked for saying what the fresh sample shows, and the fresh sample for not
-# refuting the target.
-SEED = 7
+# On 300 design machines the search fits its draws, so its allocation often loses more on the
+# calibration sample than the naive start does: on seed 7 the naive start, calibrated, is the
+# cheaper and is the result. On SEED the search's error-shape allocation stays the cheaper
+# after the calibration, so the tests of the stages see the search's result.
+SEED = 3
+NAIVE_KEPT_SEED = 7
 
 
 @pytest.fixture(scope="module")
@@ -406,3 +406,28 @@ def test_naive_start_moves_towards_the_lower_bounds_when_its_target_cannot():
     assert f"moved {share:.1%} of the way to the box's lower bounds" in result.summary()
     assert result.search_cost <= result.naive.search_cost
     assert np.isfinite(equal_yield_margin(result)["naive"])  # its family passes through it
+
+
+def test_the_naive_start_is_the_result_when_it_is_cheaper_once_calibrated(trunnion5):
+    """Seed 7: the search ends far cheaper than the naive start on its design sample
+    (164.5 % against 202.1 % of the initial cost) but dearer once both are scaled to the
+    design yield on the calibration sample, so the result is the calibrated naive start,
+    named as such, and the search's own costs stay on record."""
+    result = allocate_for_yield(trunnion5, Y, profile="constant", points=3,
+                                machines=MACHINES, seed=NAIVE_KEPT_SEED)
+    assert result.method == "naive start"
+    assert result.search_cost < result.naive.search_cost
+    assert result.search_calibrated_cost > result.cost == result.naive.cost
+    np.testing.assert_array_equal(result.tolerances, result.naive.tolerances)
+    assert result.verified_yield.estimate == result.naive.verified_yield.estimate
+    assert result.calibration_yield.estimate == result.naive.calibration_yield.estimate
+    model = YieldModel(trunnion5, profile="constant", points_per_axis=3)
+    u = model.draws(MACHINES, streams.yield_allocation_streams(NAIVE_KEPT_SEED)[4])
+    problem = result.search_problem
+    scaled = scaled_to_yield(model, problem.lower, problem.upper, result.search_tolerances,
+                             result.design_yield_target, u)
+    assert problem.cost.total(scaled["t"]) == pytest.approx(result.search_calibrated_cost,
+                                                            rel=1e-12)
+    summary = result.summary()
+    assert "found by the naive start stage" in summary
+    assert "dearer than the naive start scaled the same way, which is the result" in summary
