@@ -20,9 +20,7 @@ from allocation.result_files import (DRAWING_FILE, DRAWING_RESOLUTION, allocatio
                                      cost_shares_text, cost_units_text, drawing_check_text,
                                      drawing_to_csv, gap_text, nearly_free_text,
                                      written_cost_text)
-from reliability.basics import display
 from reliability.basics.errors import InputError
-from reliability.model.machine import OUTPUTS
 from reliability.model.poses import workspace_grid
 from studies.report.machine_sections import tolerance_table
 from studies.report.writer import SIGNIFICANT
@@ -312,36 +310,15 @@ def yield_executor(args):
 
 
 def describe_yield(result) -> str:
-    """The bracket relative to the initial cost, the verified yield with its machine count,
-    the model (profile, reading, box, grid) and the naive method beside it."""
-    initial = result.initial_cost
-    v, naive = result.verified_yield, result.naive
-    n = naive.verified_yield
-    verdict = "verified" if result.verified else \
-        "NOT verified: the interval reaches below the target"
-    lines = [
+    """The model (profile, reading, grid, box), the result's findings
+    (:meth:`allocation.YieldAllocation.finding_lines`) and the search's size."""
+    return "\n".join([
         f"machine yield target {result.yield_target:g}: profile {result.profile}; "
         f"{options.reading_text(result.problem.machine)}; workspace: the {result.points}-point "
         f"grid ({len(result.problem.poses):,} poses); box {result.problem.box_text()}",
-        f"lower bound {result.lower_bound / initial:.4%} of the initial cost "
-        f"({result.bound_text()})",
-        f"cost {result.cost:.6g} = {result.cost / initial:.4%} of the initial allocation "
-        f"({initial:.6g}): the cheapest found by this search; not certified: see the lower "
-        "bound",
-        f"gap {display.significant_percent(result.gap / initial)} of the initial cost "
-        f"({display.significant_percent(result.relative_gap)} of the cost)",
-        result.calibration_text(),
-        f"verified yield {v.estimate:.4f}, 95% Clopper-Pearson [{v.lower:.4f}, {v.upper:.4f}] "
-        f"from {v.n:,} fresh built machines: {verdict}",
-        f"found by the {result.method} stage{result.narrower_box_text()}; per-output "
-        "per-pose targets of the first stage: " + ", ".join(
-            f"{name} {target:.6g}" for name, target in zip(OUTPUTS, result.output_targets)),
-        f"naive method ({naive.text()}, calibrated the same way): cost "
-        f"{naive.cost / initial:.4%} of the initial allocation, verified yield "
-        f"{n.estimate:.4f} [{n.lower:.4f}, {n.upper:.4f}] from {n.n:,} machines",
+        *result.finding_lines(),
         f"search: {result.evaluations} candidates on {result.machines:,} design machines "
-        f"(aimed at yield {result.design_yield_target:.4f} there), seed {result.seed}"]
-    return "\n".join(lines)
+        f"(aimed at yield {result.design_yield_target:.4f} there), seed {result.seed}"])
 
 
 def solve(problem, method: str, seed: int = 0):
