@@ -45,11 +45,7 @@ def add_parser(subparsers):
                     "precrel identify --out) or --measurements meas.csv (identified here); "
                     "prints this machine's outputs before and after compensation.")
     options.add_machine(parser)
-    source = parser.add_mutually_exclusive_group(required=True)
-    source.add_argument("--identification", metavar="DIR",
-                        help="folder written by precrel identify --out")
-    source.add_argument("--measurements", metavar="meas.csv",
-                        help="measurement file, identified here under --profile")
+    options.add_as_measured(parser, required=True)
     parser.add_argument("--tolerances", metavar="CSV",
                         help="with --measurements: allocation in force (default the "
                              "initial allocation)")

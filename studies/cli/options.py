@@ -365,15 +365,17 @@ def dask_client(scheduler=None, workers=None, option: str = "--executor dask"):
 
 
 # ----- this machine as measured -------------------------------------------------------
-def add_as_measured(parser) -> None:
-    """``--identification DIR`` or ``--measurements CSV``: this machine's reliability given
-    what was measured, beside the design-time numbers."""
-    group = parser.add_mutually_exclusive_group()
+def add_as_measured(parser, *, required: bool = False) -> None:
+    """``--identification DIR`` or ``--measurements CSV``: this machine as measured, for its
+    reliability beside the design-time numbers (``verify``, ``report``) or, ``required``, as
+    the command's input (``compensate``)."""
+    also = "" if required else "also this machine's reliability as measured: "
+    group = parser.add_mutually_exclusive_group(required=required)
     group.add_argument("--identification", metavar="DIR",
-                       help="also this machine's reliability as measured: the folder "
-                            "'precrel identify --out' wrote (docs/measurements.md)")
+                       help=f"{also}the folder 'precrel identify --out' wrote "
+                            f"(docs/measurements.md)")
     group.add_argument("--measurements", metavar="CSV",
-                       help="the same from a measurement file, identified first under "
+                       help="this machine's measurement file instead, identified here under "
                             "--profile (constant or gp:<length mm>) with the allocation in "
                             "force as prior")
 
