@@ -121,8 +121,11 @@ def main(argv=None):
                     print(f"  N {machines}, seed {seed}: {unreachable}")
             if not margins:
                 continue
-            error = np.std(margins, ddof=1) / np.sqrt(len(margins)) if len(margins) > 1 \
-                else float("nan")
+            if len(margins) == 1:
+                print(f"  N {machines}: margin over the naive method {margins[0]:.2%} of the "
+                      f"initial cost (one seed: no spread across seeds)")
+                continue
+            error = np.std(margins, ddof=1) / np.sqrt(len(margins))
             print(f"  N {machines}: margin over the naive method {np.mean(margins):.2%} ± "
                   f"{error:.2%} of the initial cost (mean ± s.e. over {len(margins)} seeds)")
 
