@@ -135,7 +135,7 @@ def test_tolerance_file_names_are_checked(tmp_path, allocation_csv, capsys):
     (["allocate", MILL, "--out", "x.csv", "--target", "1.2"], ["--target"]),
     (["allocate", MILL, "--out", "x.csv", "--lock", "Q.dx"], ["Q.dx"]),
     (["check", "no-such-machine.toml"], ["no-such-machine.toml"]),
-    (["predict", MILL, "--tolerances", "no-such.csv"], ["no-such.csv"]),
+    (["predict", MILL, "--tolerances", "no-such.csv"], ["--tolerances no-such.csv", "No such file"]),
     (["frobnicate"], ["frobnicate"]),
 ])
 def test_bad_input_is_one_line_and_exit_2(argv, words, capsys, tmp_path, monkeypatch):

@@ -127,6 +127,11 @@ def add_allocation_option(parser) -> None:
                              "--workspace continuous)")
 
 
+#: Where the machine yield after compensation is found instead of ``allocate --yield``.
+_YIELD_AFTER_COMPENSATION = ("; an allocation's machine yield after compensation is printed "
+                             "by verify MACHINE.toml --tolerances CSV --compensation PLAN.toml")
+
+
 def run_allocation(args) -> int:
     """``allocate --compensation``: the cheapest allocation found after compensation, with
     its certified bracket, written as the allocation CSV."""
@@ -138,7 +143,9 @@ def run_allocation(args) -> int:
                           ("--drawing", args.drawing is not None)):
         if given:
             raise InputError(f"{option} does not apply with --compensation: the allocation "
-                             f"after compensation holds at the --points grid poses")
+                             f"after compensation meets the per-pose targets (the machine "
+                             f"file's, or --target) at the --points grid poses"
+                             + _YIELD_AFTER_COMPENSATION * (option == "--yield"))
     bounds = options.check_bounds(args.bounds)
     out = options.destination(args.out, args.overwrite)
     machine = options.machine(args)

@@ -287,6 +287,9 @@ def read_tolerances(path, machine) -> np.ndarray:
         tolerances = read_allocation_csv(path, machine)
     except InputError as exc:
         raise InputError(f"--tolerances {exc}") from None
+    except OSError as exc:
+        raise InputError(f"--tolerances {path}: cannot be read ({exc.strerror or exc})") \
+            from None
     print_warnings(tolerance_warnings(machine, tolerances, f"--tolerances {path}"))
     return tolerances
 
