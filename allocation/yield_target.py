@@ -691,8 +691,11 @@ def _naive_family(result, search, z):
 
 
 def _result_family(result, search, z):
-    """The result's allocation at a shift: its six targets shifted (the per-output stage)
-    or its tolerances scaled by ``z/(z + shift)`` inside the box (the error-shape stage)."""
+    """The result's allocation at a shift: its six targets shifted (the per-output stage),
+    its tolerances scaled by ``z/(z + shift)`` inside the box (the error-shape stage), or the
+    naive family (the naive start kept: no margin)."""
+    if result.method == "naive start":
+        return _naive_family(result, search, z)
     if result.method == "per-output targets":
         z_result = required_index(result.output_targets, "two_sided")
         return lambda shift: search.solve(z_result + shift)

@@ -431,3 +431,5 @@ def test_the_naive_start_is_the_result_when_it_is_cheaper_once_calibrated(trunni
     summary = result.summary()
     assert "found by the naive start stage" in summary
     assert "dearer than the naive start scaled the same way, which is the result" in summary
+    margin = equal_yield_margin(result, resamples=50)
+    assert margin["margin"] == pytest.approx(0.0, abs=1e-12)  # one family for both
