@@ -15,6 +15,7 @@ import pytest
 
 from allocation import AllocationProblem, load_catalogue, solve_catalogue
 from allocation.catalogue import Catalogue, unit_warnings
+from allocation.yield_target import YieldAllocation
 from allocation.discrete import neighbour_table
 from allocation.result_files import read_allocation_csv
 from reliability import MachineDescriptionError, load_machine, machine_from_dict, workspace_grid
@@ -152,6 +153,7 @@ def test_a_gap_is_shown_to_three_digits():
         evaluations=10, machines=100, design_yield_target=0.995, seed=0,
         narrower_box_text=lambda: "", bound_text=lambda: "every row alone",
         calibration_text=lambda: "calibrated")
+    result.finding_lines = lambda: YieldAllocation.finding_lines(result)
     assert "gap 192 % of the initial cost (79.4 % of the cost)" in describe_yield(result)
 
 
