@@ -110,19 +110,30 @@ def relaxed_scale(ratio_at_one, slope, allowed, s_max) -> float:
     return low
 
 
-@one_blas_thread
-def main(argv=None):
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+def bound_parser(description: str, machines: int) -> argparse.ArgumentParser:
+    """The options of a benchmark on the yield allocation's lower side: yield, machines
+    (default ``machines``), seed, confidence and the machines of the benchmark to run."""
+    parser = argparse.ArgumentParser(description=description)
     parser.add_argument("--yield", dest="yield_target", type=float, default=0.95)
-    parser.add_argument("--machines", type=int, default=4000)
+    parser.add_argument("--machines", type=int, default=machines)
     parser.add_argument("--seed", type=int, default=2023)
     parser.add_argument("--confidence", type=float, default=0.95)
     parser.add_argument("--only", nargs="+", choices=list(MACHINES), default=list(MACHINES))
-    args = parser.parse_args(argv)
+    return parser
+
+
+def each_machine(args):
+    """The machines of ``args.only``, each after its heading is printed."""
     for label, path in (MACHINES[name] for name in args.only):
-        machine = reliability.load_machine(path)
         print(f"\n== {label}: yield {args.yield_target:g}, {args.machines} machines, "
-              f"seed {args.seed}")
+              f"seed {args.seed}", flush=True)
+        yield reliability.load_machine(path)
+
+
+@one_blas_thread
+def main(argv=None):
+    args = bound_parser(__doc__.splitlines()[0], 4000).parse_args(argv)
+    for machine in each_machine(args):
         print("\n".join(ray_report(machine, args.yield_target, args.machines, args.seed,
                                    args.confidence)))
 

@@ -38,7 +38,6 @@ Nothing is asserted.
 
 from __future__ import annotations
 
-import argparse
 import time
 
 import numpy as np
@@ -46,12 +45,11 @@ from scipy import sparse
 from scipy.optimize import linprog
 
 import allocation
-import reliability
 from reliability.basics import streams
 from reliability.model.poses import workspace_grid
 from reliability.sampling.machine_yield import YieldModel, deciding_points
-from studies.benchmarks.yield_allocation import MACHINES
-from studies.benchmarks.yield_gap_sources import allowed_failures
+from studies.benchmarks.yield_gap_sources import (allowed_failures, bound_parser,
+                                                  each_machine)
 from studies.workflows.timing import one_blas_thread
 
 #: Grid points per axis, and tangents of each cost term in the linear programme.
@@ -155,18 +153,10 @@ def scenario_report(machine, yield_target, machines, seed, confidence,
 
 @one_blas_thread
 def main(argv=None):
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--yield", dest="yield_target", type=float, default=0.95)
-    parser.add_argument("--machines", type=int, default=1000)
+    parser = bound_parser(__doc__.splitlines()[0], 1000)
     parser.add_argument("--allocation-machines", type=int, default=4000)
-    parser.add_argument("--seed", type=int, default=2023)
-    parser.add_argument("--confidence", type=float, default=0.95)
-    parser.add_argument("--only", nargs="+", choices=list(MACHINES), default=list(MACHINES))
     args = parser.parse_args(argv)
-    for label, path in (MACHINES[name] for name in args.only):
-        machine = reliability.load_machine(path)
-        print(f"\n== {label}: yield {args.yield_target:g}, {args.machines} machines, "
-              f"seed {args.seed}", flush=True)
+    for machine in each_machine(args):
         print("\n".join(scenario_report(machine, args.yield_target, args.machines, args.seed,
                                         args.confidence, args.allocation_machines)),
               flush=True)
