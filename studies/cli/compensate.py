@@ -142,10 +142,10 @@ def run_allocation(args) -> int:
                           ("--profile", args.profile is not None),
                           ("--drawing", args.drawing is not None)):
         if given:
+            instead = _YIELD_AFTER_COMPENSATION if option == "--yield" else ""
             raise InputError(f"{option} does not apply with --compensation: the allocation "
                              f"after compensation meets the per-pose targets (the machine "
-                             f"file's, or --target) at the --points grid poses"
-                             + _YIELD_AFTER_COMPENSATION * (option == "--yield"))
+                             f"file's, or --target) at the --points grid poses{instead}")
     bounds = options.check_bounds(args.bounds)
     out = options.destination(args.out, args.overwrite)
     machine = options.machine(args)
