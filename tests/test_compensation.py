@@ -272,3 +272,23 @@ def _frame(columns):
 @pytest.fixture(scope="module")
 def swivel5_machine():
     return _swivel5()
+
+
+@pytest.mark.parametrize("option, words", [
+    (["--yield", "0.9"], ["--yield does not apply with --compensation",
+                          "verify MACHINE.toml --tolerances CSV --compensation PLAN.toml"]),
+    (["--method", "gwo"], ["--method gwo does not apply with --compensation"]),
+])
+def test_allocate_compensation_refuses_options_saying_why(option, words, tmp_path, capsys):
+    """Refused before any work, in one line; --yield is pointed to where an allocation's
+    yield after compensation is found."""
+    out = tmp_path / "a.csv"
+    code = cli.main(["allocate", str(ROOT / "tests" / "machines" / "swivel5.toml"),
+                     "--compensation", str(ROOT / "docs" / "examples" / "swivel5_plan.toml"),
+                     "--out", str(out), *option])
+    error = capsys.readouterr().err
+    assert code == 2 and not out.exists()
+    assert len(error.strip().splitlines()) == 1
+    for text in words:
+        assert text in error
+    assert ("verify MACHINE.toml" in error) == (option[0] == "--yield")
