@@ -15,7 +15,10 @@ whose yield is at least Y and returns it inside a bracket:
   σ of Eq. 20, the truncated σ under the truncated reading), so the bound holds for that
   model of a row, on the same grid; the yield itself is sampled on the exact model. The
   six rows of one pose must hold together, which gives a tighter bound
-  (:mod:`allocation.yield_bound`); the larger of the two is the lower bound.
+  (:mod:`allocation.yield_bound`); the larger of the two is the lower bound. A far
+  tighter one, at a stated confidence, follows from the yield's log-concavity in the
+  log-tolerances (:func:`allocation.yield_dual.log_concave_bound`, computed apart: it
+  needs tens of thousands of machines).
 * **feasible side.** Every candidate is the certified optimum of the per-pose problem for
   six per-output two-sided targets (one per output, stated as required indices
   ``z_o = Φ⁻¹((1 + R_o)/2)``); its yield is estimated by simulating built machines with
@@ -57,6 +60,11 @@ costs more than the result for that
 intersection (a box containing the default one never costs more than the default one). It
 is the cheapest allocation this search found, not a certified optimum: only the lower bound
 is certified.
+
+Convex steps (``convex_steps``, none by default). Where the yield is log-concave in the
+log-tolerances (normal reading, no item correlation, ``constant``) the problem is convex, and
+a step towards the optimum of its tangent problem (:func:`allocation.yield_dual.tangent_step`)
+from the search's allocation is one more candidate, calibrated like the others.
 
 Calibration. The search chooses among many candidates on its design samples, so the
 yield of the allocation it ends at is biased upwards there (on the paper's machine at 4 000
@@ -106,6 +114,8 @@ from .convex import InfeasibleAllocationError, solve_convex_allocation
 from .front import CommonTargetSolver
 from .problem import DEFAULT_FACTORS, AllocationProblem
 from .yield_bound import pose_chain_bound
+from .yield_dual import (deciding_grid, not_log_concave, scaled_rows, tangent_step,
+                         unit_draws)
 from .yield_shape import scaled_to_yield, shape_search
 
 #: Two-sided per-pose target the constraint rows are built and screened at: every target
@@ -136,6 +146,10 @@ DEFAULT_MACHINES = 2000
 #: bootstrap's of :func:`equal_yield_margin`).
 SAMPLE_STREAMS = {"design": 0, "verification": 1, "shape": 2, "calibration": 4}
 SAMPLES = tuple(SAMPLE_STREAMS)
+#: The stream of the convex steps' machines.
+CONVEX_STREAM = 5
+#: Machines of the convex steps, as a multiple of the design sample's, by default.
+CONVEX_MACHINES_FACTOR = 5
 
 
 @dataclass(frozen=True, eq=False)
@@ -210,7 +224,16 @@ class YieldAllocation:
     search_cost : float
     search_calibrated_cost : float
         The cost of :attr:`search_tolerances` calibrated: :attr:`cost`, unless the naive
-        start was kept.
+        start or the convex step was kept.
+    search_stage : str
+        The stage the search's allocation comes from: ``'per-output targets'`` or
+        ``'error shape'``.
+    convex_step_cost, convex_step_calibrated_cost : float or None
+        The allocation the convex steps from the search's allocation ended at
+        (:func:`allocation.yield_dual.tangent_step`), before and after the calibration;
+        None when they did not run (:attr:`convex_step_text` says why).
+    convex_step_text : str
+        Whether and how the convex steps ran, in words.
     output_targets : ndarray (6,)
         The per-output two-sided per-pose targets the per-output search ended at.
     method : str
@@ -218,7 +241,8 @@ class YieldAllocation:
         optimum of :attr:`output_targets`), ``'error shape'`` (the shape search over
         every tolerance, which started there and found a cheaper allocation) or
         ``'naive start'`` (the search's allocation, once calibrated, costs more than the
-        naive start calibrated the same way, :attr:`naive`, which is then the result).
+        naive start calibrated the same way, :attr:`naive`, which is then the result) or
+        ``'convex step'`` (the convex steps' allocation, calibrated, is the cheapest).
     design_yield : ProportionEstimate
         The search's allocation's yield on its design sample (the design sample of the
         stage it ended in).
@@ -264,6 +288,10 @@ class YieldAllocation:
     search_tolerances: np.ndarray
     search_cost: float
     search_calibrated_cost: float
+    search_stage: str
+    convex_step_cost: float | None
+    convex_step_calibrated_cost: float | None
+    convex_step_text: str
     output_targets: np.ndarray
     method: str
     design_yield: object
@@ -338,6 +366,7 @@ class YieldAllocation:
             f"gap {significant_percent(self.gap / initial)} of the initial cost "
             f"({significant_percent(self.relative_gap)} of the cost)",
             self.calibration_text(),
+            self.convex_step_line(),
             f"verified yield {v.estimate:.4f}, 95% Clopper-Pearson [{v.lower:.4f}, "
             f"{v.upper:.4f}] from {v.n:,} fresh built machines: {verdict}",
             f"found by the {self.method} stage{self.narrower_box_text()}; per-output "
@@ -354,6 +383,11 @@ class YieldAllocation:
         search = (f"the search ended at {self.search_cost / initial:.4%} of the "
                   f"initial cost (yield {self.design_yield.estimate:.4f} on its "
                   f"{self.design_yield.n:,} design machines)")
+        if self.method == "convex step":
+            return (f"{search}; the convex steps from it ended at "
+                    f"{self.convex_step_cost / initial:.4%}, scaled to the design yield "
+                    f"{self.design_yield_target:.4f} on {c.n:,} fresh calibration machines: "
+                    f"the result (yield {c.estimate:.4f} there)")
         if self.method == "naive start":
             return (f"{search}, {self.search_calibrated_cost / initial:.4%} once scaled to "
                     f"the design yield {self.design_yield_target:.4f} on {c.n:,} fresh "
@@ -365,6 +399,16 @@ class YieldAllocation:
                     f"(yield {c.estimate:.4f} there): kept as it is")
         return (f"{search}, scaled to the design yield {self.design_yield_target:.4f} on "
                 f"{c.n:,} fresh calibration machines (yield {c.estimate:.4f} there)")
+
+    def convex_step_line(self) -> str:
+        """The convex steps: what they are, and what they gave when not kept."""
+        if self.convex_step_cost is None or self.method == "convex step":
+            return f"convex steps: {self.convex_step_text}"
+        initial = self.initial_cost
+        return (f"convex steps: {self.convex_step_text}; they ended at "
+                f"{self.convex_step_cost / initial:.4%}, "
+                f"{self.convex_step_calibrated_cost / initial:.4%} calibrated: not the "
+                f"cheapest")
 
     def bound_text(self) -> str:
         """What the lower bound rests on, in words."""
@@ -392,6 +436,7 @@ def allocate_for_yield(machine, yield_target: float, *, profile=None, distributi
                        points: int = 5, bounds=None, machines: int = DEFAULT_MACHINES,
                        seed: int = 0, rounds: int = 6, naive_steps: int = 8,
                        restore_steps: int = 4, shape_steps: int = 20,
+                       convex_steps: int = 0, convex_machines: int | None = None,
                        gap_tol: float = 1e-6, executor=None) -> YieldAllocation:
     """The cheapest allocation found whose machine yield reaches ``yield_target``.
 
@@ -427,6 +472,16 @@ def allocate_for_yield(machine, yield_target: float, *, profile=None, distributi
     shape_steps : int
         Candidates of the shape search over every tolerance that follows the per-output
         search (:func:`allocation.yield_shape.shape_search`; 0: none).
+    convex_steps : int
+        Steps of the convex problem from the search's allocation
+        (:func:`allocation.yield_dual.tangent_step`) where the yield is log-concave in the
+        log-tolerances (normal reading, no item correlation, ``constant``); 0: none. Their
+        allocation is calibrated and verified like the others, and kept when cheapest.
+    convex_machines : int, optional
+        Machines the convex steps estimate the yield's gradient on (default
+        ``CONVEX_MACHINES_FACTOR`` × ``machines``), drawn from the sixth stream: the
+        step is only as good as its gradient, whose relative error falls as
+        ``1/√convex_machines``.
     gap_tol : float
         Relative duality gap accepted by the convex solves.
     executor : distributed.Client, optional
@@ -451,7 +506,8 @@ def allocate_for_yield(machine, yield_target: float, *, profile=None, distributi
     machines = checks.positive_int(machines, "machines")
     seed = checks.positive_int(seed, "seed", minimum=0)
     for value, name in ((rounds, "rounds"), (naive_steps, "naive_steps"),
-                        (restore_steps, "restore_steps"), (shape_steps, "shape_steps")):
+                        (restore_steps, "restore_steps"), (shape_steps, "shape_steps"),
+                        (convex_steps, "convex_steps")):
         checks.positive_int(value, name, minimum=0)
     chosen = {name: value for name, value in (("profile", profile),
                                               ("distribution", distribution))
@@ -483,8 +539,14 @@ def allocate_for_yield(machine, yield_target: float, *, profile=None, distributi
     found, searched_final = outcomes[cheapest], finals[cheapest]
     chosen, naive = found.chosen, found.naive
     naive_final = found.search.calibrate(naive)
-    naive_kept = naive_final.cost < searched_final.cost
-    final = naive_final if naive_kept else searched_final
+    step_started = time.perf_counter()
+    convex_machines = CONVEX_MACHINES_FACTOR * machines if convex_machines is None else \
+        checks.positive_int(convex_machines, "convex_machines")
+    stepped = found.search.convex_steps(chosen, convex_steps, convex_machines)
+    step_seconds = time.perf_counter() - step_started
+    step_final = None if stepped is None else found.search.calibrate(stepped)
+    method, final = _cheapest({_stage(found): searched_final, "naive start": naive_final,
+                               "convex step": step_final})
     calibrated = time.perf_counter()
     verify = found.search.verification_sample()
     return YieldAllocation(
@@ -492,9 +554,12 @@ def allocate_for_yield(machine, yield_target: float, *, profile=None, distributi
         yield_target=yield_target,
         design_yield_target=float(design_target), tolerances=final.t, cost=final.cost,
         search_tolerances=chosen.t, search_cost=chosen.cost,
-        search_calibrated_cost=searched_final.cost,
+        search_calibrated_cost=searched_final.cost, search_stage=_stage(found),
+        convex_step_cost=None if stepped is None else stepped.cost,
+        convex_step_calibrated_cost=None if step_final is None else step_final.cost,
+        convex_step_text=found.search.convex_step_text(convex_steps, convex_machines),
         output_targets=two_sided_target(found.best.z),
-        method=_method(found, naive_kept),
+        method=method,
         design_yield=all_within_share(chosen.passes),
         calibrated=final.calibrated, calibration_yield=all_within_share(final.passes),
         verified_yield=all_within_share(verify(final.t)),
@@ -513,15 +578,22 @@ def allocate_for_yield(machine, yield_target: float, *, profile=None, distributi
         seconds={"build": built - started, "bound": bounded - built,
                  "targets": sum(outcome.seconds["targets"] for outcome in outcomes),
                  "shape": sum(outcome.seconds["shape"] for outcome in outcomes),
-                 "calibration": calibrated - searched,
+                 "convex step": step_seconds,
+                 "calibration": calibrated - searched - step_seconds,
                  "verify": time.perf_counter() - calibrated})
 
 
-def _method(found, naive_kept: bool) -> str:
-    """Which stage gave the result (:attr:`YieldAllocation.method`)."""
-    if naive_kept:
-        return "naive start"
+def _stage(found) -> str:
+    """The search's stage its allocation comes from."""
     return "per-output targets" if found.chosen is found.best else "error shape"
+
+
+def _cheapest(calibrated: dict):
+    """The name and the calibrated allocation of the cheapest of ``calibrated`` (None
+    values skipped; the first of equal costs)."""
+    name = min((name for name, each in calibrated.items() if each is not None),
+               key=lambda name: calibrated[name].cost)
+    return name, calibrated[name]
 
 
 def _lower_bound(search, yield_target):
@@ -918,6 +990,40 @@ class _Search:
             return _Calibrated(point.t, point.cost, passes, calibrated=False)
         return _Calibrated(found["t"], float(self.problem.cost.total(found["t"])),
                            found["passes"], calibrated=True)
+
+    def convex_steps(self, point, steps: int, machines: int):
+        """``steps`` steps of the convex problem from ``point``
+        (:func:`allocation.yield_dual.tangent_step` on the linearised outputs of
+        ``machines`` machines of the convex-step stream, each step rescaled to the design
+        yield there), or None when ``steps`` is 0 or the yield is not log-concave in the
+        log-tolerances here."""
+        machine = self.problem.machine
+        if steps == 0 or not_log_concave(machine, machine.profile, machine.distribution):
+            return None
+        points = self.model.experiment.points_per_axis
+        rows = scaled_rows(machine, deciding_grid(machine, points))
+        draws = unit_draws(self.model, self.model.draws(machines,
+                                                        self.streams[CONVEX_STREAM]))
+        lower, upper = np.asarray(self.problem.lower), np.asarray(self.problem.upper)
+        t = point.t
+        for _ in range(steps):
+            t = tangent_step(rows, self.problem.cost.weights, lower, upper, t, draws,
+                             self.design_target)
+        return _Point(z=point.z, t=t, cost=float(self.problem.cost.total(t)))
+
+    def convex_step_text(self, steps: int, machines: int) -> str:
+        """Whether the convex steps run here, and why not, in words."""
+        machine = self.problem.machine
+        why = not_log_concave(machine, machine.profile, machine.distribution)
+        if steps == 0:
+            return "none asked for"
+        if why is not None:
+            return (f"not run: {why} (the yield is log-concave in the log-tolerances for "
+                    f"independent normal errors constant along travel)")
+        plural = "s" if steps > 1 else ""
+        return (f"{steps} step{plural} from the search's allocation, the yield's gradient "
+                f"on the linearised outputs of {machines:,} machines of their own (the yield "
+                f"is log-concave in the log-tolerances: a convex problem)")
 
     def verification_sample(self):
         """Per-machine verdicts of an allocation on the fresh sample, on the whole grid

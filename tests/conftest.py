@@ -20,11 +20,12 @@ MACHINE_DIR = Path(__file__).parent / "machines"
 LONG_MODULES = ("test_reproduce", "test_cli", "test_trust", "test_continuous", "test_rare",
                 "test_plots", "test_sampling", "test_acceptance", "test_system",
                 "test_combinations", "test_bounds_table", "test_report_study",
-                "test_correlation", "test_pose_sampling", "test_yield_target", "test_sweep",
-                "test_one_answer", "test_bad_inputs", "test_chunking", "test_layout",
-                "test_catalogue", "test_report_tables", "test_rare_section",
-                "test_compensation", "test_profiles_study", "test_yield_bracket",
-                "test_gp_identification", "test_as_measured", "test_zone_certificate")
+                "test_correlation", "test_pose_sampling", "test_yield_target",
+                "test_yield_dual", "test_sweep", "test_one_answer", "test_bad_inputs",
+                "test_chunking", "test_layout", "test_catalogue", "test_report_tables",
+                "test_rare_section", "test_compensation", "test_profiles_study",
+                "test_yield_bracket", "test_gp_identification", "test_as_measured",
+                "test_zone_certificate")
 
 
 @pytest.hookimpl(tryfirst=True)

@@ -152,7 +152,7 @@ def test_a_gap_is_shown_to_three_digits():
         gap=1.921888, relative_gap=0.7941686, method="shape", output_targets=[0.999] * 6,
         evaluations=10, machines=100, design_yield_target=0.995, seed=0,
         narrower_box_text=lambda: "", bound_text=lambda: "every row alone",
-        calibration_text=lambda: "calibrated")
+        calibration_text=lambda: "calibrated", convex_step_line=lambda: "convex steps")
     result.finding_lines = lambda: YieldAllocation.finding_lines(result)
     assert "gap 192 % of the initial cost (79.4 % of the cost)" in describe_yield(result)
 

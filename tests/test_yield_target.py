@@ -213,8 +213,9 @@ def test_both_stages_and_verify_judge_machines_by_one_engine(result):
         np.testing.assert_array_equal(search.verdicts(result.tolerances, name),
                                       model.output_ratios(search.draws(name),
                                                           result.tolerances) < 1.0)
-    design, verification, shape, _, calibration = streams.yield_allocation_streams(result.seed)
-    sample = {"per-output targets": design, "error shape": shape}[result.method]
+    design, verification, shape, _, calibration, _ = streams.yield_allocation_streams(
+        result.seed)
+    sample = {"per-output targets": design, "error shape": shape}[result.search_stage]
     passes = (model.output_ratios(model.draws(MACHINES, sample), result.search_tolerances)
               < 1.0).all(axis=1)
     assert result.design_yield.estimate == passes.mean()

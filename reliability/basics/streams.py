@@ -138,16 +138,18 @@ def catalogue_stream(seed) -> np.random.Generator:
 
 
 def yield_allocation_streams(seed) -> list[np.random.Generator]:
-    """The design, verification, shape-design, bootstrap and calibration streams of an
-    allocation for a machine-yield target with seed ``seed``: ``spawn(seed, 5)``.
+    """The design, verification, shape-design, bootstrap, calibration and convex-step
+    streams of an allocation for a machine-yield target with seed ``seed``:
+    ``spawn(seed, 6)`` (the first five are those of ``spawn(seed, 5)``).
 
     :func:`allocation.allocate_for_yield` draws the standard normal draws of its four
     samples of built machines, once each, from the first, second, third and fifth
-    (:meth:`reliability.sampling.machine_yield.YieldModel.draws`); the paired comparison
+    (:meth:`reliability.sampling.machine_yield.YieldModel.draws`), and the machines of its
+    convex steps from the sixth; the paired comparison
     :func:`allocation.yield_target.equal_yield_margin` with seed ``S`` uses the second of
     ``S`` (its shared sample) and the fourth (the bootstrap's Poisson weights).
     """
-    return spawn(seed, 5, "seed")
+    return spawn(seed, 6, "seed")
 
 
 def _seed(seed) -> int:

@@ -20,6 +20,8 @@ from allocation.result_files import (DRAWING_FILE, DRAWING_RESOLUTION, allocatio
                                      cost_shares_text, cost_units_text, drawing_check_text,
                                      drawing_to_csv, gap_text, nearly_free_text,
                                      written_cost_text)
+from allocation.yield_dual import log_concave_bound, not_log_concave
+from reliability.basics import display
 from reliability.basics.errors import InputError
 from reliability.model.poses import workspace_grid
 from studies.report.machine_sections import tolerance_table
@@ -30,6 +32,8 @@ from . import compensate, options
 #: Where ``--yield`` simulates its built machines.
 YIELD_EXECUTORS = ("serial", "dask")
 YIELD_EXECUTOR_OPTIONS = ("--executor", "--workers", "--scheduler")
+#: Options of --yield only, beside the executor's.
+YIELD_ONLY_OPTIONS = ("--convex-steps", "--convex-machines", "--bound-machines")
 
 
 def add_parser(subparsers):
@@ -77,6 +81,7 @@ def add_parser(subparsers):
                              "--catalogue)")
     options.add_yield_model(parser)
     add_yield_executor(parser)
+    add_yield_bracket(parser)
     parser.add_argument("--catalogue", metavar="CAT.toml",
                         help="choose one class per component of this catalogue instead of "
                              "continuous tolerances, on the grid poses (no --bounds, --lock, "
@@ -108,6 +113,9 @@ def run(args) -> int:
             if getattr(args, option[2:]) is not None:
                 raise InputError(f"{option} is used with --yield only: it says where the "
                                  f"built machines of the machine yield are simulated")
+        for option in YIELD_ONLY_OPTIONS:
+            if getattr(args, option[2:].replace("-", "_")) is not None:
+                raise InputError(f"{option} is used with --yield only")
     if args.compensation is not None:
         return compensate.run_allocation(args)
     if args.yield_target is not None:
@@ -256,6 +264,14 @@ def run_yield(args) -> int:
     drawing = drawing_destination(args, out)
     executor, where = yield_executor(args)
     machine = options.machine(args)
+    why = not_log_concave(machine, machine.profile, machine.distribution)
+    if args.bound_machines is not None and why is not None:
+        raise InputError(f"--bound-machines: {why}; the lower bound rests on the yield's "
+                         f"log-concavity, which holds for independent normal errors "
+                         f"constant along travel")
+    if args.convex_machines is not None and args.convex_steps is None:
+        raise InputError("--convex-machines sizes the gradient of --convex-steps: give "
+                         "--convex-steps too")
     with executor as client:
         options.say(f"allocating for machine yield {args.yield_target:g} on the "
                     f"{args.points}-point grid, {options.box_words(machine, bounds)}, profile "
@@ -263,11 +279,38 @@ def run_yield(args) -> int:
                     f"calibration and verification), simulated {where}")
         result = allocate_for_yield(machine, args.yield_target, points=args.points,
                                     bounds=bounds, machines=args.machines, seed=args.seed,
-                                    executor=client)
+                                    executor=client, convex_steps=args.convex_steps or 0,
+                                    convex_machines=args.convex_machines)
     print(describe_yield(result))
     print(changes_text(result))
     write_files(args, result, out, drawing, targets=False)
+    if args.bound_machines is not None:
+        options.say(f"the log-concave lower bound on {args.bound_machines:,} machines")
+        bound = log_concave_bound(result, machines=args.bound_machines, steps=1,
+                                  seed=args.seed)
+        print(f"\n{bound.text(result.initial_cost)}: gap "
+              f"{display.significant_percent(1 - bound.bound / result.cost)} of the cost")
     return 0
+
+
+def add_yield_bracket(parser) -> None:
+    """``--convex-steps``, ``--convex-machines`` and ``--bound-machines``: the convex steps
+    of ``--yield``'s search and its lower bound at 95 % confidence."""
+    parser.add_argument("--convex-steps", type=options.positive_int, default=None,
+                        metavar="S",
+                        help="with --yield: S steps of the convex problem from the search's "
+                             "allocation (normal reading, no item correlation, profile "
+                             "constant; docs/yield-allocation.md), kept when cheaper once "
+                             "calibrated (default none)")
+    parser.add_argument("--convex-machines", type=options.positive_int, default=None,
+                        metavar="N",
+                        help="with --convex-steps: machines of their gradient (default 5 × "
+                             "--machines)")
+    parser.add_argument("--bound-machines", type=options.positive_int, default=None,
+                        metavar="N",
+                        help="with --yield: also the lower bound at 95%% confidence from "
+                             "the yield's log-concavity, on N machines (e.g. 50000; same "
+                             "conditions as --convex-steps)")
 
 
 def add_yield_executor(parser) -> None:

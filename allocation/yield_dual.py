@@ -1,0 +1,347 @@
+"""A lower bound on the cost of any allocation of machine yield Y, at a stated confidence, from
+the log-concavity of the yield in the log-tolerances.
+
+Why the yield allocation is a convex problem. Read the six outputs to first order (Eq. 19,
+the rows of every grid pose, ``y_o = J_o(q)·e``), every error normal with σ = t/3 and the
+errors independent (no item correlation), constant along travel. A built machine is then
+``e = t ∘ z / 3`` with ``z`` standard normal, and it passes when ``t ∘ z`` lies in the
+symmetric convex polytope ``K = {v : |J_o(q)·v| ≤ 3 I_o at every pose}``. So its yield is
+the Gaussian measure of ``e^{Δ(−u)} K`` with ``u = log t``, which is log-concave in ``u``
+(the (B) theorem of Cordero-Erausquin, Fradelizi & Maurey, J. Funct. Anal. 214, 2004,
+Theorem 1, for dilations by any diagonal matrix). So ``h(u) = −log Y(e^u)`` is convex, and
+so is the cost ``Σ w_i e^{−2u_i}`` (Eq. 28): the allocation for a yield is a convex problem
+in ``u``, with a single optimum.
+
+The bound. At any point ``u0``, convexity gives ``h(u) ≥ h(u0) + g·(u − u0)`` with
+``g = ∇h(u0)``, so every allocation of yield ≥ Y lies in the half-space
+``g·(u − u0) ≤ −log Y − h(u0)``, and for every ``λ ≥ 0`` (weak duality)
+
+    cost ≥ Σ_i min over [log lower_i, log upper_i] of (w_i e^{−2u_i} + λ g_i (u_i − u0_i))
+           − λ (−log Y − h(u0)),
+
+each term in closed form (the stationary point ``e^{−2u} = λ g_i / (2 w_i)``, clipped to the
+box). The bound is the largest over ``λ`` (concave in ``λ``). ``h(u0)`` and ``g`` are
+estimated on N sampled machines: the yield by the share passing, the gradient by
+conditional Monte Carlo (:func:`yield_and_gradient`: given the other errors of a machine,
+the draws of error ``i`` that pass form an interval ``[l, r]``, so ``∂Y/∂log t_i`` is
+the mean of ``l φ(l) − r φ(r)``, smooth and of low variance). For a bound that holds at the
+confidence ``1 − α``, ``h(u0)`` is replaced by its lower confidence end (Clopper–Pearson on
+the yield, ``α/2``) and each ``g_i`` by the worse end of its interval (normal intervals,
+``α/(2 n)`` each, Bonferroni): the bound is concave in each ``g_i``, so the worse end is one
+of the two.
+
+The point. The bound is tight at the optimum, where the tangent half-space touches the
+feasible set. Starting from an allocation (the search's), each step estimates ``g`` there,
+moves to the minimiser of the bound's Lagrangian (the optimum of the tangent problem) and
+rescales it to yield Y on the step's own sample; the bound is then computed at the last point
+on a fresh sample, so the point is independent of the sample that judges it.
+
+What it holds for: the linearised outputs on the grid's poses (the model of the certified
+relaxations of :mod:`allocation.yield_target`), the normal reading, independent errors,
+the ``constant`` profile; not the exact chain, on which the yield is sampled. Under those
+assumptions the error of the first-order outputs is second order in the errors.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.optimize import minimize_scalar
+from scipy.stats import beta, norm
+
+from reliability.basics import checks, streams
+from reliability.basics.errors import InputError
+from reliability.model.poses import workspace_grid
+from reliability.sampling.machine_yield import YieldModel, deciding_points
+
+#: Coverage factor of the normal reading (σ = t/3).
+K_SIGMA = 3.0
+#: Floats of one block of machines × rows (memory bounded by chunking).
+BLOCK_FLOATS = 2_000_000
+#: Shares of the way to the tangent problem's optimum a step tries (:func:`tangent_step`).
+STEP_SHARES = (1.0, 0.5, 0.25, 0.125, 0.0)
+
+
+@dataclass(frozen=True, eq=False)
+class YieldDualBound:
+    """A lower bound on the cost of any allocation whose machine yield is at least Y.
+
+    Attributes
+    ----------
+    bound : float
+        The bound (cost, Eq. 28), holding at :attr:`confidence` for the linearised model.
+    confidence : float
+    yield_target : float
+    point : ndarray (n_errors,)
+        The allocation the tangent was taken at.
+    point_cost : float
+    point_yield : float
+        Its yield on the bound's sample (share of machines passing).
+    multiplier : float
+        The ``λ`` of the bound.
+    point_estimate : float
+        The bound with the estimates themselves in place of their confidence ends.
+    machines : int
+        Machines of each sample (every step and the bound's).
+    steps : int
+        Steps from the start to :attr:`point`.
+    rows : int
+        Rows ``(pose, output)`` of the linearised outputs (the poses that can decide).
+    seconds : float
+    """
+
+    bound: float
+    confidence: float
+    yield_target: float
+    point: np.ndarray
+    point_cost: float
+    point_yield: float
+    multiplier: float
+    point_estimate: float
+    machines: int
+    steps: int
+    rows: int
+    seconds: float
+
+    def text(self, reference_cost: float) -> str:
+        """The bound relative to ``reference_cost``, in words."""
+        return (f"lower bound {self.bound / reference_cost:.4%} of the initial cost at "
+                f"{self.confidence:.0%} confidence (the yield is log-concave in the "
+                f"log-tolerances: linearised outputs, normal reading, independent errors; "
+                f"tangent at an allocation of {self.point_cost / reference_cost:.4%} with "
+                f"yield {self.point_yield:.4f} on {self.machines:,} machines, "
+                f"{self.steps} step{'' if self.steps == 1 else 's'} from the start; "
+                f"{self.point_estimate / reference_cost:.4%} with the estimates themselves)")
+
+
+def not_log_concave(machine, profile: str, distribution: str) -> str | None:
+    """Why the theorem of the module docstring does not apply to ``machine`` under
+    ``profile`` and ``distribution``; None when it does."""
+    if distribution != "normal":
+        return f"the reading is {distribution!r}, not 'normal'"
+    if machine.correlation is not None:
+        return "the machine has an item correlation"
+    if profile != "constant":
+        return f"the profile is {profile!r}, not 'constant'"
+    return None
+
+
+def unit_draws(model, u) -> np.ndarray:
+    """The standard normal of every error of each machine ``(N, n_errors)``, in the order
+    of the tolerances, for a :class:`~reliability.sampling.machine_yield.YieldModel`'s
+    draws ``u`` under the ``constant`` profile and the normal reading: the same machines
+    the model judges, read for the linearised outputs."""
+    motion, assembly = model.errors(u, np.full(len(model.machine.initial_allocation),
+                                               model.k))
+    return np.concatenate([motion[:, :, 0, :].reshape(len(u), -1),
+                           assembly.reshape(len(u), -1)], axis=1)
+
+
+def tangent_step(rows, weights, lower, upper, point, draws, yield_target) -> np.ndarray:
+    """One step towards the optimum, on ``draws``: the tangent problem's optimum at
+    ``point`` (its yield and gradient estimated there), and the points a half, a quarter
+    and an eighth of the way to it in ``log t`` and ``point`` itself, each rescaled to
+    ``yield_target``; the cheapest of them. The tangent under-estimates ``−log Y`` (it is
+    convex), so its optimum can overshoot; the shorter steps are the backtracking."""
+    estimates = yield_and_gradient(rows, point, draws)
+    _, _, moved = tangent_bound(weights, lower, upper, point, *estimates, len(draws),
+                                yield_target, robust=False)
+    shift = np.log(moved / point)
+    tried = [_at_yield(rows, point * np.exp(share * shift), draws, yield_target, lower,
+                       upper) for share in STEP_SHARES]
+    return min(tried, key=lambda t: float(np.sum(weights / t**2)))
+
+
+def scaled_rows(machine, poses) -> np.ndarray:
+    """The linearised outputs' rows ``J_o(q) / (3 I_o)`` at ``poses``, one per (pose,
+    output), rows that no error moves left out: a machine ``t ∘ z`` passes when every row
+    times ``t ∘ z`` is within ±1."""
+    jacobian = machine.jacobian(poses) / (K_SIGMA * np.asarray(machine.limits)[None, :, None])
+    rows = jacobian.reshape(-1, jacobian.shape[-1])
+    return rows[np.abs(rows).sum(axis=1) > 0]
+
+
+def deciding_grid(machine, points: int) -> np.ndarray:
+    """The poses of the ``points``-point grid at which a machine's largest ratio can be
+    reached under ``constant`` (:func:`reliability.sampling.machine_yield.deciding_points`:
+    the stroke ends of the linear axes); the whole grid when none are left out."""
+    poses = workspace_grid(machine, points)
+    model = YieldModel(machine, profile="constant", points_per_axis=points)
+    kept = deciding_points(machine, model.profiles, points)
+    if kept is None:
+        return poses
+    axes = len(machine.axis_specs)
+    grid = poses.reshape((points,) * axes + (axes,))
+    return grid[np.ix_(*kept)].reshape(-1, axes)
+
+
+def yield_and_gradient(rows, tolerances, draws):
+    """Machines passing, and ``∂Y/∂log t_i`` with its standard error, on ``draws``.
+
+    Parameters
+    ----------
+    rows : ndarray (R, n)
+        :func:`scaled_rows`.
+    tolerances : ndarray (n,)
+    draws : ndarray (N, n)
+        Standard normal draws, one row per machine.
+
+    Returns
+    -------
+    passes : int
+        Machines with every row within ±1.
+    gradient, standard_error : ndarray (n,)
+        Conditional Monte Carlo: for machine ``k`` and error ``i``, the values of ``z_i``
+        with which the machine passes, its other draws held, form ``[l, r]`` (every row is
+        affine in ``z_i``); ``P = Φ(r) − Φ(l)`` and, since ``l, r ∝ 1/t_i``,
+        ``∂P/∂log t_i = l φ(l) − r φ(r)``; the gradient is their mean over machines.
+    """
+    draws = np.asarray(draws, dtype=float)
+    machines, n = draws.shape
+    block = max(1, BLOCK_FLOATS // len(rows))
+    moves = rows != 0
+    passes, total, squares = 0, np.zeros(n), np.zeros(n)
+    for start in range(0, machines, block):
+        z = draws[start:start + block]
+        values = (z * tolerances) @ rows.T
+        outside = np.abs(values) > 1.0
+        passes += int(np.sum(~outside.any(axis=1)))
+        # rows outside their band that error i does not move: the machine fails whatever z_i
+        stuck = outside.sum(axis=1)[:, None] - outside.astype(float) @ moves
+        with np.errstate(divide="ignore"):
+            for i in range(n):
+                slope = rows[:, i] * tolerances[i]
+                centre = values * -np.divide(1.0, slope, where=moves[:, i],
+                                             out=np.zeros(len(rows)))
+                half = np.where(moves[:, i], 1.0 / np.abs(slope), np.inf)
+                low = (centre - half).max(axis=1) + z[:, i]
+                high = (centre + half).min(axis=1) + z[:, i]
+                live = (stuck[:, i] == 0) & (high > low)
+                low, high = np.where(live, low, 0.0), np.where(live, high, 0.0)
+                change = low * norm.pdf(low) - high * norm.pdf(high)
+                total[i] += change.sum()
+                squares[i] += np.square(change).sum()
+    mean = total / machines
+    error = np.sqrt(np.maximum(squares / machines - mean**2, 0.0) / machines)
+    return passes, mean, error
+
+
+def _terms(weights, low, high, u0, slope):
+    """Per error, ``min over [low, high] of w e^{−2u} + slope (u − u0)`` and its
+    minimiser."""
+    with np.errstate(divide="ignore"):
+        stationary = -0.5 * np.log(np.maximum(slope, 1e-300) / (2.0 * weights))
+    u = np.clip(np.where(slope > 0, stationary, high), low, high)
+    return weights * np.exp(-2.0 * u) + slope * (u - u0), u
+
+
+def tangent_bound(cost_weights, lower, upper, point, passes, gradient, error, machines,
+                  yield_target, *, confidence=0.95, robust=True):
+    """The bound of the module docstring at ``point`` from the estimates there.
+
+    Returns ``(bound, multiplier, minimiser)``: with ``robust`` the estimates are replaced
+    by their ends at ``confidence`` (Clopper–Pearson for the yield, Bonferroni normal
+    intervals for the gradient); the minimiser is the tangent problem's optimum at the
+    point estimates (the next step's point).
+    """
+    n = len(point)
+    alpha = 1.0 - confidence
+    share = passes / machines
+    if passes == 0:
+        raise InputError(f"tangent bound: no machine of {machines:,} passes at the point; "
+                         f"start from an allocation whose yield is near the target")
+    upper_yield = beta.ppf(1.0 - alpha / 2, passes + 1, machines - passes) \
+        if passes < machines else 1.0
+    lower_yield = beta.ppf(alpha / 2, passes, machines - passes + 1)
+    z = norm.ppf(1.0 - alpha / (4.0 * n))
+    estimate = np.maximum(-gradient / share, 0.0)
+    if robust:
+        slopes = [np.maximum(-(gradient + z * error) / upper_yield, 0.0),
+                  -(gradient - z * error) / lower_yield]
+        h0 = -np.log(upper_yield)
+    else:
+        slopes, h0 = [estimate], -np.log(share)
+    u0, low, high = np.log(point), np.log(lower), np.log(upper)
+    margin = -np.log(yield_target) - h0
+
+    def value(multiplier):
+        terms = [_terms(cost_weights, low, high, u0, multiplier * g)[0] for g in slopes]
+        return np.min(terms, axis=0).sum() - multiplier * margin
+
+    scale = float(np.sum(cost_weights / point**2))
+    found = minimize_scalar(lambda x: -value(np.exp(x)),
+                            bounds=(np.log(scale * 1e-4), np.log(scale * 1e4)),
+                            method="bounded", options={"xatol": 1e-6})
+    multiplier = float(np.exp(found.x))
+    _, minimiser = _terms(cost_weights, low, high, u0, multiplier * estimate)
+    return float(value(multiplier)), multiplier, np.exp(minimiser)
+
+
+def log_concave_bound(result, *, machines: int = 50_000, steps: int = 1,
+                      confidence: float = 0.95, seed: int = 0) -> YieldDualBound:
+    """The lower bound of the module docstring for the yield of ``result``, with the
+    tangent taken ``steps`` steps from ``result.tolerances``.
+
+    Parameters
+    ----------
+    result : YieldAllocation
+        :func:`allocation.allocate_for_yield`'s result: its problem (box, cost, grid),
+        yield target and allocation (the start).
+    machines : int
+        Machines of each step's sample and of the bound's.
+    steps : int
+        Steps towards the tangent problem's optimum before the bound (0: at the start).
+    confidence : float
+        The bound holds with this probability over the bound's sample.
+    seed : int
+        Seed of the samples (:func:`reliability.basics.streams.spawn`, one stream per step
+        and the last for the bound).
+
+    Raises
+    ------
+    InputError
+        When the yield is not log-concave in the log-tolerances by the theorem used: a
+        reading other than normal, an item correlation, a profile other than constant.
+    """
+    started = time.perf_counter()
+    machines = checks.positive_int(machines, "machines")
+    steps = checks.positive_int(steps, "steps", minimum=0)
+    confidence = checks.probability(confidence, "confidence")
+    problem = result.search_problem
+    machine = problem.machine
+    why = not_log_concave(machine, result.profile, result.distribution)
+    if why is not None:
+        raise InputError(f"log_concave_bound: {why}; the yield is log-concave in the "
+                         f"log-tolerances for independent normal errors constant along "
+                         f"travel only")
+    rows = scaled_rows(machine, deciding_grid(machine, result.points))
+    weights = np.asarray(problem.cost.weights, dtype=float)
+    lower, upper = np.asarray(problem.lower, float), np.asarray(problem.upper, float)
+    samples = streams.spawn(seed, steps + 1)
+    point = np.asarray(result.tolerances, dtype=float)
+    for step in range(steps):
+        draws = samples[step].standard_normal((machines, len(point)))
+        point = tangent_step(rows, weights, lower, upper, point, draws, result.yield_target)
+    draws = samples[steps].standard_normal((machines, len(point)))
+    estimates = yield_and_gradient(rows, point, draws)
+    bound, multiplier, _ = tangent_bound(weights, lower, upper, point, *estimates, machines,
+                                         result.yield_target, confidence=confidence)
+    point_estimate, _, _ = tangent_bound(weights, lower, upper, point, *estimates, machines,
+                                         result.yield_target, robust=False)
+    return YieldDualBound(
+        bound=bound, confidence=confidence, yield_target=result.yield_target, point=point,
+        point_cost=float(problem.cost.total(point)), point_yield=estimates[0] / machines,
+        multiplier=multiplier, point_estimate=point_estimate, machines=machines,
+        steps=steps, rows=len(rows), seconds=time.perf_counter() - started)
+
+
+def _at_yield(rows, tolerances, draws, yield_target, lower, upper) -> np.ndarray:
+    """``tolerances`` times the factor at which the largest row ratio's ``yield_target``
+    quantile on ``draws`` is 1 (homogeneous of degree one), kept in the box."""
+    block = max(1, BLOCK_FLOATS // len(rows))
+    worst = np.concatenate([np.abs((draws[s:s + block] * tolerances) @ rows.T).max(axis=1)
+                            for s in range(0, len(draws), block)])
+    return np.clip(tolerances / np.quantile(worst, yield_target), lower, upper)
+
