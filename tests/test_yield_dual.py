@@ -52,7 +52,7 @@ def polygon_yield(rows, t):
             ends = sorted(((-1 - a * z1) / b, (1 - a * z1) / b))
             low, high = max(low, ends[0]), min(high, ends[1])
         return max(norm.cdf(high) - norm.cdf(low), 0.0) * norm.pdf(z1)
-    return integrate.quad(inner, -9, 9, limit=200, epsabs=1e-12)[0]
+    return integrate.quad(inner, -9, 9, limit=500, epsabs=1e-9, epsrel=1e-9)[0]
 
 
 def test_gradient_of_a_polygon_matches_finite_differences_of_its_integral():
