@@ -31,10 +31,13 @@ the yield, ``α/2``) and each ``g_i`` by the worse end of its interval (normal i
 of the two.
 
 The point. The bound is tight at the optimum, where the tangent half-space touches the
-feasible set. Starting from an allocation (the search's), each step estimates ``g`` there,
-moves to the minimiser of the bound's Lagrangian (the optimum of the tangent problem) and
-rescales it to yield Y on the step's own sample; the bound is then computed at the last point
-on a fresh sample, so the point is independent of the sample that judges it.
+feasible set. Starting from an allocation (the search's), each step (:func:`tangent_step`)
+estimates ``g`` there, takes the minimiser of the bound's Lagrangian (the optimum of the
+tangent problem) and the points a half, a quarter and an eighth of the way to it, rescales
+each to yield Y on the step's own sample and keeps the cheapest; the bound is then computed
+at the last point on a fresh sample, so the point is independent of the sample that judges
+it. The gradient's intervals are normal ones (the central limit theorem over the machines,
+each machine's term bounded).
 
 What it holds for: the linearised outputs on the grid's poses (the model of the certified
 relaxations of :mod:`allocation.yield_target`), the normal reading, independent errors,

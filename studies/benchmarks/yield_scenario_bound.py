@@ -7,13 +7,13 @@ swivel]``. For each machine (as
 
 1. draw N built machines (:meth:`reliability.sampling.machine_yield.YieldModel.draws`, the
    third stream of :func:`reliability.basics.streams.yield_allocation_streams` of
-   ``seed + 2``, which no search uses), and read each one's errors per unit tolerance
-   (:meth:`~reliability.sampling.machine_yield.YieldModel.errors`);
+   ``seed + 2``, which no search uses), and read each one's standard normal per error
+   (:func:`allocation.yield_dual.unit_draws`);
 2. for each machine ``k``, bound from below ``v_k``: the cheapest allocation in the box
    (Eq. 28) under which machine ``k`` alone keeps all six linearised outputs ``J(pose)·e``
    (Eq. 19) within their limits at every pose of the grid. The outputs of one built
    machine are affine along a linear axis under ``constant``, so the stroke ends of those
-   axes stand for the grid (:func:`reliability.sampling.machine_yield.deciding_points`).
+   axes stand for the grid (:func:`allocation.yield_dual.deciding_grid`).
    The constraints are linear in the tolerances; each convex cost term ``w_i/t_i²`` is
    replaced by the largest of 24 of its tangents, a linear programme (HiGHS) whose optimum
    is at most ``v_k``;
@@ -45,9 +45,9 @@ from scipy import sparse
 from scipy.optimize import linprog
 
 import allocation
+from allocation.yield_dual import deciding_grid, scaled_rows, unit_draws
 from reliability.basics import streams
-from reliability.model.poses import workspace_grid
-from reliability.sampling.machine_yield import YieldModel, deciding_points
+from reliability.sampling.machine_yield import YieldModel
 from studies.benchmarks.yield_gap_sources import (allowed_failures, bound_parser,
                                                   each_machine)
 from studies.workflows.timing import one_blas_thread
@@ -55,26 +55,6 @@ from studies.workflows.timing import one_blas_thread
 #: Grid points per axis, and tangents of each cost term in the linear programme.
 POINTS = 5
 TANGENTS = 24
-
-
-def deciding_poses(model) -> np.ndarray:
-    """The grid poses at which a built machine's largest ratio can be reached (every grid
-    pose when no axis is reduced)."""
-    machine = model.machine
-    kept = deciding_points(machine, model.profiles, POINTS)
-    grid = workspace_grid(machine, POINTS).reshape((POINTS,) * len(machine.axis_specs) + (-1,))
-    if kept is None:
-        return grid.reshape(-1, grid.shape[-1])
-    return grid[np.ix_(*kept)].reshape(-1, grid.shape[-1])
-
-
-def unit_errors(model, u) -> np.ndarray:
-    """Each machine's errors per unit tolerance ``(N, n_errors)``, in the order of the
-    tolerances: its motion errors (constant along travel) then its assembly errors."""
-    n_errors = len(model.machine.initial_allocation)
-    motion, assembly = model.errors(u, np.ones(n_errors))
-    return np.concatenate([motion[:, :, 0, :].reshape(len(u), -1),
-                           assembly.reshape(len(u), -1)], axis=1)
 
 
 class TangentProgram:
@@ -129,14 +109,13 @@ def scenario_report(machine, yield_target, machines, seed, confidence,
                                            seed=seed)
     searched = time.perf_counter() - started
     model = YieldModel(result.problem.machine, points_per_axis=POINTS)
-    errors = unit_errors(model, model.draws(machines,
-                                            streams.yield_allocation_streams(seed + 2)[2]))
-    poses = deciding_poses(model)
-    jacobian = machine.jacobian(poses) / machine.limits[None, :, None]
-    rows = jacobian.reshape(-1, jacobian.shape[-1])
+    draws = unit_draws(model, model.draws(machines,
+                                          streams.yield_allocation_streams(seed + 2)[2]))
+    poses = deciding_grid(result.problem.machine, POINTS)
+    rows = scaled_rows(result.problem.machine, poses)
     program = TangentProgram(result.problem)
     started = time.perf_counter()
-    costs = np.sort([program.lowest_cost(rows * e) for e in errors])[::-1]
+    costs = np.sort([program.lowest_cost(rows * z) for z in draws])[::-1]
     allowed = allowed_failures(machines, yield_target, confidence)
     bound = costs[allowed]
     feasible = result.cost / result.initial_cost
