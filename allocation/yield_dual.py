@@ -56,6 +56,7 @@ from scipy.stats import beta, norm
 
 from reliability.basics import checks, streams
 from reliability.basics.errors import InputError
+from reliability.basics.threads import one_blas_thread
 from reliability.model.poses import workspace_grid
 from reliability.sampling.machine_yield import YieldModel, deciding_points
 
@@ -282,6 +283,7 @@ def tangent_bound(cost_weights, lower, upper, point, passes, gradient, error, ma
     return float(value(multiplier)), multiplier, np.exp(minimiser)
 
 
+@one_blas_thread
 def log_concave_bound(result, *, machines: int = 50_000, steps: int = 1,
                       confidence: float = 0.95, seed: int = 0) -> YieldDualBound:
     """The lower bound of the module docstring for the yield of ``result``, with the

@@ -103,6 +103,7 @@ import numpy as np
 from scipy.stats import norm
 
 from reliability.basics import checks, streams
+from reliability.basics.threads import one_blas_thread
 from reliability.basics.display import significant_percent
 from reliability.basics.statistics import all_within_share
 from reliability.first_order.fosm import required_index
@@ -432,6 +433,7 @@ class YieldAllocation:
         return self.summary()
 
 
+@one_blas_thread
 def allocate_for_yield(machine, yield_target: float, *, profile=None, distribution=None,
                        points: int = 5, bounds=None, machines: int = DEFAULT_MACHINES,
                        seed: int = 0, rounds: int = 6, naive_steps: int = 8,
@@ -488,6 +490,9 @@ def allocate_for_yield(machine, yield_target: float, *, profile=None, distributi
         Simulate the built machines as tasks of this Dask client (each sample sent to its
         workers once), with the same result as without it
         (:mod:`reliability.sampling.machine_blocks`); None simulates them here.
+
+    BLAS runs on one thread meanwhile (:mod:`reliability.basics.threads`): the search
+    decides on sampled verdicts, which would otherwise depend on the thread count.
 
     Returns
     -------

@@ -434,3 +434,31 @@ def test_the_naive_start_is_the_result_when_it_is_cheaper_once_calibrated(trunni
     assert "dearer than the naive start scaled the same way, which is the result" in summary
     margin = equal_yield_margin(result, resamples=50)
     assert margin["margin"] == pytest.approx(0.0, abs=1e-12)  # one family for both
+
+
+def test_the_search_runs_blas_on_one_thread_whatever_the_caller_set(trunnion5, monkeypatch):
+    """The search decides on sampled verdicts whose last bits depend on BLAS's thread
+    count, so it pins one thread itself (the paper's machine at 4 000 machines, seed 2023:
+    124.41 % of the initial cost on one thread, 124.77 % on two), and gives the caller's
+    setting back."""
+    from threadpoolctl import threadpool_info, threadpool_limits
+
+    import allocation.yield_target as yield_target
+
+    def blas_threads():
+        return [info["num_threads"] for info in threadpool_info()
+                if info["user_api"] == "blas"]
+
+    seen = []
+
+    def spy(*args, **kwargs):
+        seen.append(blas_threads())
+        raise RuntimeError("stopped at the lower bound")
+
+    monkeypatch.setattr(yield_target, "pose_chain_bound", spy)
+    with threadpool_limits(limits=2, user_api="blas"):
+        callers = blas_threads()
+        with pytest.raises(RuntimeError, match="stopped"):
+            allocate_for_yield(trunnion5, Y, points=3, machines=50)
+        assert blas_threads() == callers
+    assert seen[0] and set(seen[0]) == {1}
