@@ -25,10 +25,11 @@ estimated on N sampled machines: the yield by the share passing, the gradient by
 conditional Monte Carlo (:func:`yield_and_gradient`: given the other errors of a machine,
 the draws of error ``i`` that pass form an interval ``[l, r]``, so ``∂Y/∂log t_i`` is
 the mean of ``l φ(l) − r φ(r)``, smooth and of low variance). For a bound that holds at the
-confidence ``1 − α``, ``h(u0)`` is replaced by its lower confidence end (Clopper–Pearson on
-the yield, ``α/2``) and each ``g_i`` by the worse end of its interval (normal intervals,
-``α/(2 n)`` each, Bonferroni): the bound is concave in each ``g_i``, so the worse end is one
-of the two.
+confidence ``1 − α``, ``h(u0)`` is replaced by its lower confidence end and each ``g_i`` by
+the worse end of its interval (Bonferroni: a two-sided Clopper–Pearson interval of the
+yield at ``α/2``, which the gradient's ends also use, and a normal interval of each
+``∂Y/∂log t_i`` at ``α/(2 n)``): the bound is concave in each ``g_i``, so the worse end is
+one of the two.
 
 The point. The bound is tight at the optimum, where the tangent half-space touches the
 feasible set. Starting from an allocation (the search's), each step (:func:`tangent_step`)
@@ -256,9 +257,10 @@ def tangent_bound(cost_weights, lower, upper, point, passes, gradient, error, ma
     if passes == 0:
         raise InputError(f"tangent bound: no machine of {machines:,} passes at the point; "
                          f"start from an allocation whose yield is near the target")
-    upper_yield = beta.ppf(1.0 - alpha / 2, passes + 1, machines - passes) \
+    # α/2 for the yield's two-sided interval and α/(2n) for each gradient component's
+    upper_yield = beta.ppf(1.0 - alpha / 4, passes + 1, machines - passes) \
         if passes < machines else 1.0
-    lower_yield = beta.ppf(alpha / 2, passes, machines - passes + 1)
+    lower_yield = beta.ppf(alpha / 4, passes, machines - passes + 1)
     z = norm.ppf(1.0 - alpha / (4.0 * n))
     estimate = np.maximum(-gradient / share, 0.0)
     if robust:

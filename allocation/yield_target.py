@@ -514,6 +514,8 @@ def allocate_for_yield(machine, yield_target: float, *, profile=None, distributi
                         (restore_steps, "restore_steps"), (shape_steps, "shape_steps"),
                         (convex_steps, "convex_steps")):
         checks.positive_int(value, name, minimum=0)
+    convex_machines = CONVEX_MACHINES_FACTOR * machines if convex_machines is None else \
+        checks.positive_int(convex_machines, "convex_machines")
     chosen = {name: value for name, value in (("profile", profile),
                                               ("distribution", distribution))
               if value is not None}
@@ -545,8 +547,6 @@ def allocate_for_yield(machine, yield_target: float, *, profile=None, distributi
     chosen, naive = found.chosen, found.naive
     naive_final = found.search.calibrate(naive)
     step_started = time.perf_counter()
-    convex_machines = CONVEX_MACHINES_FACTOR * machines if convex_machines is None else \
-        checks.positive_int(convex_machines, "convex_machines")
     stepped = found.search.convex_steps(chosen, convex_steps, convex_machines)
     step_seconds = time.perf_counter() - step_started
     step_final = None if stepped is None else found.search.calibrate(stepped)

@@ -269,6 +269,8 @@ def test_two_sided_target_inverts_the_required_index():
     ({"yield_target": 0.9, "machines": 0}, "machines"),
     ({"yield_target": 0.9, "seed": -1}, "seed"),
     ({"yield_target": 0.9, "rounds": -1}, "rounds"),
+    ({"yield_target": 0.9, "convex_steps": -1}, "convex_steps"),
+    ({"yield_target": 0.9, "convex_machines": 0}, "convex_machines"),
     ({"yield_target": 0.9, "profile": "bogus"}, "profile"),
 ])
 def test_bad_input_is_refused_by_name(mill3, kwargs, named):
