@@ -58,8 +58,7 @@ from scipy.stats import beta, norm
 from reliability.basics import checks, streams
 from reliability.basics.errors import InputError
 from reliability.basics.threads import one_blas_thread
-from reliability.model.poses import workspace_grid
-from reliability.sampling.machine_yield import YieldModel, deciding_points
+from reliability.sampling.machine_yield import YieldModel
 
 #: Coverage factor of the normal reading (σ = t/3).
 K_SIGMA = 3.0
@@ -166,20 +165,6 @@ def scaled_rows(machine, poses) -> np.ndarray:
     jacobian = machine.jacobian(poses) / (K_SIGMA * np.asarray(machine.limits)[None, :, None])
     rows = jacobian.reshape(-1, jacobian.shape[-1])
     return rows[np.abs(rows).sum(axis=1) > 0]
-
-
-def deciding_grid(machine, points: int) -> np.ndarray:
-    """The poses of the ``points``-point grid at which a machine's largest ratio can be
-    reached under ``constant`` (:func:`reliability.sampling.machine_yield.deciding_points`:
-    the stroke ends of the linear axes); the whole grid when none are left out."""
-    poses = workspace_grid(machine, points)
-    model = YieldModel(machine, profile="constant", points_per_axis=points)
-    kept = deciding_points(machine, model.profiles, points)
-    if kept is None:
-        return poses
-    axes = len(machine.axis_specs)
-    grid = poses.reshape((points,) * axes + (axes,))
-    return grid[np.ix_(*kept)].reshape(-1, axes)
 
 
 def yield_and_gradient(rows, tolerances, draws):
@@ -323,7 +308,8 @@ def log_concave_bound(result, *, machines: int = 50_000, steps: int = 1,
         raise InputError(f"log_concave_bound: {why}; the yield is log-concave in the "
                          f"log-tolerances for independent normal errors constant along "
                          f"travel only")
-    rows = scaled_rows(machine, deciding_grid(machine, result.points))
+    model = YieldModel(machine, profile="constant", points_per_axis=result.points)
+    rows = scaled_rows(machine, model.deciding_poses)
     weights = np.asarray(problem.cost.weights, dtype=float)
     lower, upper = np.asarray(problem.lower, float), np.asarray(problem.upper, float)
     samples = streams.spawn(seed, steps + 1)

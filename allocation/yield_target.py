@@ -115,8 +115,7 @@ from .convex import InfeasibleAllocationError, solve_convex_allocation
 from .front import CommonTargetSolver
 from .problem import DEFAULT_FACTORS, AllocationProblem
 from .yield_bound import pose_chain_bound
-from .yield_dual import (deciding_grid, not_log_concave, scaled_rows, tangent_step,
-                         unit_draws)
+from .yield_dual import not_log_concave, scaled_rows, tangent_step, unit_draws
 from .yield_shape import scaled_to_yield, shape_search
 
 #: Two-sided per-pose target the constraint rows are built and screened at: every target
@@ -1005,8 +1004,7 @@ class _Search:
         machine = self.problem.machine
         if steps == 0 or not_log_concave(machine, machine.profile, machine.distribution):
             return None
-        points = self.model.experiment.points_per_axis
-        rows = scaled_rows(machine, deciding_grid(machine, points))
+        rows = scaled_rows(machine, self.model.deciding_poses)
         draws = unit_draws(self.model, self.model.draws(machines,
                                                         self.streams[CONVEX_STREAM]))
         lower, upper = np.asarray(self.problem.lower), np.asarray(self.problem.upper)

@@ -164,6 +164,13 @@ def test_the_deciding_poses_give_the_whole_grids_largest_ratios(path, distributi
     full = np.abs(model.experiment.evaluate(*model.errors(u, t))) / machine.limits
     reached = np.take_along_axis(full, poses[:, None, :], axis=1)[:, 0]
     np.testing.assert_allclose(reached, ratios, rtol=1e-12)
+    # the poses evaluated are the grid poses whose linear axes sit at a stroke end
+    ends = np.ones(model.experiment.n_poses, dtype=bool)
+    for axis, is_linear in enumerate(linear):
+        if is_linear:
+            column = model.experiment.poses[:, axis]
+            ends &= (column == column.min()) | (column == column.max())
+    np.testing.assert_array_equal(model.deciding_poses, model.experiment.poses[ends])
 
 
 def test_the_ends_of_a_linear_axis_do_not_decide_when_its_errors_vary_along_it():

@@ -443,6 +443,13 @@ class YieldModel:
             return ratios
         return ratios, _joined([where for _, where in parts], (0, len(OUTPUTS)), np.intp)
 
+    @property
+    def deciding_poses(self) -> np.ndarray:
+        """``(poses, n_axes)`` the grid poses the model evaluates: those at which a built
+        machine's largest ratio can be reached (:func:`deciding_points`), else every grid
+        pose (inside the work zone, when the machine has one)."""
+        return self._deciding.poses
+
     def _output_block(self, u, tolerances, with_poses):
         """:meth:`output_ratios` of one block of machines (``where`` is None without
         ``with_poses``).

@@ -13,7 +13,8 @@ swivel]``. For each machine (as
    (Eq. 28) under which machine ``k`` alone keeps all six linearised outputs ``J(pose)·e``
    (Eq. 19) within their limits at every pose of the grid. The outputs of one built
    machine are affine along a linear axis under ``constant``, so the stroke ends of those
-   axes stand for the grid (:func:`allocation.yield_dual.deciding_grid`).
+   axes stand for the grid
+   (:attr:`reliability.sampling.machine_yield.YieldModel.deciding_poses`).
    The constraints are linear in the tolerances; each convex cost term ``w_i/t_i²`` is
    replaced by the largest of 24 of its tangents, a linear programme (HiGHS) whose optimum
    is at most ``v_k``;
@@ -45,7 +46,7 @@ from scipy import sparse
 from scipy.optimize import linprog
 
 import allocation
-from allocation.yield_dual import deciding_grid, scaled_rows, unit_draws
+from allocation.yield_dual import scaled_rows, unit_draws
 from reliability.basics import streams
 from reliability.sampling.machine_yield import YieldModel
 from studies.benchmarks.yield_gap_sources import (allowed_failures, bound_parser,
@@ -111,7 +112,7 @@ def scenario_report(machine, yield_target, machines, seed, confidence,
     model = YieldModel(result.problem.machine, points_per_axis=POINTS)
     draws = unit_draws(model, model.draws(machines,
                                           streams.yield_allocation_streams(seed + 2)[2]))
-    poses = deciding_grid(result.problem.machine, POINTS)
+    poses = model.deciding_poses
     rows = scaled_rows(result.problem.machine, poses)
     program = TangentProgram(result.problem)
     started = time.perf_counter()
