@@ -60,6 +60,8 @@ from reliability.basics.errors import InputError
 from reliability.basics.threads import one_blas_thread
 from reliability.sampling.machine_yield import YieldModel
 
+from .yield_shape import bisected_scale
+
 #: Coverage factor of the normal reading (σ = t/3).
 K_SIGMA = 3.0
 #: Floats of one block of machines × rows (memory bounded by chunking).
@@ -332,9 +334,27 @@ def log_concave_bound(result, *, machines: int = 50_000, steps: int = 1,
 
 def _at_yield(rows, tolerances, draws, yield_target, lower, upper) -> np.ndarray:
     """``tolerances`` times the factor at which the largest row ratio's ``yield_target``
-    quantile on ``draws`` is 1 (homogeneous of degree one), kept in the box."""
-    block = max(1, BLOCK_FLOATS // len(rows))
-    worst = np.concatenate([np.abs((draws[s:s + block] * tolerances) @ rows.T).max(axis=1)
-                            for s in range(0, len(draws), block)])
-    return np.clip(tolerances / np.quantile(worst, yield_target), lower, upper)
+    quantile on ``draws`` is 1 (homogeneous of degree one), kept in the box. When
+    tolerances held at their lower bounds keep that factor from reaching the yield, the
+    largest factor that does, by bisection
+    (:func:`allocation.yield_shape.bisected_scale`, as
+    :func:`~allocation.yield_shape.scaled_to_yield` does on the exact chain); the lower
+    bounds themselves when not even they reach it."""
+    def judged(scale):
+        worst = _worst_rows(rows, np.clip(scale * tolerances, lower, upper), draws)
+        return None, worst, np.quantile(worst, yield_target)
 
+    quantile = judged(1.0)[2]
+    scaled = np.clip(tolerances / quantile, lower, upper)
+    if np.mean(_worst_rows(rows, scaled, draws) <= 1.0) >= yield_target:
+        return scaled
+    found = bisected_scale(judged, 1.0 / quantile, float(np.min(lower / tolerances)))
+    return np.asarray(lower, dtype=float) if found is None else \
+        np.clip(found[0] * tolerances, lower, upper)
+
+
+def _worst_rows(rows, tolerances, draws) -> np.ndarray:
+    """Each machine's largest ``|row · (t ∘ z)|`` over the rows, in blocks of machines."""
+    block = max(1, BLOCK_FLOATS // len(rows))
+    return np.concatenate([np.abs((draws[s:s + block] * tolerances) @ rows.T).max(axis=1)
+                           for s in range(0, len(draws), block)])

@@ -163,17 +163,18 @@ def scaled_to_yield(model, lower, upper, shape, target, u) -> dict | None:
             break
         scale = following
     if quantile >= 1.0:
-        found = _bisected(judged, scale, float(np.min(lower / shape)))
+        found = bisected_scale(judged, scale, float(np.min(lower / shape)))
         if found is None:
             return None
         scale, (t, ratio, quantile) = found
     return {"t": t, "scale": scale, "passes": ratio < 1.0}
 
 
-def _bisected(judged, failing, lowest):
+def bisected_scale(judged, failing, lowest):
     """The largest scale between ``lowest`` (every tolerance at its lower bound) and the
     ``failing`` one whose quantile is below 1, with what ``judged`` says of it; None when
-    not even ``lowest`` gives one."""
+    not even ``lowest`` gives one. ``judged(scale)`` returns a tuple whose third item is the
+    quantile of the worst ratios that must lie below 1."""
     at_lowest = judged(lowest)
     if at_lowest[2] >= 1.0:
         return None

@@ -232,3 +232,24 @@ def test_cli_prints_the_bound_after_writing_the_allocation(tmp_path, capsys):
     assert cli.main(["allocate", machine, "--bound-machines", "10",
                      "--out", str(tmp_path / "c.csv")]) == 2
     assert "--bound-machines is used with --yield only" in capsys.readouterr().err
+
+
+def test_rescaling_to_the_yield_bisects_when_lower_bounds_hold_items():
+    """One row per error; the second tolerance sits at its lower bound, so the single
+    homogeneous factor that puts the sample's quantile at 1 cannot lower it and misses the
+    yield: the factor is bisected until the yield is reached (the second item stays at its
+    bound), and when not even the lower bounds reach it, those are returned."""
+    from allocation.yield_dual import _at_yield
+
+    rows = np.diag([1.0, 1.0, 1.0])
+    lower, upper = np.array([0.05, 0.45, 0.05]), np.full(3, 2.0)
+    t = np.array([1.0, 0.45, 1.0])
+    draws = np.random.default_rng(4).standard_normal((20_000, 3))
+    single = np.clip(t / np.quantile(np.abs(draws * t).max(axis=1), 0.95), lower, upper)
+    assert np.mean(np.all(np.abs(draws * single) <= 1, axis=1)) < 0.95  # the stall
+    found = _at_yield(rows, t, draws, 0.95, lower, upper)
+    assert np.mean(np.all(np.abs(draws * found) <= 1, axis=1)) >= 0.95
+    assert found[1] == lower[1] and np.all(found >= lower) and np.all(found <= upper)
+    assert np.all(found[[0, 2]] > lower[[0, 2]])
+    unreachable = _at_yield(rows, t, draws, 0.95, np.full(3, 0.6), upper)
+    np.testing.assert_array_equal(unreachable, np.full(3, 0.6))
