@@ -33,6 +33,7 @@ from scipy.stats import multivariate_normal
 from ..basics import checks, streams
 from ..basics.display import shown_positions
 from ..basics.errors import InputError, InputTypeError
+from ..basics.pass_rule import passes
 from ..basics.statistics import proportion
 from ..first_order.fosm import (error_sigma, one_sided_probability, output_sigma,
                                 two_sided_probability)
@@ -255,7 +256,7 @@ def sample_at_poses(machine, tolerances, poses=None, *, samples: int = 100_000, 
     while done < total:
         size = min(batch, total - done)
         x = draw_errors(t, (size, len(poses)), k=k, distribution=distribution, rng=rng)
-        outside = np.abs(machine.comprehensive_error(poses, x)) >= machine.limits  # Eq. (19)
+        outside = ~passes(machine.comprehensive_error(poses, x), machine.limits)  # Eq. (19)
         failures[:, :6] += outside.sum(axis=0)
         failures[:, 6] += outside.any(axis=-1).sum(axis=0)
         done += size
@@ -373,7 +374,7 @@ def sample_random_poses(machine, tolerances, n_samples: int, *, rng=None, k: flo
         errors = draw_errors(t, (size,), k=k, distribution=distribution, rng=rng) \
             if factor is None else draw_correlated(t, (size,), factor, k=k,
                                                    distribution=distribution, rng=rng)
-        inside += np.sum(np.abs(machine.comprehensive_error(poses, errors)) < machine.limits,
+        inside += np.sum(passes(machine.comprehensive_error(poses, errors), machine.limits),
                          axis=0)  # Eq. (19)
         sigma = output_sigma(machine.jacobian(poses), sigma_x, machine.correlation)  # Eq. (20)
         one_sided += one_sided_probability(machine.limits, sigma).sum(axis=0)

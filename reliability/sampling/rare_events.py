@@ -47,6 +47,7 @@ from scipy.stats import norm
 from ..basics import checks, streams
 from ..basics.display import pose_text, shown_positions
 from ..basics.errors import InputError, InputTypeError
+from ..basics.pass_rule import passes
 from ..basics.ties import worst_rows
 from ..first_order.fosm import two_sided_failure, two_sided_probability
 from ..model.error_draws import DISTRIBUTIONS
@@ -224,13 +225,13 @@ def failure_probability(machine, tolerances, pose=None, *, event: str = "dx",
     if distribution == "truncated":
         stack = worst_case_bound(machine, t, pose, jacobian)
         outputs = problem.outputs
-        if np.all(stack[outputs] < machine.limits[outputs]):
+        if np.all(passes(stack[outputs], machine.limits[outputs])):
             note = ("worst-case stack Σ|∂y/∂x|·t plus the non-linear remainder bound "
                     f"{_ratio_text(stack, machine.limits, outputs)} of the limit")
             return RareEventResult(method="exact-zero", probability=0.0, cov=0.0,
                                    interval=(0.0, 0.0), n_evaluations=0, reached=True,
                                    note=note, **common)
-        problem.drop_outputs(stack < machine.limits)
+        problem.drop_outputs(passes(stack, machine.limits))
         p, cov = _importance(problem, rng, target_cov, max_evaluations, batch, k)
     elif method == "importance":
         p, cov = _importance(problem, rng, target_cov, max_evaluations, batch, None)
@@ -263,7 +264,8 @@ class _CountingModel:
 
 class _Problem:
     """The event in standard normal space: ``x = σ ⊙ u``, response ``r(u) = max |y_o|/I_o``
-    over the event's outputs; failure is ``r ≥ 1``."""
+    over the event's outputs; failure is ``r ≥ 1``, where some output misses its limit
+    (``passes(r, 1)`` reads the pass rule on the scaled outputs)."""
 
     def __init__(self, sigma, jacobian, limits, outputs, model):
         self.sigma, self.limits, self.model = sigma, np.asarray(limits), model
@@ -349,7 +351,7 @@ def _importance(problem, rng, target_cov, budget, batch, k):
         inside = np.ones(size, bool) if k is None else np.all(np.abs(u) <= k, axis=1)
         values = np.zeros(size)
         fails = np.zeros(size, bool)
-        fails[inside] = problem.response(u[inside]) >= 1.0
+        fails[inside] = ~passes(problem.response(u[inside]), 1.0)
         values[fails] = np.exp(log_w[fails])
         count, mean, m2 = _merge(count, mean, m2, values)
         cov = np.sqrt(m2 / (count - 1) / count) / mean if mean > 0 else np.inf
@@ -385,7 +387,7 @@ def _subset(problem, rng, target_cov, budget):
         threshold = 0.5 * (r[order[seeds_per_level - 1]] + r[order[seeds_per_level]])
         next_cost = per_level - seeds_per_level
         if threshold >= 1.0 or problem.model.count + next_cost > budget:
-            hit = r >= 1.0
+            hit = ~passes(r, 1.0)
             p_level = hit.mean()
             probability *= p_level
             if p_level == 0:
