@@ -48,14 +48,12 @@ from ..basics import checks, streams
 from ..basics.display import pose_text, shown_positions
 from ..basics.errors import InputError, InputTypeError
 from ..basics.pass_rule import passes
-from ..basics.ties import worst_rows
-from ..first_order.fosm import two_sided_failure, two_sided_probability
+from ..first_order.fosm import two_sided_probability
+from ..first_order.worst_grid_pose import EVENTS, worst_grid_poses
 from ..model.error_draws import DISTRIBUTIONS
 from ..model.kinematics import chain_factors, transports
 from ..model.machine import OUTPUTS
-from ..model.poses import workspace_grid
 
-EVENTS = OUTPUTS + ("system",)
 METHODS = ("importance", "subset")
 P0 = 0.1  # conditional probability of each subset level (Au & Beck 2001)
 CHAIN_CORRELATION = 0.8  # ρ of conditional sampling; a common heuristic choice
@@ -178,7 +176,7 @@ def failure_probability(machine, tolerances, pose=None, *, event: str = "dx",
         ``(n_errors,)`` allocation, read as ±kσ.
     pose : array_like, optional
         ``(n_axes,)`` positions. Default: the event's worst pose on the 5-point workspace
-        grid (:func:`worst_grid_pose`).
+        grid under the reading ``distribution`` (:func:`worst_grid_pose`).
     event : str
         Output name or ``'system'``.
     method : {'importance', 'subset'}
@@ -213,8 +211,8 @@ def failure_probability(machine, tolerances, pose=None, *, event: str = "dx",
     _check_options(event, method, target_cov, max_evaluations, k, distribution, confidence,
                    batch, model, t)
     rng = streams.generator(rng)
-    pose = worst_grid_pose(machine, t, event, k=k) if pose is None else \
-        _check_pose(machine, pose)
+    pose = worst_grid_pose(machine, t, event, k=k, distribution=distribution) if pose is None \
+        else _check_pose(machine, pose)
     jacobian = machine.jacobian(pose) if jacobian is None else _check_jacobian(machine,
                                                                                jacobian)
     counter = _CountingModel(model or (lambda x: machine.comprehensive_error(pose, x)))
@@ -489,31 +487,13 @@ def worst_case_bound(machine, tolerances, pose, jacobian=None) -> np.ndarray:
     return stack + np.repeat([translation, rotation], 3)
 
 
-def worst_grid_pose(machine, tolerances, event: str = "dx", *, k: float = 3.0,
-                    points_per_axis: int = 5) -> np.ndarray:
-    """The workspace-grid pose where ``event`` is most likely to fail (linear-Gaussian).
-
-    For an output, the pose of largest σ (FOSM's worst pose; ranking by σ rather than by
-    the failure probability keeps the order where that probability rounds to 0); for
-    ``'system'``, the pose of largest Σ_o two-sided failure probability (the union bound).
-    """
-    return worst_grid_poses(machine, tolerances, (event,), k=k,
-                            points_per_axis=points_per_axis)[0]
-
-
-def worst_grid_poses(machine, tolerances, events=EVENTS, *, k: float = 3.0,
-                     points_per_axis: int = 5) -> np.ndarray:
-    """:func:`worst_grid_pose` of several events at once, ``(n_events, n_axes)``."""
-    events = tuple(events)
-    unknown = [e for e in events if e not in EVENTS]
-    if unknown:
-        raise InputError(f"event must be one of {EVENTS}; got {unknown[0]!r}")
-    t = machine.check_tolerances(tolerances)
-    grid = workspace_grid(machine, points_per_axis)
-    sigma = np.sqrt(np.square(machine.jacobian(grid)) @ np.square(t / k))  # Eq. (20)
-    failure = two_sided_failure(machine.limits, sigma)
-    scores = np.column_stack([sigma, failure.sum(axis=1)])
-    return grid[worst_rows(scores[:, [EVENTS.index(e) for e in events]], grid)]
+def worst_grid_pose(machine, tolerances, event: str = "dx", *, points: int = 5,
+                    k: float = 3.0, distribution: str | None = None) -> np.ndarray:
+    """The workspace-grid pose where ``event`` is most likely to fail, ``(n_axes,)``: the
+    one row of :func:`reliability.first_order.worst_grid_pose.worst_grid_poses` for
+    ``(event,)`` (``distribution`` None reads the tolerances as the machine does)."""
+    return worst_grid_poses(machine, tolerances, (event,), points=points, k=k,
+                            distribution=distribution)[0]
 
 
 # ----- input checks -----------------------------------------------------------------------
