@@ -242,6 +242,25 @@ def test_verify_text_sets_results_after_compensation_beside_before(mill3, tmp_pa
     assert "predicted by the residual model" in text and "(2 machines)" in text
 
 
+def test_verified_compensation_counts_passes_by_the_pass_rule(mill3):
+    from reliability.compensation.compensated_machines import simulate_compensated
+    from studies.workflows.compensation_verification import verify_compensation
+    plan = parse_compensation_plan(mill3_plan(), mill3)
+    poses = workspace_grid(mill3, 2)
+    t = mill3.initial_allocation * 4  # loose enough that some machines fail
+    check = verify_compensation(plan, t, poses, 12, 50, rng=3)
+    outputs = simulate_compensated(plan, t, poses, 12, np.random.default_rng(3))
+    inside = np.abs(outputs) < mill3.limits
+    np.testing.assert_array_equal(check.simulated, inside.all(axis=(1, 2)))
+    after = plan.probability(t, poses)
+    worst = after.argmin(axis=0)
+    np.testing.assert_allclose(check.table["simulated after"],
+                               [inside[:, worst[o], o].mean() for o in range(6)])
+    assert check.predicted.shape == (50,) and check.predicted.dtype == bool
+    with pytest.raises(InputError, match="model_machines"):
+        verify_compensation(plan, t, poses, 2, 0)
+
+
 def test_report_section_names_what_stays_tight_and_why(swivel5_machine):
     from types import SimpleNamespace
     from studies.report.compensation_section import compensation_section

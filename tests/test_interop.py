@@ -10,8 +10,9 @@ import pytest
 
 from reliability.basics.errors import InputError
 from reliability.first_order.fosm import fosm
+from reliability.first_order.worst_grid_pose import worst_grid_poses
 from reliability.interop import exact_gradient, openturns_model, salib_evaluate, salib_problem
-from reliability.sampling.sobol import fosm_shares, worst_grid_poses
+from reliability.sampling.sobol import fosm_shares
 
 ot = pytest.importorskip("openturns")
 
@@ -32,7 +33,7 @@ def test_the_gradient_is_the_exact_chains_away_from_zero_error(trunnion5):
 
 
 def test_openturns_function_and_distribution(mill3):
-    pose = worst_grid_poses(mill3, mill3.initial_allocation, 3)[1]
+    pose = worst_grid_poses(mill3, mill3.initial_allocation, points=3)[1]
     function, distribution = openturns_model(mill3, "dy", pose)
     sample = distribution.getSample(50)
     values = np.asarray(function(sample))[:, 0]
@@ -50,7 +51,7 @@ def test_openturns_function_and_distribution(mill3):
 
 def test_openturns_form_matches_fosm_at_the_worst_pose(mill3):
     t = mill3.initial_allocation
-    poses = worst_grid_poses(mill3, t, 3)
+    poses = worst_grid_poses(mill3, t, points=3)
     reference = fosm(mill3, t, poses)
     for o in (0, 4):
         function, distribution = openturns_model(mill3, o, poses[o])
@@ -71,7 +72,7 @@ def test_salib_problem_and_evaluate_give_the_fosm_shares(mill3):
     problem = salib_problem(mill3)
     assert problem["num_vars"] == mill3.n_errors and problem["dists"][0] == "norm"
     assert np.allclose([b[1] for b in problem["bounds"]], t / 3)
-    pose = worst_grid_poses(mill3, t, 3)[0]
+    pose = worst_grid_poses(mill3, t, points=3)[0]
     samples = salib_sobol.sample(problem, 256, calc_second_order=False, seed=4)
     values = salib_evaluate(mill3, samples, "dx", pose)
     assert np.allclose(values, mill3.comprehensive_error(pose, samples)[:, 0])
@@ -90,5 +91,6 @@ def test_salib_refuses_correlated_errors(mill3):
 
 def test_without_openturns_the_message_names_the_extra(mill3, monkeypatch):
     monkeypatch.setitem(sys.modules, "openturns", None)
+    pose = worst_grid_poses(mill3, mill3.initial_allocation, points=2)[0]
     with pytest.raises(ImportError, match=r"interop.*\[interop\]"):
-        openturns_model(mill3, "dx", worst_grid_poses(mill3, mill3.initial_allocation, 2)[0])
+        openturns_model(mill3, "dx", pose)

@@ -15,7 +15,8 @@ from scipy.stats import multivariate_normal, norm
 
 from reliability import fosm, workspace_grid
 from reliability.basics.errors import InputError
-from reliability.sampling.pose_sampling import EVENTS, linear_failure, sample_at_poses, worst_poses
+from reliability.first_order.worst_grid_pose import worst_grid_poses
+from reliability.sampling.pose_sampling import EVENTS, linear_failure, sample_at_poses
 
 Z = 3.0
 
@@ -29,7 +30,7 @@ def band(runs, level=0.95):
 def setup(hobbing):
     """Tolerances giving dx a 5 % two-sided failure probability at its worst pose."""
     t0 = hobbing.initial_allocation
-    pose = worst_poses(hobbing, t0)[0]
+    pose = worst_grid_poses(hobbing, t0)[0]
     jacobian = hobbing.jacobian(pose)
     sigma = np.sqrt(np.square(jacobian[0]) @ np.square(t0 / 3))
     t = t0 * hobbing.limits[0] / (-norm.ppf(0.025) * sigma)

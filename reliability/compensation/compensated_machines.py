@@ -9,6 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..basics import streams
+from ..basics.pass_rule import passes
 from ..measured.identification import identify
 from ..measured.simulated_measurements import simulate_measurements
 from ..model.error_draws import psd_factor
@@ -56,5 +57,5 @@ def residual_model_passes(plan, tolerances, poses, draws: int, rng=None,
         residual = rng.standard_normal((count, len(factor))) @ factor.T
         residual = residual[:, None, :] + positioning_draws(machine, (count, len(poses)), rng)
         outputs = np.einsum("poi,npi->npo", jac, residual)
-        out[first:first + count] = np.all(np.abs(outputs) <= machine.limits, axis=(1, 2))
+        out[first:first + count] = np.all(passes(outputs, machine.limits), axis=(1, 2))
     return out

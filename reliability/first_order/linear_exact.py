@@ -57,6 +57,7 @@ from scipy.stats import norm
 from ..basics import checks
 from ..basics.chunks import MEMORY_BUDGET
 from ..basics.errors import InputError
+from ..basics.pass_rule import passes
 
 #: Bound on the truncation error of the series, absolute probability.
 TAIL_TOLERANCE = 1e-10
@@ -169,7 +170,7 @@ def _single_term(limit, scale, k, mean) -> np.ndarray:
         return (norm.cdf(z) - norm.cdf(-k)) / mass
 
     spread = cdf(limit - mean) - cdf(-limit - mean)
-    return np.where(scale > 0, spread, (np.abs(mean) < limit).astype(float))
+    return np.where(scale > 0, spread, passes(mean, limit).astype(float))
 
 
 def series_terms(limit, scales, k: float, mean) -> np.ndarray:

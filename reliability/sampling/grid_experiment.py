@@ -28,6 +28,7 @@ import numpy as np
 from ..basics import checks, streams
 from ..basics.chunks import chunk_size
 from ..basics.errors import InputError
+from ..basics.pass_rule import passes
 from ..basics.result_store import ResultStore, machine_fingerprint
 from ..model.error_draws import check_reading, draw_errors, draw_grid_errors
 from ..model.kinematics import (deviation_from_transports, ideal_motion, ideal_rotation,
@@ -348,7 +349,7 @@ class GridExperiment:
                 draws = [self._draw(t, child, k, distribution) for child in batch_children]
                 values = self.evaluate(np.stack([d[0] for d in draws]),
                                        np.stack([d[1] for d in draws]))
-                inside.append(np.sum(np.abs(values) < self.machine.limits, axis=1))  # Eq. (19)
+                inside.append(np.sum(passes(values, self.machine.limits), axis=1))  # Eq. (19)
                 if store is not None:
                     store.save(key, inside[-1])
                 if wanted:

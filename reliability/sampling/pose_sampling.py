@@ -33,16 +33,16 @@ from scipy.stats import multivariate_normal
 from ..basics import checks, streams
 from ..basics.display import shown_positions
 from ..basics.errors import InputError, InputTypeError
+from ..basics.pass_rule import passes
 from ..basics.statistics import proportion
 from ..first_order.fosm import (error_sigma, one_sided_probability, output_sigma,
                                 two_sided_probability)
+from ..first_order.worst_grid_pose import EVENTS, worst_grid_poses
 from ..model.error_draws import check_reading, correlation_factor, draw_correlated, draw_errors
 from ..model.machine import OUTPUTS
 from ..model.poses import random_poses
 from .experiment_results import RandomPoseResult
-from .rare_events import worst_grid_poses
 
-EVENTS = OUTPUTS + ("system",)
 _INTERVAL_NAMES = {"wilson": "Wilson", "clopper-pearson": "Clopper–Pearson"}
 INTERVALS = ("wilson", "clopper-pearson")
 
@@ -153,13 +153,6 @@ def axis_labels(machine) -> tuple:
                  for a in machine.axis_specs)
 
 
-def worst_poses(machine, tolerances, *, k: float = 3.0, points_per_axis: int = 5
-                ) -> np.ndarray:
-    """Each output's worst pose on the workspace grid (largest FOSM σ), ``(6, n_axes)``;
-    see :func:`reliability.sampling.rare_events.worst_grid_poses`."""
-    return worst_grid_poses(machine, tolerances, OUTPUTS, k=k, points_per_axis=points_per_axis)
-
-
 def linear_failure(machine, tolerances, poses, *, k: float = 3.0,
                    distribution: str = "normal") -> np.ndarray:
     """Linear-Gaussian failure probability of each output and the system, ``(n_poses, 7)``.
@@ -198,7 +191,9 @@ def sample_at_poses(machine, tolerances, poses=None, *, samples: int = 100_000, 
     tolerances : array_like
         ``(n_errors,)`` allocation, read as ±kσ.
     poses : array_like, optional
-        ``(n_poses, n_axes)``. Default: each output's worst grid pose (:func:`worst_poses`).
+        ``(n_poses, n_axes)``. Default: each output's worst pose on the 5-point grid under
+        the reading ``distribution``
+        (:func:`reliability.first_order.worst_grid_pose.worst_grid_poses`).
     samples : int
         Samples per pose when ``precision`` is None.
     rng : None, int or numpy.random.Generator
@@ -239,7 +234,7 @@ def sample_at_poses(machine, tolerances, poses=None, *, samples: int = 100_000, 
         raise InputError(f"interval must be one of {INTERVALS}; got {interval!r}")
     selected = np.ones(len(EVENTS), bool) if events is None else _event_mask(events)
     if poses is None:
-        poses = worst_poses(machine, t, k=k)
+        poses = worst_grid_poses(machine, t, k=k, distribution=distribution)
         labels = tuple(f"worst {o}" for o in OUTPUTS)
         outputs = selected[:6] if selected[:6].any() else np.ones(6, bool)
         tracked = np.hstack([np.eye(6, dtype=bool), outputs[:, None]])
@@ -255,7 +250,7 @@ def sample_at_poses(machine, tolerances, poses=None, *, samples: int = 100_000, 
     while done < total:
         size = min(batch, total - done)
         x = draw_errors(t, (size, len(poses)), k=k, distribution=distribution, rng=rng)
-        outside = np.abs(machine.comprehensive_error(poses, x)) >= machine.limits  # Eq. (19)
+        outside = ~passes(machine.comprehensive_error(poses, x), machine.limits)  # Eq. (19)
         failures[:, :6] += outside.sum(axis=0)
         failures[:, 6] += outside.any(axis=-1).sum(axis=0)
         done += size
@@ -373,7 +368,7 @@ def sample_random_poses(machine, tolerances, n_samples: int, *, rng=None, k: flo
         errors = draw_errors(t, (size,), k=k, distribution=distribution, rng=rng) \
             if factor is None else draw_correlated(t, (size,), factor, k=k,
                                                    distribution=distribution, rng=rng)
-        inside += np.sum(np.abs(machine.comprehensive_error(poses, errors)) < machine.limits,
+        inside += np.sum(passes(machine.comprehensive_error(poses, errors), machine.limits),
                          axis=0)  # Eq. (19)
         sigma = output_sigma(machine.jacobian(poses), sigma_x, machine.correlation)  # Eq. (20)
         one_sided += one_sided_probability(machine.limits, sigma).sum(axis=0)

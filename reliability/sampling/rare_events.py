@@ -47,14 +47,13 @@ from scipy.stats import norm
 from ..basics import checks, streams
 from ..basics.display import pose_text, shown_positions
 from ..basics.errors import InputError, InputTypeError
-from ..basics.ties import worst_rows
-from ..first_order.fosm import two_sided_failure, two_sided_probability
+from ..basics.pass_rule import passes
+from ..first_order.fosm import two_sided_probability
+from ..first_order.worst_grid_pose import EVENTS, worst_grid_poses
 from ..model.error_draws import DISTRIBUTIONS
 from ..model.kinematics import chain_factors, transports
 from ..model.machine import OUTPUTS
-from ..model.poses import workspace_grid
 
-EVENTS = OUTPUTS + ("system",)
 METHODS = ("importance", "subset")
 P0 = 0.1  # conditional probability of each subset level (Au & Beck 2001)
 CHAIN_CORRELATION = 0.8  # ρ of conditional sampling; a common heuristic choice
@@ -177,7 +176,7 @@ def failure_probability(machine, tolerances, pose=None, *, event: str = "dx",
         ``(n_errors,)`` allocation, read as ±kσ.
     pose : array_like, optional
         ``(n_axes,)`` positions. Default: the event's worst pose on the 5-point workspace
-        grid (:func:`worst_grid_pose`).
+        grid under the reading ``distribution`` (:func:`worst_grid_pose`).
     event : str
         Output name or ``'system'``.
     method : {'importance', 'subset'}
@@ -212,8 +211,8 @@ def failure_probability(machine, tolerances, pose=None, *, event: str = "dx",
     _check_options(event, method, target_cov, max_evaluations, k, distribution, confidence,
                    batch, model, t)
     rng = streams.generator(rng)
-    pose = worst_grid_pose(machine, t, event, k=k) if pose is None else \
-        _check_pose(machine, pose)
+    pose = worst_grid_pose(machine, t, event, k=k, distribution=distribution) if pose is None \
+        else _check_pose(machine, pose)
     jacobian = machine.jacobian(pose) if jacobian is None else _check_jacobian(machine,
                                                                                jacobian)
     counter = _CountingModel(model or (lambda x: machine.comprehensive_error(pose, x)))
@@ -224,13 +223,13 @@ def failure_probability(machine, tolerances, pose=None, *, event: str = "dx",
     if distribution == "truncated":
         stack = worst_case_bound(machine, t, pose, jacobian)
         outputs = problem.outputs
-        if np.all(stack[outputs] < machine.limits[outputs]):
+        if np.all(passes(stack[outputs], machine.limits[outputs])):
             note = ("worst-case stack Σ|∂y/∂x|·t plus the non-linear remainder bound "
                     f"{_ratio_text(stack, machine.limits, outputs)} of the limit")
             return RareEventResult(method="exact-zero", probability=0.0, cov=0.0,
                                    interval=(0.0, 0.0), n_evaluations=0, reached=True,
                                    note=note, **common)
-        problem.drop_outputs(stack < machine.limits)
+        problem.drop_outputs(passes(stack, machine.limits))
         p, cov = _importance(problem, rng, target_cov, max_evaluations, batch, k)
     elif method == "importance":
         p, cov = _importance(problem, rng, target_cov, max_evaluations, batch, None)
@@ -263,7 +262,8 @@ class _CountingModel:
 
 class _Problem:
     """The event in standard normal space: ``x = σ ⊙ u``, response ``r(u) = max |y_o|/I_o``
-    over the event's outputs; failure is ``r ≥ 1``."""
+    over the event's outputs; failure is ``r ≥ 1``, where some output misses its limit
+    (``passes(r, 1)`` reads the pass rule on the scaled outputs)."""
 
     def __init__(self, sigma, jacobian, limits, outputs, model):
         self.sigma, self.limits, self.model = sigma, np.asarray(limits), model
@@ -349,7 +349,7 @@ def _importance(problem, rng, target_cov, budget, batch, k):
         inside = np.ones(size, bool) if k is None else np.all(np.abs(u) <= k, axis=1)
         values = np.zeros(size)
         fails = np.zeros(size, bool)
-        fails[inside] = problem.response(u[inside]) >= 1.0
+        fails[inside] = ~passes(problem.response(u[inside]), 1.0)
         values[fails] = np.exp(log_w[fails])
         count, mean, m2 = _merge(count, mean, m2, values)
         cov = np.sqrt(m2 / (count - 1) / count) / mean if mean > 0 else np.inf
@@ -385,7 +385,7 @@ def _subset(problem, rng, target_cov, budget):
         threshold = 0.5 * (r[order[seeds_per_level - 1]] + r[order[seeds_per_level]])
         next_cost = per_level - seeds_per_level
         if threshold >= 1.0 or problem.model.count + next_cost > budget:
-            hit = r >= 1.0
+            hit = ~passes(r, 1.0)
             p_level = hit.mean()
             probability *= p_level
             if p_level == 0:
@@ -487,31 +487,13 @@ def worst_case_bound(machine, tolerances, pose, jacobian=None) -> np.ndarray:
     return stack + np.repeat([translation, rotation], 3)
 
 
-def worst_grid_pose(machine, tolerances, event: str = "dx", *, k: float = 3.0,
-                    points_per_axis: int = 5) -> np.ndarray:
-    """The workspace-grid pose where ``event`` is most likely to fail (linear-Gaussian).
-
-    For an output, the pose of largest σ (FOSM's worst pose; ranking by σ rather than by
-    the failure probability keeps the order where that probability rounds to 0); for
-    ``'system'``, the pose of largest Σ_o two-sided failure probability (the union bound).
-    """
-    return worst_grid_poses(machine, tolerances, (event,), k=k,
-                            points_per_axis=points_per_axis)[0]
-
-
-def worst_grid_poses(machine, tolerances, events=EVENTS, *, k: float = 3.0,
-                     points_per_axis: int = 5) -> np.ndarray:
-    """:func:`worst_grid_pose` of several events at once, ``(n_events, n_axes)``."""
-    events = tuple(events)
-    unknown = [e for e in events if e not in EVENTS]
-    if unknown:
-        raise InputError(f"event must be one of {EVENTS}; got {unknown[0]!r}")
-    t = machine.check_tolerances(tolerances)
-    grid = workspace_grid(machine, points_per_axis)
-    sigma = np.sqrt(np.square(machine.jacobian(grid)) @ np.square(t / k))  # Eq. (20)
-    failure = two_sided_failure(machine.limits, sigma)
-    scores = np.column_stack([sigma, failure.sum(axis=1)])
-    return grid[worst_rows(scores[:, [EVENTS.index(e) for e in events]], grid)]
+def worst_grid_pose(machine, tolerances, event: str = "dx", *, points: int = 5,
+                    k: float = 3.0, distribution: str | None = None) -> np.ndarray:
+    """The workspace-grid pose where ``event`` is most likely to fail, ``(n_axes,)``: the
+    one row of :func:`reliability.first_order.worst_grid_pose.worst_grid_poses` for
+    ``(event,)`` (``distribution`` None reads the tolerances as the machine does)."""
+    return worst_grid_poses(machine, tolerances, (event,), points=points, k=k,
+                            distribution=distribution)[0]
 
 
 # ----- input checks -----------------------------------------------------------------------

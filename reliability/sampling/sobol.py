@@ -32,10 +32,10 @@ from scipy.stats import norm
 
 from ..basics import checks, streams
 from ..basics.errors import InputError
-from ..first_order.fosm import error_sigma, fosm
+from ..first_order.fosm import error_sigma
+from ..first_order.worst_grid_pose import worst_grid_poses
 from ..model.error_draws import check_reading, normal_to_marginal
 from ..model.machine import OUTPUTS
-from ..model.poses import workspace_grid
 
 #: Rows of the samples ``A`` and ``B`` when not told otherwise.
 DEFAULT_SAMPLES = 2000
@@ -71,14 +71,6 @@ def require_independent(machine, what: str) -> None:
     if machine.correlation is not None:
         raise InputError(f"machine {machine.name!r}: {what} assume independent errors, but "
                          f"the machine file correlates some (its [[correlation]] pairs)")
-
-
-def worst_grid_poses(machine, tolerances, points_per_axis: int = 5, *,
-                     distribution: str = "normal", k: float = 3.0) -> np.ndarray:
-    """Each output's worst pose of the ``points_per_axis`` grid under FOSM, ``(6, n_axes)``."""
-    grid = workspace_grid(machine, points_per_axis)
-    result = fosm(machine, tolerances, grid, k=k, distribution=distribution)
-    return grid[result.worst_pose]
 
 
 @dataclass(frozen=True, eq=False)
@@ -249,7 +241,8 @@ def fosm_shares(machine, tolerances, poses, *, distribution: str = "normal", k: 
 
 def _output_poses(machine, t, poses, points_per_axis, distribution, k) -> np.ndarray:
     if poses is None:
-        return worst_grid_poses(machine, t, points_per_axis, distribution=distribution, k=k)
+        return worst_grid_poses(machine, t, points=points_per_axis, k=k,
+                                distribution=distribution)
     q = machine.check_positions(poses)
     if q.shape == (len(machine.axes),):
         return np.tile(q, (len(OUTPUTS), 1))

@@ -40,13 +40,14 @@ from ..basics.errors import InputError
 from ..basics.streams import spawn, verification_streams
 from ..first_order.certificate import DEFAULT_RTOL, WORKSPACES, certified_worst
 from ..first_order.fosm import fosm
+from ..first_order.worst_grid_pose import worst_grid_poses
 from ..model.machine import OUTPUTS
 from ..model.poses import workspace_grid
 from .fosm_comparison import fosm_versus_monte_carlo
 from .grid_experiment import GridExperiment
 from .machine_yield import DEFAULT_MACHINES, YieldModel
 from .pose_sampling import EVENTS, sample_at_poses, sample_random_poses
-from .rare_events import failure_probability, worst_grid_poses
+from .rare_events import failure_probability
 
 
 @dataclass(frozen=True, repr=False)
@@ -280,7 +281,7 @@ def rare_event_table(machine, tolerances, *, events=EVENTS, method: str = "impor
     distribution = machine.distribution if distribution is None else distribution
     events = tuple(events)
     streams = spawn(rng, len(events))
-    poses = worst_grid_poses(machine, tolerances, events, k=k)
+    poses = worst_grid_poses(machine, tolerances, events, k=k, distribution=distribution)
     frames = []
     for event, stream, pose in zip(events, streams, poses):
         result = failure_probability(machine, tolerances, pose, event=event, method=method,

@@ -27,6 +27,7 @@ import pandas as pd
 import reliability
 from allocation import AllocationProblem
 from allocation.compensated import allocate_compensated
+from reliability.basics.pass_rule import passes
 from reliability.basics.statistics import binomial_interval
 from reliability.basics.streams import spawn
 from reliability.compensation.compensated_machines import (residual_model_passes,
@@ -62,7 +63,7 @@ def check(machine, plan, *, machines: int, grid: int, seed: int, bounds=None) ->
     simulated = simulate_compensated(plan, t, poses, machines, streams[0])
     seconds = time.perf_counter() - started
     predicted = residual_model_passes(plan, t, poses, MODEL_DRAWS, streams[1])
-    inside = np.abs(simulated) <= machine.limits
+    inside = passes(simulated, machine.limits)
     return {"allocation": allocation, "seconds": seconds,
             "yield": yield_rows(inside, predicted),
             "worst": worst_rows(machine, plan.probability(t, poses), inside, poses)}

@@ -34,10 +34,11 @@ from scipy.stats import norm
 
 import reliability
 from reliability.first_order.fosm import fosm
+from reliability.first_order.worst_grid_pose import worst_grid_poses
 from reliability.interop import openturns_model, salib_evaluate, salib_problem
 from reliability.model.machine import OUTPUTS
 from reliability.sampling.machine_yield import YieldModel
-from reliability.sampling.sobol import sobol_indices, worst_grid_poses
+from reliability.sampling.sobol import sobol_indices
 from reliability.sampling.yield_sensitivity import yield_sensitivity
 from studies.workflows.timing import one_blas_thread
 

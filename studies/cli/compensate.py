@@ -15,17 +15,15 @@ from allocation.result_files import allocation_to_csv
 from reliability.basics.errors import InputError
 from reliability.basics.statistics import binomial_interval
 from reliability.basics.streams import extra_stream
-from reliability.compensation.compensated_machines import (residual_model_passes,
-                                                           simulate_compensated)
 from reliability.compensation.compensation_plans import read_compensation_plan
 from reliability.compensation.compensation_files import table_file_names, write_compensation
 from reliability.compensation.residual import measured_residual
-from reliability.first_order.fosm import fosm
 from reliability.compensation.tables import (DEFAULT_SPACING_DEG, DEFAULT_SPACING_MM,
                                              compensation_tables)
 from reliability.model.poses import workspace_grid
 from studies.report.compensation_section import compensation_section
 from studies.report.writer import SIGNIFICANT
+from studies.workflows.compensation_verification import verify_compensation
 
 from . import options
 
@@ -196,24 +194,16 @@ def verification_text(machine, tolerances, args) -> str:
     rng = extra_stream(args.seed, VERIFY_STREAM)
     options.say(f"{args.compensated_machines} machines measured under {args.compensation}, "
                 f"identified and compensated")
-    simulated = simulate_compensated(plan, tolerances, poses, args.compensated_machines, rng)
-    predicted = residual_model_passes(plan, tolerances, poses, MODEL_MACHINES, rng)
-    inside = np.all(np.abs(simulated) <= machine.limits, axis=(1, 2))
-    before = fosm(machine, tolerances, poses).to_frame()["worst_two_sided"].to_numpy()
-    after = plan.probability(tolerances, poses)
-    shares = np.mean(np.abs(simulated) <= machine.limits, axis=0)
-    worst = np.argmin(after, axis=0)
-    frame = pd.DataFrame({"target": machine.targets, "FOSM before": before,
-                          "FOSM after": after.min(axis=0),
-                          "simulated after": shares[worst, np.arange(6)]},
-                         index=pd.Index(machine.outputs, name="output"))
-    rows = [_yield_line("predicted by the residual model", predicted),
-            _yield_line("simulated end to end on the exact chain", inside)]
+    check = verify_compensation(plan, tolerances, poses, args.compensated_machines,
+                                MODEL_MACHINES, rng)
+    rows = [_yield_line("predicted by the residual model", check.predicted),
+            _yield_line("simulated end to end on the exact chain", check.simulated)]
     return (f"after compensation ({args.compensation}: {len(plan.runs)} runs, "
             f"{int(plan.tabled.sum())} items tabled; repeatability and reversal included), "
             f"two-sided, worst over the {len(poses)} poses of the {args.points}-point grid "
-            f"(simulated: at the worst pose after compensation, {len(inside)} machines)\n"
-            f"{frame.to_string(float_format=lambda v: f'{v:.6g}')}\n"
+            f"(simulated: at the worst pose after compensation, {len(check.simulated)} "
+            f"machines)\n"
+            f"{check.table.to_string(float_format=lambda v: f'{v:.6g}')}\n"
             f"machine yield after compensation:\n" + "\n".join(rows))
 
 

@@ -20,6 +20,7 @@ import pandas as pd
 import reliability
 from allocation import AllocationProblem
 from reliability.basics.display import axis_units, pose_text
+from reliability.basics.pass_rule import passes
 from reliability.basics.streams import generator, spawn
 from reliability.first_order.fosm import fosm
 from reliability.first_order.linear_exact import linear_two_sided
@@ -38,7 +39,7 @@ def linear_monte_carlo(machine, tolerances, pose, draws: int, rng) -> np.ndarray
     for start in range(0, draws, CHUNK):
         size = min(CHUNK, draws - start)
         x = draw_errors(tolerances, (size,), distribution="truncated", rng=rng)
-        inside += (np.abs(x @ jac.T) < machine.limits).sum(axis=0)
+        inside += passes(x @ jac.T, machine.limits).sum(axis=0)
     return inside / draws
 
 

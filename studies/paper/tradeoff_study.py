@@ -31,6 +31,7 @@ import reliability
 from allocation.convex import solve_convex_allocation
 from allocation.result_files import gap_text
 from reliability.basics.display import axis_units, bound_text, pose_text
+from reliability.basics.pass_rule import passes
 from reliability.basics.streams import spawn
 from reliability.first_order.fosm import required_index
 from reliability.first_order.system_reliability import worst_system_reliability
@@ -109,7 +110,7 @@ def system_numbers(machine, rng):
         w = result.worst
         pose = int(result.index[w])
         x = children[2 * i + 1].normal(size=(MC_SAMPLES, machine.n_errors)) * (t / 3)
-        inside = np.all(np.abs(x @ jacobian[pose].T) < machine.limits, axis=1).mean()
+        inside = np.all(passes(x @ jacobian[pose].T, machine.limits), axis=1).mean()
         se = np.sqrt(inside * (1 - inside) / MC_SAMPLES)
         z = (inside - result.probability[w]) / np.hypot(se, result.error[w])
         where = pose_text(poses[pose], machine.axes, axis_units(machine), 6)

@@ -20,6 +20,7 @@ import numpy as np
 from matplotlib.ticker import FixedLocator, FuncFormatter, NullLocator, PercentFormatter
 
 from reliability.basics.errors import InputError, InputTypeError
+from reliability.basics.pass_rule import passes
 from reliability.basics.streams import generator
 
 __all__ = [
@@ -325,7 +326,8 @@ def plot_comprehensive_error_scatter(
 ):
     """Scatter of one comprehensive error over the poses of a grid experiment (Figs. 10-15).
 
-    Points with ``|value| > limit`` are red, the others blue; dashed lines mark
+    Points that fail their limit (``|value| >= limit``, the rule of
+    :func:`reliability.basics.pass_rule.passes`) are red, the others blue; dashed lines mark
     ``+-limit``. The legend and title count the poses outside, over all of `values` even
     when only a subset is drawn.
 
@@ -361,7 +363,7 @@ def plot_comprehensive_error_scatter(
     values = _finite_1d("values", values)
     limit = _positive("limit", limit)
     unit = _unit(output_label, unit)
-    outside = np.abs(values) > limit
+    outside = ~passes(values, limit)
     n_out, n_in = int(outside.sum()), int((~outside).sum())
     inside = _shown_inside(outside, max_points, rng)
     shown = "" if inside.size == n_in else f", {inside.size} drawn"

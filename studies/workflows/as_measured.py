@@ -35,6 +35,7 @@ from reliability.basics import checks, streams
 from reliability.basics.chunks import chunks
 from reliability.basics.display import (UNIT_SCALES, axis_units, output_people_units,
                                         pose_text, unit_symbol)
+from reliability.basics.pass_rule import passes
 from reliability.basics.statistics import binomial_interval
 from reliability.first_order.fosm import fosm
 from reliability.model.machine import OUTPUTS
@@ -187,7 +188,7 @@ def _judge(machine, identification, experiment, extra, draws, memory, rng) -> di
         y = experiment.evaluate(motion, assembly)
         if len(extra):
             y = np.concatenate([y, machine.comprehensive_error(extra, x[:, count:, :])], axis=1)
-        inside = np.abs(y) < machine.limits
+        inside = passes(y, machine.limits)
         out["holds_all"] += int(np.count_nonzero(inside.all(axis=(1, 2))))
         out["holds"] += inside.all(axis=1).sum(axis=0)
         out["inside"] += inside.sum(axis=0)
