@@ -54,7 +54,7 @@ from reliability.model.correlation import check_correlation_matrix
 from reliability.model.iso_names import iso_names
 from reliability.model.machine import OUTPUTS
 
-from .convex import ROW_ADD_TOLERANCE, ROWS_PER_ROUND, largest_fraction
+from ..solvers.convex import ROW_ADD_TOLERANCE, ROWS_PER_ROUND, largest_fraction
 from .problem import AllocationProblem
 
 ACTIVE_TOLERANCE = 1e-6  # a row with load ≥ 1 − this gets a multiplier

@@ -50,9 +50,9 @@ from reliability.basics.files import write_csv
 from reliability.basics.saved_results import check_count
 from reliability.model.machine import OUTPUTS
 
+from ..per_pose.problem import AllocationProblem
+from ..solvers.convex import InfeasibleAllocationError
 from .catalogue import Catalogue
-from .convex import InfeasibleAllocationError
-from .problem import AllocationProblem
 
 #: Relative gap between the price found and HiGHS's dual bound at which the search stops.
 MIP_REL_GAP = 1e-9

@@ -32,7 +32,7 @@ from reliability.first_order.fosm import required_index
 from reliability.first_order.system_reliability import worst_system_reliability
 from reliability.model.machine import OUTPUTS
 
-from .convex import InfeasibleAllocationError
+from ..solvers.convex import InfeasibleAllocationError
 from .front import CommonTargetSolver
 from .problem import AllocationProblem, ScreenedRows, with_requirements
 from .solve import AllocationResult, _unreachable_worst

@@ -36,7 +36,7 @@ from reliability.basics.saved_results import check_count, encode_frame, load_pay
 from reliability.model.iso_names import plain_names
 from reliability.model.machine import OUTPUTS
 
-from .cost import GROUPS, CostModel
+from ..cost.cost import GROUPS, CostModel
 
 KIND = "precrel.allocation_result"
 METHODS = ("exact", "gwo")

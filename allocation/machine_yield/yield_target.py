@@ -111,9 +111,9 @@ from reliability.model.machine import OUTPUTS
 from reliability.model.poses import workspace_grid
 from reliability.sampling.machine_yield import YieldModel
 
-from .convex import InfeasibleAllocationError, solve_convex_allocation
-from .front import CommonTargetSolver
-from .problem import DEFAULT_FACTORS, AllocationProblem
+from ..per_pose.front import CommonTargetSolver
+from ..per_pose.problem import DEFAULT_FACTORS, AllocationProblem
+from ..solvers.convex import InfeasibleAllocationError, solve_convex_allocation
 from .yield_bound import pose_chain_bound
 from .yield_dual import not_log_concave, scaled_rows, tangent_step, unit_draws
 from .yield_shape import scaled_to_yield, shape_search

@@ -27,8 +27,8 @@ from reliability.basics.ties import worst_rows
 from reliability.first_order.fosm import probability
 from reliability.model.machine import OUTPUTS
 
-from .convex import InfeasibleAllocationError, largest_fraction, solve_convex_allocation
-from .gwo import grey_wolf
+from ..solvers.convex import InfeasibleAllocationError, largest_fraction, solve_convex_allocation
+from ..solvers.gwo import grey_wolf
 from .result_files import (NEARLY_FREE_SHARE, allocation_summary, allocation_to_csv,
                            load_allocation, save_allocation)
 

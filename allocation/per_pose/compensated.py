@@ -31,7 +31,7 @@ from reliability.compensation.compensation_plans import K
 from reliability.compensation.residual import (fixed_rule_terms, positioning_variance,
                                                posterior_covariance)
 
-from .convex import solve_convex_allocation
+from ..solvers.convex import solve_convex_allocation
 from .problem import screen_rows
 from .solve import AllocationResult, TargetUnreachableError
 

@@ -28,7 +28,7 @@ from reliability.basics.files import SIGNIFICANT, probability_text, write_csv
 from reliability.first_order.fosm import required_index
 from reliability.model.machine import OUTPUTS
 
-from .convex import InfeasibleAllocationError, solve_convex_allocation
+from ..solvers.convex import InfeasibleAllocationError, solve_convex_allocation
 from .problem import AllocationProblem, ScreenedRows
 from .solve import TargetUnreachableError, solve_exact
 

@@ -42,8 +42,8 @@ from reliability.model.kinematics import check_frame
 from reliability.model.machine import OUTPUTS
 from reliability.model.poses import workspace_grid
 
+from ..cost.cost import CostModel
 from . import solve
-from .cost import CostModel
 
 SIDES = ("one_sided", "two_sided", "stack")
 WORKSPACES = ("worst", "mean")
