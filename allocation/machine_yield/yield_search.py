@@ -24,7 +24,7 @@ from reliability.model.machine import OUTPUTS
 from reliability.model.poses import workspace_grid
 from reliability.sampling.machine_yield import YieldModel
 
-from ..per_pose.front import CommonTargetSolver
+from ..per_pose.common_target import CommonTargetSolver
 from ..per_pose.problem import AllocationProblem
 from ..solvers.convex import InfeasibleAllocationError, solve_convex_allocation
 from .yield_dual import not_log_concave, scaled_rows, tangent_step, unit_draws

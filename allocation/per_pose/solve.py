@@ -57,8 +57,25 @@ class TargetUnreachableError(InfeasibleAllocationError):
         self.loads = np.asarray(loads, dtype=float)
 
 
-def _unreachable_worst(problem, rows=(), loads=()) -> TargetUnreachableError:
-    """The error for the worst-case reading, listing every blocked (output, pose)."""
+def unreachable_worst(problem, rows=(), loads=()) -> TargetUnreachableError:
+    """The error for the worst-case reading, listing every blocked (output, pose).
+
+    Parameters
+    ----------
+    problem : AllocationProblem
+        A problem with ``workspace='worst'`` whose rows the box cannot hold: some
+        (output, pose) pair misses its requirement with every tolerance at its lower bound.
+    rows, loads : sequence, optional
+        The rows and loads of the solver's :class:`InfeasibleAllocationError`, kept on the
+        error.
+
+    Returns
+    -------
+    TargetUnreachableError
+        Its message names the worst blocked pair and counts the others; its ``blocking``
+        frame lists every blocked pair (output, pose, the pose's axes, what is needed and
+        what the lower bounds give), the worst first.
+    """
     at_lower = problem.loads(problem.variable(problem.lower))  # (n_poses, 6)
     pose, output = np.nonzero(at_lower > 1.0)
     order = np.argsort(-at_lower[pose, output], kind="stable")
@@ -223,7 +240,7 @@ def solve_exact(problem, *, gap_tol: float = 1e-6) -> AllocationResult:
                                            problem.variable(problem.upper), gap_tol=gap_tol,
                                            power=problem.variable_power)
     except InfeasibleAllocationError as exc:
-        raise _unreachable_worst(problem, exc.rows, exc.loads) from None
+        raise unreachable_worst(problem, exc.rows, exc.loads) from None
     active = _row_frame(problem, solution.active)
     active["multiplier"] = solution.multipliers[solution.active]
     scale = 2.0 / problem.variable_power  # rows scale as 1/I² (FOSM) or 1/I (stack)
