@@ -222,8 +222,8 @@ class YieldSearch:
     def calibrate(self, point) -> _Calibrated:
         """``point``'s allocation times one factor (inside the box) at which its yield on
         the calibration sample is the design yield
-        (:func:`allocation.yield_shape.scaled_to_yield`, the whole grid); ``point``'s own,
-        judged there, when no factor inside the box reaches it."""
+        (:func:`allocation.machine_yield.yield_shape.scaled_to_yield`, the whole grid);
+        ``point``'s own, judged there, when no factor inside the box reaches it."""
         u = self.draws("calibration")
         found = scaled_to_yield(self.model, np.asarray(self.problem.lower),
                                 np.asarray(self.problem.upper), point.t, self.design_target,
@@ -236,7 +236,7 @@ class YieldSearch:
 
     def convex_steps(self, point, steps: int, machines: int):
         """``steps`` steps of the convex problem from ``point``
-        (:func:`allocation.yield_dual.tangent_step` on the linearised outputs of
+        (:func:`allocation.machine_yield.yield_dual.tangent_step` on the linearised outputs of
         ``machines`` machines of the convex-step stream, each step rescaled to the design
         yield there), or None when ``steps`` is 0 or the yield is not log-concave in the
         log-tolerances here."""
@@ -357,9 +357,9 @@ class YieldSearch:
 
     def shape(self, start, steps) -> SearchPoint | None:
         """The shape search over every tolerance from ``start``
-        (:func:`allocation.yield_shape.shape_search`) on a design sample of its own of the
-        same size (its verdicts are that sample's); None when ``steps`` is 0 or the box
-        cannot hold it."""
+        (:func:`allocation.machine_yield.yield_shape.shape_search`) on a design sample of its
+        own of the same size (its verdicts are that sample's); None when ``steps`` is 0 or the
+        box cannot hold it."""
         if steps == 0:
             return None
         self.ratios(start.t, "shape")

@@ -17,7 +17,7 @@ constraints, GWO history and per-requirement elasticities, and what is needed to
 without the machine: the error names, the reference allocation and the bounds, the cost
 weights (so the cost is re-checked on reload), the reading (side, workspace, k) and the
 machine's name, axes and units. A reloaded result carries a :class:`SavedProblem` in
-place of the :class:`~allocation.problem.AllocationProblem` unless the problem is given.
+place of the :class:`~allocation.per_pose.problem.AllocationProblem` unless the problem is given.
 """
 
 from __future__ import annotations

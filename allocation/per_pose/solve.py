@@ -1,14 +1,14 @@
-"""Solving an :class:`~allocation.problem.AllocationProblem`: exactly and by GWO.
+"""Solving an :class:`~allocation.per_pose.problem.AllocationProblem`: exactly and by GWO.
 
 ``solve_exact`` returns the certified global optimum of the worst-case problem (a convex
-problem in ``u = t²``, :mod:`allocation.convex`) with its duality gap, the active
+problem in ``u = t²``, :mod:`allocation.solvers.convex`) with its duality gap, the active
 constraints (which output at which pose) and their Lagrange multipliers. For the
 workspace-mean reading the constraint ``mean_p P(β_p) ≥ R`` is not linear in ``u``; it is
 concave — so the problem convex — wherever every β ≥ √3 (P ≥ 0.92 two-sided). It is
 solved by supporting-hyperplane cuts on the same convex solver, whose dual bound is a
 certificate where that concavity holds (the result says whether it does).
 
-``solve_gwo`` runs the Grey Wolf Optimiser (:mod:`allocation.gwo`) on the same problem,
+``solve_gwo`` runs the Grey Wolf Optimiser (:mod:`allocation.solvers.gwo`) on the same problem,
 over the free items, with Deb's feasibility rules, as the paper does.
 """
 
@@ -205,7 +205,7 @@ class AllocationResult:
     def to_csv(self, path, overwrite: bool = False, *, significant: int | None = None):
         """Write the allocation CSV (columns ``error, reference, allocated``, one row per
         error) with all digits or ``significant`` digits; returns the path
-        (:func:`allocation.result_files.allocation_to_csv`)."""
+        (:func:`allocation.per_pose.result_files.allocation_to_csv`)."""
         return allocation_to_csv(self, path, overwrite, significant=significant)
 
     def save(self, path, overwrite: bool = False):
@@ -216,7 +216,7 @@ class AllocationResult:
     @classmethod
     def load(cls, path, problem=None) -> "AllocationResult":
         """Reload a result written by :meth:`save`, verifying every field. Without
-        ``problem`` the result carries a :class:`~allocation.result_files.SavedProblem`;
+        ``problem`` the result carries a :class:`~allocation.per_pose.result_files.SavedProblem`;
         a given problem is checked to be the saved one."""
         return load_allocation(cls, path, problem)
 
