@@ -10,11 +10,11 @@ whose yield is at least Y and returns it inside a bracket:
   every pose, so its yield cannot exceed the probability of any one (output, pose) row.
   Any allocation with yield ≥ Y therefore has every row's probability ≥ Y, and the
   certified dual bound of the two-sided per-pose problem at target Y (every row at
-  probability Y, :class:`~allocation.per_pose.common_target.CommonTargetSolver`) is a lower
-  bound on its cost. The row probability is the FOSM one (the linearised output read as normal
-  with σ of Eq. 20, the truncated σ under the truncated reading), so the bound holds for that
-  model of a row, on the same grid; the yield itself is sampled on the exact model. The six rows
-  of one pose must hold together, which gives a tighter bound
+  probability Y, :class:`~allocation.per_pose.common_target.CommonTargetSolver`) is a lower bound on its
+  cost. The row probability is the FOSM one (the linearised output read as normal with
+  σ of Eq. 20, the truncated σ under the truncated reading), so the bound holds for that
+  model of a row, on the same grid; the yield itself is sampled on the exact model. The
+  six rows of one pose must hold together, which gives a tighter bound
   (:mod:`allocation.machine_yield.yield_bound`); the larger of the two is the lower bound. A far
   tighter one, at a stated confidence, follows from the yield's log-concavity in the
   log-tolerances (:func:`allocation.machine_yield.yield_dual.log_concave_bound`, computed apart: it
@@ -37,15 +37,15 @@ sample of N machines confirm Y (below). At the cheapest allocation for a yield e
 target buys yield at the same price (the KKT condition in the six targets). Each round
 prices every binding output: the cost its target buys, by re-solving with the target
 lowered (no sampling), over the yield it buys, from the design machines that fail through
-that output alone (:meth:`~allocation.machine_yield.yield_search.YieldSearch._direction`).
-The targets of dear outputs go down and of cheap ones up, in proportion to the logarithm of
-the price ratio, and a common shift of all six, found by bisection, restores the design
-yield; the move is kept when it is cheaper, otherwise the step is halved.
+that output alone (:meth:`~allocation.machine_yield.yield_search.YieldSearch._direction`). The targets of dear outputs go down and of
+cheap ones up, in proportion to the logarithm of the price ratio, and a common shift of all
+six, found by bisection, restores the design yield; the move is kept when it is cheaper,
+otherwise the step is halved.
 
-Then the error shape (:mod:`allocation.machine_yield.yield_shape`): starting from the per-output
-search's allocation, every tolerance moves towards equal shares of the cost and of the failures
-at the yield's margin, rescaled on the exact chain so that the design yield holds on a design
-sample of its own; the cheaper of the two stages is the result (:attr:`YieldAllocation.method`).
+Then the error shape (:mod:`allocation.machine_yield.yield_shape`): starting from the per-output search's
+allocation, every tolerance moves towards equal shares of the cost and of the failures at the
+yield's margin, rescaled on the exact chain so that the design yield holds on a design sample
+of its own; the cheaper of the two stages is the result (:attr:`YieldAllocation.method`).
 The per-output stage cannot trade one error against another inside an output; on the paper's
 machine, whose failing machines fail several outputs at once, that is where the saving is.
 
@@ -63,27 +63,26 @@ is certified.
 
 Convex steps (``convex_steps``, none by default). Where the yield is log-concave in the
 log-tolerances (normal reading, no item correlation, ``constant``) the problem is convex, and
-a step towards the optimum of its tangent problem
-(:func:`allocation.machine_yield.yield_dual.tangent_step`) from the search's allocation is one
-more candidate, calibrated like the others.
+a step towards the optimum of its tangent problem (:func:`allocation.machine_yield.yield_dual.tangent_step`)
+from the search's allocation is one more candidate, calibrated like the others.
 
 Calibration. The search chooses among many candidates on its design samples, so the
 yield of the allocation it ends at is biased upwards there (on the paper's machine at 4 000
 machines the fresh samples saw about one standard error less). The allocation is therefore
-multiplied by one factor, inside the box
-(:func:`allocation.machine_yield.yield_shape.scaled_to_yield`: the worst ratios are homogeneous
-of degree one in the tolerances, so the factor comes from their quantile, bisected when
-tolerances held at their bounds stall that), until its yield on a *calibration* sample of N
-fresh machines is ``Y_d``. That sample is used for nothing else, so the calibrated yield is an
-honest estimate, and the verification sample then differs from it by sampling noise alone: the
-difference of two independent samples of N (standard deviation ``√2`` standard errors).
-``DESIGN_Z`` = 1.96 + 1.96·√2 ≈ 4.73 standard errors, so the verification's 95 %
-Clopper–Pearson interval clears Y in about 97.5 % of runs. When no factor reaches ``Y_d`` on the
-calibration sample, not even every tolerance at its lower bound, the search's allocation is kept
-as it is (:attr:`YieldAllocation.calibrated` is False). The naive allocation is calibrated the
-same way, and when it is then cheaper than the search's calibrated allocation, the naive start
-is the result (:attr:`YieldAllocation.method` ``'naive start'``): on small samples the search
-fits its design draws and its allocation can lose more on the calibration sample.
+multiplied by one factor, inside the box (:func:`allocation.machine_yield.yield_shape.scaled_to_yield`:
+the worst ratios are homogeneous of degree one in the tolerances, so the factor comes from
+their quantile, bisected when tolerances held at their bounds stall that), until its yield
+on a *calibration* sample of N fresh machines is ``Y_d``. That sample is used for
+nothing else, so the calibrated yield is an honest estimate, and the verification sample
+then differs from it by sampling noise alone: the difference of two independent samples
+of N (standard deviation ``√2`` standard errors). ``DESIGN_Z`` = 1.96 + 1.96·√2 ≈ 4.73
+standard errors, so the verification's 95 % Clopper–Pearson interval clears Y in about
+97.5 % of runs. When no factor reaches ``Y_d`` on the calibration sample, not even every
+tolerance at its lower bound, the search's allocation is kept as it is
+(:attr:`YieldAllocation.calibrated` is False). The naive allocation is calibrated the same
+way, and when it is then cheaper than the search's calibrated allocation, the naive start
+is the result (:attr:`YieldAllocation.method` ``'naive start'``): on small samples the
+search fits its design draws and its allocation can lose more on the calibration sample.
 
 One engine. Every yield of both stages, of the verification and of the naive method is a
 share of built machines judged by
@@ -201,8 +200,8 @@ class YieldAllocation:
         ``'error shape'``.
     convex_step_cost, convex_step_calibrated_cost : float or None
         The allocation the convex steps from the search's allocation ended at
-        (:func:`allocation.machine_yield.yield_dual.tangent_step`), before and after the
-        calibration; None when they did not run (:attr:`convex_step_text` says why).
+        (:func:`allocation.machine_yield.yield_dual.tangent_step`), before and after the calibration;
+        None when they did not run (:attr:`convex_step_text` says why).
     convex_step_text : str
         Whether and how the convex steps ran, in words.
     output_targets : ndarray (6,)
@@ -230,8 +229,8 @@ class YieldAllocation:
     row_bound : float
         The row relaxation's certified bound (every row at FOSM probability Y).
     chain_bound : allocation.machine_yield.yield_bound.ChainBound or None
-        The pose-chain relaxation (:mod:`allocation.machine_yield.yield_bound`: the six outputs'
-        joint event at each pose); None for a machine with an item correlation.
+        The pose-chain relaxation (:mod:`allocation.machine_yield.yield_bound`: the six outputs' joint
+        event at each pose); None for a machine with an item correlation.
     lower_bound_tolerances : ndarray (n_errors,)
         The row relaxation's optimum (every row at probability ≥ Y).
     naive : NaiveAllocation
@@ -446,10 +445,9 @@ def allocate_for_yield(machine, yield_target: float, *, profile=None, distributi
         search (:func:`allocation.machine_yield.yield_shape.shape_search`; 0: none).
     convex_steps : int
         Steps of the convex problem from the search's allocation
-        (:func:`allocation.machine_yield.yield_dual.tangent_step`) where the yield is
-        log-concave in the log-tolerances (normal reading, no item correlation, ``constant``);
-        0: none. Their allocation is calibrated and verified like the others, and kept when
-        cheapest.
+        (:func:`allocation.machine_yield.yield_dual.tangent_step`) where the yield is log-concave in the
+        log-tolerances (normal reading, no item correlation, ``constant``); 0: none. Their
+        allocation is calibrated and verified like the others, and kept when cheapest.
     convex_machines : int, optional
         Machines the convex steps estimate the yield's gradient on (default
         ``CONVEX_MACHINES_FACTOR`` × ``machines``), drawn from the sixth stream: the
