@@ -300,7 +300,7 @@ def test_report_adds_a_component_choice_section(tmp_path, capsys):
     # the report's choice and tolerances are the files the library writes, at its digits
     assert (out / "choice.csv").read_bytes() == \
         result.to_csv(tmp_path / "choice.csv", significant=6).read_bytes()
-    assert (out / "choice_tolerances.csv").read_bytes() == allocation.result_files.\
+    assert (out / "choice_tolerances.csv").read_bytes() == allocation.per_pose.result_files.\
         allocation_to_csv(result, tmp_path / "tolerances.csv", significant=6).read_bytes()
 
 

@@ -78,7 +78,7 @@ def brute_force_undominated(matrix):
 
 def old_screen(rows, upper_u):
     """The previous screen: box, duplicates, then every row against every other."""
-    from allocation.problem import _unique_rows
+    from allocation.per_pose.problem import _unique_rows
 
     kept = []
     for output in range(rows.shape[1]):
@@ -97,7 +97,7 @@ def test_undominated_equals_the_definition_on_random_rows():
     matrix[:, 2] = 1.5
     matrix[:, 5] = matrix[:, 0]
     matrix = np.unique(matrix, axis=0)[rng.permutation(len(np.unique(matrix, axis=0)))]
-    from allocation.problem import _undominated
+    from allocation.per_pose.problem import _undominated
 
     np.testing.assert_array_equal(_undominated(matrix, block=16),
                                   brute_force_undominated(matrix))
@@ -146,7 +146,7 @@ def test_chunked_problem_equals_the_whole_array_problem(hobbing, grid3):
 
 def test_unreachable_target_is_reported_from_chunks(hobbing_dict, grid3):
     from reliability.model.machine import machine_from_dict
-    from allocation.solve import TargetUnreachableError
+    from allocation.per_pose.solve import TargetUnreachableError
 
     hobbing_dict["requirements"]["dx"]["limit"] = 1e-4  # far below any reachable σ
     machine = machine_from_dict(hobbing_dict)

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from allocation import AllocationProblem
-from allocation.compensated import allocate_compensated
+from allocation.per_pose.compensated import allocate_compensated
 from studies import cli
 from reliability import compensation_tables, identify, read_compensation, write_compensation
 from reliability.basics.errors import InputError

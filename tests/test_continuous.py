@@ -1,4 +1,4 @@
-"""Allocations certified over the continuous workspace (allocation.continuous,
+"""Allocations certified over the continuous workspace (allocation.per_pose.continuous,
 docs/continuous-allocation.md): the loop's optimum against independent checks, its
 refusals and its plain "not certified", its searched-only mode and
 ``solve_over_workspace`` (pose cutting planes from the local search alone), the command
@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from allocation import AllocationProblem, solve_over_workspace
-from allocation.continuous import certificate_table, check_continuous, solve_continuous
+from allocation.per_pose.continuous import certificate_table, check_continuous, solve_continuous
 from reliability import OUTPUTS, workspace_grid
 from reliability.basics.errors import InputError
 from reliability.first_order.fosm import error_sigma

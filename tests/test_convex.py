@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 from scipy.optimize import Bounds, LinearConstraint, minimize
 
-from allocation import convex
-from allocation.convex import (
+from allocation.solvers import convex
+from allocation.solvers.convex import (
     ConvexSolution,
     InfeasibleAllocationError,
     solve_convex_allocation,

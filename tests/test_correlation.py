@@ -11,7 +11,7 @@ import reliability
 from scipy.stats import norm
 
 from allocation import AllocationProblem
-from allocation.correlated import solve_correlated
+from allocation.per_pose.correlated import solve_correlated
 from reliability.basics.errors import InputError
 from reliability.first_order.fosm import error_sigma, fosm
 from reliability.first_order.output_covariance import output_covariance

@@ -6,7 +6,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from allocation.cost import COMPONENTS, CostModel, cost_weights
+from allocation.cost.cost import COMPONENTS, CostModel, cost_weights
 
 
 @dataclass(frozen=True)

@@ -15,7 +15,7 @@ import pytest
 
 import allocation
 from allocation import AllocationProblem, Catalogue, solve_catalogue
-from allocation import discrete
+from allocation.catalogue import discrete
 from reliability import hobbing_machine, load_machine, workspace_grid
 from reliability.basics.errors import InputError, InputTypeError
 from reliability.model.machine import OUTPUTS
@@ -215,7 +215,8 @@ def test_choice_csv_and_tolerances(case, tmp_path):
     path = result.to_csv(tmp_path / "choice.csv")
     assert path.read_text().splitlines()[0] == "component,class,price"
     written = allocation.read_allocation_csv(
-        allocation.result_files.allocation_to_csv(result, tmp_path / "t.csv"), problem.machine)
+        allocation.per_pose.result_files.allocation_to_csv(result, tmp_path / "t.csv"),
+        problem.machine)
     np.testing.assert_array_equal(written, result.tolerances)
 
 

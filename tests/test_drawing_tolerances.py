@@ -11,7 +11,7 @@ import pandas as pd
 import pytest
 
 from allocation import AllocationProblem
-from allocation.result_files import (DRAWING_COLUMNS, DRAWING_FILE, drawing_frame,
+from allocation.per_pose.result_files import (DRAWING_COLUMNS, DRAWING_FILE, drawing_frame,
                                      drawing_to_csv, drawing_tolerances, read_allocation_csv)
 from reliability.basics.errors import InputError
 from reliability.model.machine import machine_from_toml

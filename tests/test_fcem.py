@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from allocation.fuzzy_evaluation import FcemResult, fcem_coefficient
+from allocation.cost.fuzzy_evaluation import FcemResult, fcem_coefficient
 
 A_PAPER = [0.4, 0.2, 0.1, 0.3]  # Eq. (36)
 R_PAPER = [  # Eq. (37)

@@ -8,7 +8,7 @@ import pandas as pd
 import pytest
 
 from allocation import AllocationProblem
-from allocation.result_files import allocation_to_csv, read_allocation_csv
+from allocation.per_pose.result_files import allocation_to_csv, read_allocation_csv
 from reliability.basics.errors import InputError, InputTypeError, SavedResultError
 from reliability.basics.files import check_destination
 from reliability.basics.result_store import ResultStore

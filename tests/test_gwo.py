@@ -4,7 +4,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from allocation.gwo import GwoResult, grey_wolf, grey_wolf_reference
+from allocation.solvers.gwo import GwoResult, grey_wolf, grey_wolf_reference
 
 SHIFT = np.linspace(-7.0, 8.0, 10)
 

@@ -8,6 +8,9 @@
   ``first_order`` <- ``sampling``; ``acceptance`` and ``measured`` stand on ``model`` and
   ``basics`` (``measured`` may read ``acceptance``'s test definitions), and ``sampling`` may use
   both. No room imports the package ``reliability`` itself (that would import every room).
+- Inside ``allocation`` likewise: ``solvers`` and ``cost`` <- ``per_pose`` <- ``catalogue``
+  and ``machine_yield``. No room imports the package ``allocation`` itself.
+- No module of ``reliability`` or ``allocation`` is longer than 800 lines.
 - No two modules import each other, directly or through a cycle (imports inside functions
   count too).
 - Importing any installed module changes neither the matplotlib backend nor the BLAS
@@ -183,6 +186,90 @@ def test_the_room_rule_of_reliability_sees_an_upward_import():
     assert reliability_room("reliability.model.machine") == "reliability.model"
     assert "reliability.sampling" not in RELIABILITY_ROOMS["reliability.first_order"]
     assert "reliability.first_order" not in RELIABILITY_ROOMS["reliability.acceptance"]
+
+
+#: What each room of ``allocation`` may import besides itself.
+ALLOCATION_ROOMS = {
+    "allocation.solvers": set(),
+    "allocation.cost": set(),
+    "allocation.per_pose": {"allocation.solvers", "allocation.cost"},
+    "allocation.catalogue": {"allocation.per_pose", "allocation.solvers", "allocation.cost"},
+    "allocation.machine_yield": {"allocation.per_pose", "allocation.solvers",
+                                 "allocation.cost"},
+}
+
+
+def allocation_room(name: str) -> str | None:
+    """The room of ``allocation`` a module lives in (None for the package itself)."""
+    parts = name.split(".")
+    if parts[0] != "allocation" or len(parts) < 2:
+        return None
+    return ".".join(parts[:2])
+
+
+def test_every_allocation_module_lives_in_a_room():
+    homeless = [name for name in MODULES if name.startswith("allocation.")
+                and allocation_room(name) not in ALLOCATION_ROOMS]
+    assert not homeless, f"modules of allocation outside its rooms: {homeless}"
+    for package in ALLOCATION_ROOMS:
+        path = ROOT / package.replace(".", "/") / "__init__.py"
+        assert path.exists(), f"{package} is not a package"
+        assert ast.get_docstring(ast.parse(path.read_text())), f"{package} has no purpose line"
+
+
+def test_rooms_of_allocation_import_one_way():
+    upward = []
+    for name, targets in GRAPH.items():
+        here = allocation_room(name)
+        if here is None:
+            continue
+        for target in targets:
+            there = allocation_room(target)
+            if target == "allocation":
+                upward.append(f"{name} -> allocation (the package imports every room)")
+            elif there is not None and there != here and there not in ALLOCATION_ROOMS[here]:
+                upward.append(f"{name} -> {target} ({here} may not import {there})")
+    assert not upward, "imports against the rooms' one-way rule:\n" + "\n".join(upward)
+
+
+def test_the_room_rule_of_allocation_sees_an_upward_import():
+    assert allocation_room("allocation.per_pose.front") == "allocation.per_pose"
+    assert allocation_room("allocation") is None
+    assert "allocation.per_pose" not in ALLOCATION_ROOMS["allocation.solvers"]
+    assert "allocation.machine_yield" not in ALLOCATION_ROOMS["allocation.catalogue"]
+    assert "allocation.catalogue" not in ALLOCATION_ROOMS["allocation.machine_yield"]
+
+
+def test_the_convex_core_imports_nothing_of_ours():
+    ours = sorted(GRAPH["allocation.solvers.convex"])
+    assert not ours, f"allocation.solvers.convex imports {ours}"
+
+
+#: Longest a module of ``reliability`` or ``allocation`` may be, in lines.
+MAX_LINES = 800
+#: Modules over :data:`MAX_LINES` while they are being split; empty once they are.
+BEING_SPLIT = {"reliability/sampling/machine_yield.py", "reliability/acceptance/prediction.py",
+               "reliability/model/machine.py"}
+
+
+def library_modules():
+    """Every module of ``reliability`` and ``allocation``, marked as an expected failure of
+    the length rule while it is in :data:`BEING_SPLIT`."""
+    params = []
+    for name, path in MODULES.items():
+        if name.split(".")[0] not in ("reliability", "allocation"):
+            continue
+        relative = path.relative_to(ROOT).as_posix()
+        marks = [pytest.mark.xfail(reason="being split", strict=False)] \
+            if relative in BEING_SPLIT else []
+        params.append(pytest.param(relative, marks=marks, id=relative))
+    return params
+
+
+@pytest.mark.parametrize("relative", library_modules())
+def test_no_library_module_is_over_800_lines(relative):
+    lines = len((ROOT / relative).read_text().splitlines())
+    assert lines <= MAX_LINES, f"{relative} has {lines} lines (at most {MAX_LINES})"
 
 
 def test_no_import_cycles():

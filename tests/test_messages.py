@@ -14,10 +14,10 @@ import numpy as np
 import pytest
 
 from allocation import AllocationProblem, load_catalogue, solve_catalogue
-from allocation.catalogue import Catalogue, unit_warnings
-from allocation.yield_target import YieldAllocation
-from allocation.discrete import neighbour_table
-from allocation.result_files import read_allocation_csv
+from allocation.catalogue.catalogue import Catalogue, unit_warnings
+from allocation.machine_yield.yield_target import YieldAllocation
+from allocation.catalogue.discrete import neighbour_table
+from allocation.per_pose.result_files import read_allocation_csv
 from reliability import MachineDescriptionError, load_machine, machine_from_dict, workspace_grid
 from reliability.acceptance import definitions
 from reliability.basics.display import pose_text

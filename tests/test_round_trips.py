@@ -14,8 +14,9 @@ import pytest
 
 import reliability
 from allocation import AllocationProblem, AllocationResult, load_catalogue, solve_catalogue
-from allocation.front import cost_reliability_front, front_to_csv
-from allocation.result_files import allocation_to_csv, read_allocation_csv, written_tolerances
+from allocation.per_pose.front import cost_reliability_front, front_to_csv
+from allocation.per_pose.result_files import (allocation_to_csv, read_allocation_csv,
+                                              written_tolerances)
 from reliability import FosmResult, GridExperiment, GridExperimentResult, fosm, workspace_grid
 from reliability.basics.files import SIGNIFICANT, probability_text, rounded_down
 from reliability.sampling.experiment_results import RandomPoseResult

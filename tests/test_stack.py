@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from allocation import AllocationProblem, TargetUnreachableError, solve_convex_allocation
-from allocation import convex
+from allocation.solvers import convex
 from reliability.basics.errors import InputError, InputTypeError
 from reliability.first_order.fosm import required_index
 from reliability.model.poses import workspace_grid

@@ -11,7 +11,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from allocation.result_files import (GAP_SHOWN, allocation_to_csv, gap_bound, gap_text,
+from allocation.per_pose.result_files import (GAP_SHOWN, allocation_to_csv, gap_bound, gap_text,
                                      read_allocation_csv)
 from reliability.basics.display import bound_text, pose_text, target_text
 from reliability.basics.files import as_written, atomic_write_text

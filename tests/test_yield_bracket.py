@@ -10,10 +10,10 @@ import pytest
 from scipy.stats import norm
 
 import reliability
-from allocation.front import CommonTargetSolver
-from allocation.problem import AllocationProblem
-from allocation.yield_bound import ChainLog, _greedy_chain, pose_chain_bound
-from allocation.yield_target import _Search
+from allocation.per_pose.common_target import CommonTargetSolver
+from allocation.per_pose.problem import AllocationProblem
+from allocation.machine_yield.yield_bound import ChainLog, _greedy_chain, pose_chain_bound
+from allocation.machine_yield.yield_search import YieldSearch
 from reliability.model.poses import workspace_grid
 from reliability.sampling.machine_yield import YieldModel, _largest_over_poses
 
@@ -55,7 +55,7 @@ def test_largest_over_poses_is_the_maximum(count):
 def test_search_checks_its_screen_on_the_whole_grid(trunnion5):
     """A screen that misses the worst poses is caught, widened, and then agrees with the
     grid; every screened verdict is at least as lenient as the grid's."""
-    search = _Search(trunnion5, 3, None, 60, 4, 0.0)
+    search = YieldSearch(trunnion5, 3, None, 60, 4, 0.0)
     t = trunnion5.initial_allocation
     grid = search.model.output_ratios(search.draws("design"), t) < 1.0
     np.testing.assert_array_equal(search.verdicts(t, "design"), grid)
@@ -92,7 +92,7 @@ def test_ratios_at_skips_missing_poses(swivel_model):
 def test_a_failed_check_evaluates_the_grid_once(trunnion5, monkeypatch):
     """The check that catches a screen missing the worst poses takes the grid's verdicts and
     its worst poses from one evaluation of the whole grid."""
-    search = _Search(trunnion5, 3, None, 60, 4, 0.0)
+    search = YieldSearch(trunnion5, 3, None, 60, 4, 0.0)
     t = trunnion5.initial_allocation
     search.verdicts(t, "design")
     search._poses["design"] = np.zeros((60, 1), dtype=np.intp)

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from allocation import allocate_for_yield
-from allocation.yield_target import SAMPLES
+from allocation.machine_yield.yield_search import SAMPLES
 from reliability.basics import chunks
 from reliability.basics.errors import InputError, InputTypeError
 from reliability.sampling.machine_blocks import MachineBlocks

@@ -1,5 +1,5 @@
-"""allocation.yield_dual: the conditional Monte Carlo gradient of the yield, and the tangent
-bound, against closed forms, an independent integral and repetition."""
+"""allocation.machine_yield.yield_dual: the conditional Monte Carlo gradient of the yield, and
+the tangent bound, against closed forms, an independent integral and repetition."""
 
 from __future__ import annotations
 
@@ -12,7 +12,7 @@ from scipy.optimize import brentq, minimize_scalar
 from scipy.stats import norm
 
 from allocation import allocate_for_yield
-from allocation.yield_dual import (log_concave_bound, tangent_bound, tangent_step,
+from allocation.machine_yield.yield_dual import (log_concave_bound, tangent_bound, tangent_step,
                                    yield_and_gradient)
 from reliability.basics.errors import InputError
 
@@ -239,7 +239,7 @@ def test_rescaling_to_the_yield_bisects_when_lower_bounds_hold_items():
     homogeneous factor that puts the sample's quantile at 1 cannot lower it and misses the
     yield: the factor is bisected until the yield is reached (the second item stays at its
     bound), and when not even the lower bounds reach it, those are returned."""
-    from allocation.yield_dual import _at_yield
+    from allocation.machine_yield.yield_dual import _at_yield
 
     rows = np.diag([1.0, 1.0, 1.0])
     lower, upper = np.array([0.05, 0.45, 0.05]), np.full(3, 2.0)

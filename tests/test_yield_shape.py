@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from allocation import AllocationProblem
-from allocation.yield_shape import scaled_to_yield, shape_search
+from allocation.machine_yield.yield_shape import scaled_to_yield, shape_search
 from reliability import load_machine, workspace_grid
 from reliability.sampling.machine_yield import YieldModel
 

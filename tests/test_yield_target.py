@@ -1,4 +1,4 @@
-"""Allocation for a machine-yield target (allocation.yield_target, precrel allocate --yield)."""
+"""Allocation for a machine-yield target (allocation.machine_yield, precrel allocate --yield)."""
 
 from __future__ import annotations
 
@@ -11,9 +11,11 @@ import pytest
 from scipy.stats import norm
 
 from allocation import YieldUnreachableError, allocate_for_yield, read_allocation_csv
-from allocation.yield_shape import scaled_to_yield
-from allocation.yield_target import (DESIGN_Z, SAMPLE_STREAMS, SAMPLES, _cost_at_yield, _Search,
-                                     equal_yield_margin, two_sided_target)
+from allocation.machine_yield.yield_shape import scaled_to_yield
+from allocation.machine_yield.yield_margin import _cost_at_yield, equal_yield_margin
+from allocation.machine_yield.yield_search import (SAMPLE_STREAMS, SAMPLES, YieldSearch,
+                                                   two_sided_target)
+from allocation.machine_yield.yield_target import DESIGN_Z
 import reliability
 from reliability.basics import streams
 from reliability.basics.errors import InputError, InputTypeError
@@ -144,7 +146,7 @@ def test_a_calibrated_allocation_is_verified_in_at_least_97_5_percent_of_runs(tr
     expectation 1 plus 3 binomial standard errors). Scaled to Y itself it fails in
     every one of these 40 pairs."""
     model = YieldModel(trunnion5, profile="constant", points_per_axis=3)
-    problem = _Search(trunnion5, 3, None, MACHINES, 0, 0.0).problem
+    problem = YieldSearch(trunnion5, 3, None, MACHINES, 0, 0.0).problem
     design = Y + DESIGN_Z * np.sqrt(Y * (1 - Y) / MACHINES)
     shape = 1.2 * problem.reference
     rng = np.random.default_rng(2026)
@@ -184,8 +186,8 @@ def test_common_random_numbers(result):
     """Same seed, same draws: a uniformly tighter allocation keeps every machine that passed
     (the outputs are nearly linear in the errors) and the same allocation gives the same
     verdicts, from a search built anew with the same seed."""
-    search = _Search(result.problem.machine, 3, None, 200, 5, 0.0, problem=result.problem)
-    again = _Search(result.problem.machine, 3, None, 200, 5, 0.0, problem=result.problem)
+    search = YieldSearch(result.problem.machine, 3, None, 200, 5, 0.0, problem=result.problem)
+    again = YieldSearch(result.problem.machine, 3, None, 200, 5, 0.0, problem=result.problem)
     t = result.problem.machine.initial_allocation * 1.5
     loose = search.verdicts(t, "design")
     assert loose.shape == (200, 6)
@@ -204,7 +206,7 @@ def test_both_stages_and_verify_judge_machines_by_one_engine(result):
     crude yield (YieldModel.estimate) on the same draws gives the same verdicts."""
     machine = result.problem.machine
     model = YieldModel(machine, points_per_axis=result.points)
-    search = _Search(machine, result.points, None, MACHINES, result.seed, 0.0,
+    search = YieldSearch(machine, result.points, None, MACHINES, result.seed, 0.0,
                      problem=result.problem)
     every = streams.yield_allocation_streams(result.seed)
     for name in SAMPLES:
@@ -335,7 +337,7 @@ def gantry5_tool():
 def test_solve_at_the_cap_is_feasible(gantry5_tool):
     """At the largest common target the box holds, the solve gives an allocation meeting it
     at every pose (an independent FOSM computation), not an infeasible point."""
-    search = _Search(gantry5_tool, 3, None, 20, 0, 0.5)
+    search = YieldSearch(gantry5_tool, 3, None, 20, 0, 0.5)
     cap = search.cap.min()
     point = search.evaluate(np.full(6, cap))
     assert np.isfinite(point.cost) and point.verdicts is not None
@@ -352,7 +354,7 @@ def test_unreachable_yield_names_yield_box_and_outputs(gantry5_tool):
                   "output dy's rows reach their limits", "on 200 machines", "fails most"):
         assert words in message
     tightest = re.search(r"every tolerance at its lower bound gives ([\d.]+)", message)
-    lowest = _Search(gantry5_tool, 3, None, 200, 0, 0.0)
+    lowest = YieldSearch(gantry5_tool, 3, None, 200, 0, 0.0)
     u = lowest.draws("design")
     passes = (lowest.model.output_ratios(u, lowest.problem.lower) < 1.0).all(axis=1)
     assert float(tightest.group(1)) == pytest.approx(passes.mean(), abs=5e-5)
@@ -400,7 +402,7 @@ def test_naive_start_moves_towards_the_lower_bounds_when_its_target_cannot():
                                 shape_steps=6)
     share = result.naive.toward_lower
     assert 0.0 < share < 1.0
-    search = _Search(swivel5, 3, None, MACHINES, 0, result.design_yield_target)
+    search = YieldSearch(swivel5, 3, None, MACHINES, 0, result.design_yield_target)
     cap = search.solve(np.full(6, search.cap.min()))
     assert not search.evaluate(cap.z).meets(result.design_yield_target)
     moved = cap.t + share * (search.problem.lower - cap.t)
@@ -445,7 +447,7 @@ def test_the_search_runs_blas_on_one_thread_whatever_the_caller_set(trunnion5, m
     setting back."""
     from threadpoolctl import threadpool_info, threadpool_limits
 
-    import allocation.yield_target as yield_target
+    import allocation.machine_yield.yield_target as yield_target
 
     def blas_threads():
         return [info["num_threads"] for info in threadpool_info()

@@ -146,8 +146,8 @@ def yield_allocation_streams(seed) -> list[np.random.Generator]:
     samples of built machines, once each, from the first, second, third and fifth
     (:meth:`reliability.sampling.machine_yield.YieldModel.draws`), and the machines of its
     convex steps from the sixth; the paired comparison
-    :func:`allocation.yield_target.equal_yield_margin` with seed ``S`` uses the second of
-    ``S`` (its shared sample) and the fourth (the bootstrap's Poisson weights).
+    :func:`allocation.machine_yield.yield_margin.equal_yield_margin` with seed ``S`` uses the
+    second of ``S`` (its shared sample) and the fourth (the bootstrap's Poisson weights).
     """
     return spawn(seed, 6, "seed")
 

@@ -14,7 +14,7 @@ over pose boxes. Two readings of the spread:
   with the gradient g exact at the centre and the Hessian H enclosed over the box from
   the expansion's coefficients (each basis function's range on an interval is exact);
 * ``'stack'``: the first-order worst-case stack ``s_o(q) = Σ_i |J_oi(q)| t_i`` (the
-  classical reading of :mod:`allocation.problem`'s ``side='stack'``). Each weighted entry
+  classical reading of :mod:`allocation.per_pose.problem`'s ``side='stack'``). Each weighted entry
   ``w_i = J_oi t_i`` is an exact per-axis expansion
   (:func:`reliability.first_order.pose_expansion.jacobian_expansion`); on a box
   ``w_i(c + d) = w_i(c) + ∇w_i(c)·d + r_i`` with ``|r_i| ≤ ½ Σ_ab h_a h_b K_i,ab`` and

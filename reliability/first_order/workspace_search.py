@@ -7,7 +7,7 @@ smoothly with the pose, so the grid can miss a slightly worse pose between its p
 on σ over the strokes from each output's worst grid poses, its poses rounded to a resolution
 and its ties broken by one rule. :func:`continuous_worst` reports its result as reliability
 indices (how much worse the continuous workspace is), and the continuous allocation loop
-(:mod:`allocation.continuous`) cuts the poses it finds. :func:`certified_worst`
+(:mod:`allocation.per_pose.continuous`) cuts the poses it finds. :func:`certified_worst`
 (:mod:`reliability.first_order.certificate`) bounds σ over the whole stroke box rigorously instead
 (docs/certified-workspace.md). The search uses the analytic gradient of σ
 (:func:`reliability.model.kinematics.jacobian_and_derivative`), and σ over the grid can be passed

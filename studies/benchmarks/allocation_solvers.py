@@ -31,7 +31,7 @@ import numpy as np
 
 import allocation
 import reliability
-from allocation.problem import screen_rows
+from allocation.per_pose.problem import screen_rows
 from reliability.model.machine import OUTPUTS
 from reliability.model.poses import workspace_grid
 from studies.paper.tables import TABLE6, TABLE7

@@ -1,4 +1,4 @@
-"""Benchmark of the certified cheapest choice of catalogue classes (allocation.discrete).
+"""Benchmark of the certified cheapest choice of catalogue classes (allocation.catalogue.discrete).
 
 Run as ``python -m studies.benchmarks.catalogue``. On the paper's machine (5^6 = 15 625
 poses, two-sided, the paper's targets) it prints
@@ -34,7 +34,7 @@ from scipy.optimize import Bounds, LinearConstraint, milp
 
 import allocation
 import reliability
-from allocation import discrete
+from allocation.catalogue import discrete
 from reliability.model.poses import workspace_grid
 from studies.workflows.timing import best_time, one_blas_thread
 

@@ -26,7 +26,7 @@ import pandas as pd
 
 import reliability
 from allocation import AllocationProblem
-from allocation.compensated import allocate_compensated
+from allocation.per_pose.compensated import allocate_compensated
 from reliability.basics.pass_rule import passes
 from reliability.basics.statistics import binomial_interval
 from reliability.basics.streams import spawn

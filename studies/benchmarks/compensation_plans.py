@@ -23,7 +23,7 @@ import pandas as pd
 
 import reliability
 from allocation import AllocationProblem
-from allocation.compensated import allocate_compensated
+from allocation.per_pose.compensated import allocate_compensated
 from reliability.compensation.compensation_plans import (CompensationPlan,
                                                          read_compensation_plan)
 from reliability.measured.identification import plan_information

@@ -28,7 +28,7 @@ import pandas as pd
 from scipy.stats import norm
 
 from allocation import AllocationProblem, TargetUnreachableError, allocate_for_yield
-from allocation.compensated import allocate_compensated
+from allocation.per_pose.compensated import allocate_compensated
 from reliability.basics.statistics import binomial_interval
 from reliability.compensation.compensated_machines import residual_model_passes
 from reliability.model.poses import workspace_grid

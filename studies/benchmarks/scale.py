@@ -78,8 +78,8 @@ def _reference_allocation(machine, grid):
     """Certified optimum with whole-array rows and the all-pairs dominance screen."""
     import numpy as np
 
-    from allocation.convex import solve_convex_allocation
-    from allocation.cost import CostModel
+    from allocation.solvers.convex import solve_convex_allocation
+    from allocation.cost.cost import CostModel
     from reliability.first_order.fosm import required_index
 
     reference = machine.initial_allocation

@@ -10,15 +10,15 @@ the default [0.5, 1.5] × the initial allocation), for every sample size and
 seed it prints
 
 1. the cost bracket of :func:`allocation.allocate_for_yield`: the certified lower bound
-   (the larger of the row bound and the pose-chain bound, :mod:`allocation.yield_bound`),
-   the feasible cost (and the search's before its calibration) and the gap, all relative to
-   the initial allocation's cost;
+   (the larger of the row bound and the pose-chain bound,
+   :mod:`allocation.machine_yield.yield_bound`), the feasible cost (and the search's before its
+   calibration) and the gap, all relative to the initial allocation's cost;
 2. the verified yield interval of the allocation found (95 % Clopper–Pearson, from a fresh
    sample of built machines, the count stated), and the naive method's cost and verified
    yield;
 3. the margin at equal yield on a third, independent sample shared by both methods
-   (:func:`allocation.yield_target.equal_yield_margin`): each method's cost at the design
-   yield both were tuned to (``--at-target``: at Y itself), and their difference with its
+   (:func:`allocation.machine_yield.yield_margin.equal_yield_margin`): each method's cost at the
+   design yield both were tuned to (``--at-target``: at Y itself), and their difference with its
    bootstrap standard error (paired over machines);
 4. the wall and CPU time of ``allocate_for_yield`` and its peak traced memory
    (:mod:`tracemalloc`, numpy's arrays included);
@@ -41,7 +41,7 @@ import numpy as np
 
 import allocation
 import reliability
-from allocation.yield_target import equal_yield_margin
+from allocation.machine_yield.yield_margin import equal_yield_margin
 from reliability.model.poses import workspace_grid
 from studies.workflows.timing import one_blas_thread
 

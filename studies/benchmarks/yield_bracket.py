@@ -7,12 +7,12 @@ Run as ``python -m studies.benchmarks.yield_bracket [--yield 0.95] [--machines 4
 file's box) and each sample size N:
 
 1. the feasible side: :func:`allocation.allocate_for_yield` with N machines per sample and
-   one convex step (:func:`allocation.yield_dual.tangent_step`, its gradient on
+   one convex step (:func:`allocation.machine_yield.yield_dual.tangent_step`, its gradient on
    ``--convex-machines`` machines), calibrated and verified on fresh samples of N; its
    verified yield with the Clopper–Pearson interval;
 2. the lower side: the certified bound of the relaxations (deterministic, FOSM), and
-   :func:`allocation.yield_dual.log_concave_bound` at ``--confidence`` (one step from the
-   result, then the bound on a fresh sample of ``--bound-machines``);
+   :func:`allocation.machine_yield.yield_dual.log_concave_bound` at ``--confidence`` (one step
+   from the result, then the bound on a fresh sample of ``--bound-machines``);
 3. the gap, (feasible − lower bound) / feasible, for each lower bound, and the seconds.
 
 The design margin of the feasible side falls as ``1/√N``, so the gap does too: the larger N
@@ -26,7 +26,7 @@ import time
 
 import allocation
 import reliability
-from allocation.yield_dual import log_concave_bound
+from allocation.machine_yield.yield_dual import log_concave_bound
 from studies.benchmarks.yield_allocation import MACHINES
 from studies.workflows.timing import one_blas_thread
 

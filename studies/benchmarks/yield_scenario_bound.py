@@ -8,7 +8,7 @@ swivel]``. For each machine (as
 1. draw N built machines (:meth:`reliability.sampling.machine_yield.YieldModel.draws`, the
    third stream of :func:`reliability.basics.streams.yield_allocation_streams` of
    ``seed + 2``, which no search uses), and read each one's standard normal per error
-   (:func:`allocation.yield_dual.unit_draws`);
+   (:func:`allocation.machine_yield.yield_dual.unit_draws`);
 2. for each machine ``k``, bound from below ``v_k``: the cheapest allocation in the box
    (Eq. 28) under which machine ``k`` alone keeps all six linearised outputs ``J(pose)·e``
    (Eq. 19) within their limits at every pose of the grid. The outputs of one built
@@ -46,7 +46,7 @@ from scipy import sparse
 from scipy.optimize import linprog
 
 import allocation
-from allocation.yield_dual import scaled_rows, unit_draws
+from allocation.machine_yield.yield_dual import scaled_rows, unit_draws
 from reliability.basics import streams
 from reliability.sampling.machine_yield import YieldModel
 from studies.benchmarks.yield_gap_sources import (allowed_failures, bound_parser,

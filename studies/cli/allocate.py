@@ -14,13 +14,13 @@ import numpy as np
 import pandas as pd
 
 from allocation import AllocationProblem, allocate_for_yield, solve_catalogue
-from allocation.continuous import check_continuous, solve_continuous
-from allocation.elasticity import requirement_table
-from allocation.result_files import (DRAWING_FILE, DRAWING_RESOLUTION, allocation_to_csv,
+from allocation.per_pose.continuous import check_continuous, solve_continuous
+from allocation.per_pose.elasticity import requirement_table
+from allocation.per_pose.result_files import (DRAWING_FILE, DRAWING_RESOLUTION, allocation_to_csv,
                                      cost_shares_text, cost_units_text, drawing_check_text,
                                      drawing_to_csv, gap_text, nearly_free_text,
                                      written_cost_text)
-from allocation.yield_dual import log_concave_bound, not_log_concave
+from allocation.machine_yield.yield_dual import log_concave_bound, not_log_concave
 from reliability.basics import display
 from reliability.basics.errors import InputError
 from reliability.model.poses import workspace_grid

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from allocation import CostModel
-from allocation.result_files import cost_shares_text, cost_units_text
+from allocation.per_pose.result_files import cost_shares_text, cost_units_text
 from reliability.model.identifiability import EQUAL_RTOL, indistinguishable_groups
 from reliability.model.machine_checks import describe, likely_mistakes
 

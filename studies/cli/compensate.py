@@ -10,8 +10,8 @@ import numpy as np
 import pandas as pd
 
 from allocation import AllocationProblem
-from allocation.compensated import allocate_compensated
-from allocation.result_files import allocation_to_csv
+from allocation.per_pose.compensated import allocate_compensated
+from allocation.per_pose.result_files import allocation_to_csv
 from reliability.basics.errors import InputError
 from reliability.basics.statistics import binomial_interval
 from reliability.basics.streams import extra_stream

@@ -13,8 +13,8 @@ from pathlib import Path
 import numpy as np
 
 from allocation import AllocationProblem
-from allocation.front import FRONT_SIDES, cost_reliability_front, front_to_csv
-from allocation.result_files import gap_bound, gap_text
+from allocation.per_pose.front import FRONT_SIDES, cost_reliability_front, front_to_csv
+from allocation.per_pose.result_files import gap_bound, gap_text
 from reliability.basics.display import target_text
 from reliability.basics.errors import InputError
 from reliability.model.machine import OUTPUTS

@@ -13,10 +13,10 @@ from pathlib import Path
 
 import numpy as np
 
-from allocation.continuous import DEFAULT_RTOL, WORKSPACE_CHOICES, continuous_unavailable
-from allocation.problem import DEFAULT_FACTORS, bounds_source
-from allocation.result_files import read_allocation_csv
-from allocation.catalogue import load_catalogue, unit_warnings
+from allocation.per_pose.continuous import DEFAULT_RTOL, WORKSPACE_CHOICES, continuous_unavailable
+from allocation.per_pose.problem import DEFAULT_FACTORS, bounds_source
+from allocation.per_pose.result_files import read_allocation_csv
+from allocation.catalogue.catalogue import load_catalogue, unit_warnings
 from reliability.acceptance import definitions
 from reliability.basics import display
 from reliability.basics.errors import InputError
@@ -231,8 +231,8 @@ def check_bounds(bounds) -> tuple[float, float] | None:
 def check_certifiable(machine, option: str, alternative: str) -> None:
     """Refuse ``option`` (``--certify`` or ``--workspace continuous``) before any work when
     the continuous certificate cannot cover the study
-    (:func:`allocation.continuous.continuous_unavailable`); ``alternative`` says what to pass
-    instead."""
+    (:func:`allocation.per_pose.continuous.continuous_unavailable`); ``alternative`` says what
+    to pass instead."""
     why = continuous_unavailable(machine)
     if why is not None:
         raise InputError(f"{option}: not available for this study: {why}; {alternative}")

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from allocation.continuous import DEFAULT_RTOL, WORKSPACE_CHOICES
+from allocation.per_pose.continuous import DEFAULT_RTOL, WORKSPACE_CHOICES
 from reliability.basics.errors import InputError
 from reliability.basics.streams import extra_stream
 from reliability.sampling.pose_sampling import EVENTS, sample_at_poses

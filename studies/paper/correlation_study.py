@@ -11,7 +11,7 @@ sensitivities at most grid poses, so a positive correlation partly cancels them.
 
 For each coefficient the worst-case problem (two-sided reading, 5-point grid, box
 [0.5, 1.5] × Table 4) is solved to a certified optimum by
-:func:`allocation.correlated.solve_correlated`; the table also gives the worst-pose
+:func:`allocation.per_pose.correlated.solve_correlated`; the table also gives the worst-pose
 reliability that the optimum designed for an uncorrelated pair actually has under that
 correlation.
 

@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from allocation.result_files import gap_text
+from allocation.per_pose.result_files import gap_text
 from reliability.basics.files import atomic_write_text
 from studies.report.markdown import format_cell, markdown_table
 

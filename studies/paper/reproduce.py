@@ -25,7 +25,7 @@ import numpy as np
 import pandas as pd
 
 import allocation
-from allocation.result_files import MULTIPLIER_DIGITS, gap_text
+from allocation.per_pose.result_files import MULTIPLIER_DIGITS, gap_text
 import reliability
 from reliability.basics.display import axis_units, pose_frame
 from reliability.basics.files import as_written, atomic_write_bytes, write_csv

@@ -28,8 +28,8 @@ from scipy.stats import norm
 
 import allocation
 import reliability
-from allocation.convex import solve_convex_allocation
-from allocation.result_files import gap_text
+from allocation.solvers.convex import solve_convex_allocation
+from allocation.per_pose.result_files import gap_text
 from reliability.basics.display import axis_units, bound_text, pose_text
 from reliability.basics.pass_rule import passes
 from reliability.basics.streams import spawn

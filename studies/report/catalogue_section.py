@@ -11,8 +11,8 @@ from __future__ import annotations
 
 import pandas as pd
 
-from allocation.discrete import neighbour_table
-from allocation.result_files import allocation_frame
+from allocation.catalogue.discrete import neighbour_table
+from allocation.per_pose.result_files import allocation_frame
 
 from reliability.basics.display import axis_units, pose_text
 from reliability.basics.files import SIGNIFICANT

@@ -4,7 +4,7 @@ the designer relax and what it cannot, and why (docs/compensation.md)."""
 
 from __future__ import annotations
 
-from allocation.compensated import allocate_compensated
+from allocation.per_pose.compensated import allocate_compensated
 from reliability.basics.display import error_units, in_units, unit_symbol
 from reliability.model.iso_names import plain_names
 

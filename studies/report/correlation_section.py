@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from matplotlib.figure import Figure
 
-from allocation.result_files import gap_text
+from allocation.per_pose.result_files import gap_text
 from studies.workflows.correlation_sweep import VALUES, correlation_sweep
 
 from .markdown import markdown_table

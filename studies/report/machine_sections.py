@@ -15,8 +15,8 @@ import pandas as pd
 from matplotlib.figure import Figure
 from scipy.stats import norm
 
-from allocation.elasticity import requirement_table
-from allocation.result_files import (DRAWING_FILE, MULTIPLIER_DIGITS, allocation_frame,
+from allocation.per_pose.elasticity import requirement_table
+from allocation.per_pose.result_files import (DRAWING_FILE, MULTIPLIER_DIGITS, allocation_frame,
                                      cost_shares_text, cost_units_text, drawing_check_text,
                                      drawing_frame, gap_text, nearly_free_text,
                                      written_cost_text)

@@ -636,10 +636,10 @@ def plot_front(front, *, marks=None, ax=None, title=None):
     Parameters
     ----------
     front : pandas.DataFrame
-        From :func:`allocation.front.cost_reliability_front`.
+        From :func:`allocation.per_pose.front.cost_reliability_front`.
     marks : mapping, optional
         ``{label: (reliability, relative_cost)}`` of allocations to mark, e.g. the initial
-        allocation and the paper's Table 6 from :func:`allocation.front.allocation_point`.
+        allocation and the paper's Table 6 from :func:`allocation.per_pose.front.allocation_point`.
     ax : matplotlib.axes.Axes, optional
         Axes to draw on; a new figure if None.
     title : str, optional

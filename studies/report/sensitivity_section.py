@@ -9,7 +9,7 @@ import math
 import numpy as np
 import pandas as pd
 
-from allocation.cost import CostModel
+from allocation.cost.cost import CostModel
 from reliability.sampling.machine_yield import DEFAULT_MACHINES, YieldModel
 from reliability.sampling.yield_sensitivity import yield_sensitivity
 

@@ -11,8 +11,8 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from allocation.front import allocation_point, cost_reliability_front, front_file_table
-from allocation.result_files import gap_bound, gap_text
+from allocation.per_pose.front import allocation_point, cost_reliability_front, front_file_table
+from allocation.per_pose.result_files import gap_bound, gap_text
 from reliability.basics.display import axis_units, bound_text, pose_frame, pose_text
 from reliability.basics.streams import spawn
 from reliability.first_order.system_reliability import worst_system_reliability

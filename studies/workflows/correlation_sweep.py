@@ -1,7 +1,7 @@
 """How the certified optimal cost moves as one error correlation varies, for any machine.
 
 For each coefficient the worst-case problem on the 5-point grid is solved to a certified
-optimum by :func:`allocation.correlated.solve_correlated`; the table also gives the
+optimum by :func:`allocation.per_pose.correlated.solve_correlated`; the table also gives the
 worst-pose reliability that the optimum designed for an uncorrelated pair actually has under
 that correlation. The report section is :mod:`studies.report.correlation_section`.
 """
@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from allocation.correlated import solve_correlated
+from allocation.per_pose.correlated import solve_correlated
 from reliability.first_order.fosm import fosm
 from reliability.model.poses import workspace_grid
 

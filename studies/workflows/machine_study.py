@@ -2,7 +2,7 @@
 
 machine → FOSM of the initial allocation (Eqs. 19–23) → the certified cheapest allocation
 meeting the targets over the continuous workspace (Eq. 34 with the poses the certificate
-adds, :mod:`allocation.continuous`; or at every grid pose, ``workspace="grid"``) →
+adds, :mod:`allocation.per_pose.continuous`; or at every grid pose, ``workspace="grid"``) →
 Monte-Carlo verification of both
 allocations (Sec. 5.3, :func:`reliability.sampling.verification.verify`). The report's sections are
 made from the result by :mod:`studies.report.machine_sections`.
@@ -21,9 +21,9 @@ from dataclasses import dataclass
 import pandas as pd
 
 from allocation import AllocationProblem, TargetUnreachableError
-from allocation.continuous import DEFAULT_RTOL, WORKSPACE_CHOICES, check_continuous, \
+from allocation.per_pose.continuous import DEFAULT_RTOL, WORKSPACE_CHOICES, check_continuous, \
     solve_continuous
-from allocation.result_files import gap_bound, written_tolerances
+from allocation.per_pose.result_files import gap_bound, written_tolerances
 from reliability.basics import checks as input_checks
 from reliability.first_order.fosm import fosm
 from reliability.model.poses import workspace_grid
@@ -112,8 +112,9 @@ def run(machine, *, points: int = 5, side: str = "two_sided", bounds=None,
         Seed of the Monte-Carlo verification of each allocation
         (:func:`reliability.basics.streams.verification_streams`), as ``precrel verify --seed``.
         The optimum is verified (and its FOSM computed) exactly as written to
-        ``allocation.csv``, rounded down (:func:`allocation.result_files.written_tolerances`),
-        so ``precrel verify --tolerances allocation.csv --seed S`` prints the report's
+        ``allocation.csv``, rounded down
+        (:func:`allocation.per_pose.result_files.written_tolerances`), so
+        ``precrel verify --tolerances allocation.csv --seed S`` prints the report's
         Monte-Carlo numbers (``--workspace grid`` under workspace 'grid'): each allocation is
         sampled at the worst poses of the study's workspace, certified over the continuous
         strokes by default (:func:`reliability.sampling.verification.verify`).
@@ -129,7 +130,7 @@ def run(machine, *, points: int = 5, side: str = "two_sided", bounds=None,
     workspace : {'continuous', 'grid'}
         Where the optimum's targets hold: over the continuous strokes, certified to
         ``rtol`` in σ by cutting planes from the ``points``-point grid
-        (:func:`allocation.continuous.solve_continuous`), or at the grid poses only. The
+        (:func:`allocation.per_pose.continuous.solve_continuous`), or at the grid poses only. The
         continuous workspace is refused (InputError) for correlated errors; nothing
         switches to the grid silently.
     rtol : float

@@ -6,7 +6,7 @@ profile × seed × repeats. Each task
 1. builds the worst-case allocation problem on the machine's workspace grid, with every
    output's target replaced by the task's target, and solves it exactly (certified) on the
    grid, or over the continuous workspace when the spec says ``workspace = "continuous"``
-   (:func:`allocation.continuous.solve_continuous`) — or,
+   (:func:`allocation.per_pose.continuous.solve_continuous`) — or,
    when the spec names a ``catalogue``, chooses the certified cheapest catalogue classes
    (:func:`allocation.solve_catalogue`);
 2. verifies the allocation by the grid experiment of Sec. 5.3 (``repeats`` experiments),
@@ -38,11 +38,11 @@ import numpy as np
 import pandas as pd
 from threadpoolctl import threadpool_limits
 
-from allocation.catalogue import load_catalogue
-from allocation.continuous import WORKSPACE_CHOICES, check_continuous, solve_continuous
-from allocation.discrete import CatalogueInfeasibleError, solve_catalogue
-from allocation.problem import AllocationProblem
-from allocation.solve import TargetUnreachableError
+from allocation.catalogue.catalogue import load_catalogue
+from allocation.per_pose.continuous import WORKSPACE_CHOICES, check_continuous, solve_continuous
+from allocation.catalogue.discrete import CatalogueInfeasibleError, solve_catalogue
+from allocation.per_pose.problem import AllocationProblem
+from allocation.per_pose.solve import TargetUnreachableError
 from reliability.basics.errors import InputError, InputTypeError
 from reliability.basics.files import SIGNIFICANT, probability_text, write_csv
 from reliability.basics.result_store import ResultStore, canonical_json, machine_fingerprint

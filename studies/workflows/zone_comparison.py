@@ -14,7 +14,7 @@ import numpy as np
 import pandas as pd
 
 from allocation import AllocationProblem, TargetUnreachableError
-from allocation.result_files import written_tolerances
+from allocation.per_pose.result_files import written_tolerances
 from reliability.basics import checks
 from reliability.basics.errors import InputError
 from reliability.basics.streams import spawn

@@ -42,8 +42,8 @@ from reliability.model.kinematics import check_frame
 from reliability.model.machine import OUTPUTS
 from reliability.model.poses import workspace_grid
 
+from ..cost.cost import CostModel
 from . import solve
-from .cost import CostModel
 
 SIDES = ("one_sided", "two_sided", "stack")
 WORKSPACES = ("worst", "mean")
@@ -181,7 +181,7 @@ class AllocationProblem:
         if getattr(machine, "correlation", None) is not None:
             raise InputError("machine: its errors are correlated (machine.correlation) but "
                              "these constraint rows assume independent errors; use "
-                             "allocation.correlated.solve_correlated")
+                             "allocation.per_pose.correlated.solve_correlated")
         if side == "stack" and workspace != "worst":
             raise InputError("side='stack' is a worst-case reading; use workspace='worst'")
         machine = with_requirements(machine, targets=targets, limits=limits)
@@ -421,11 +421,11 @@ class AllocationProblem:
 
     # ----- solvers -------------------------------------------------------------------
     def solve_exact(self, **options):
-        """Certified optimum; see :func:`allocation.solve.solve_exact`."""
+        """Certified optimum; see :func:`allocation.per_pose.solve.solve_exact`."""
         return solve.solve_exact(self, **options)
 
     def solve_gwo(self, **options):
-        """Grey Wolf Optimiser as in the paper; see :func:`allocation.solve.solve_gwo`."""
+        """Grey Wolf Optimiser as in the paper; see :func:`allocation.per_pose.solve.solve_gwo`."""
         return solve.solve_gwo(self, **options)
 
 

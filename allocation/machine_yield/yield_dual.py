@@ -41,9 +41,9 @@ it. The gradient's intervals are normal ones (the central limit theorem over the
 each machine's term bounded).
 
 What it holds for: the linearised outputs on the grid's poses (the model of the certified
-relaxations of :mod:`allocation.yield_target`), the normal reading, independent errors,
-the ``constant`` profile; not the exact chain, on which the yield is sampled. Under those
-assumptions the error of the first-order outputs is second order in the errors.
+relaxations of :mod:`allocation.machine_yield.yield_target`), the normal reading, independent
+errors, the ``constant`` profile; not the exact chain, on which the yield is sampled. Under
+those assumptions the error of the first-order outputs is second order in the errors.
 """
 
 from __future__ import annotations
@@ -337,9 +337,9 @@ def _at_yield(rows, tolerances, draws, yield_target, lower, upper) -> np.ndarray
     quantile on ``draws`` is 1 (homogeneous of degree one), kept in the box. When
     tolerances held at their lower bounds keep that factor from reaching the yield, the
     largest factor that does, by bisection
-    (:func:`allocation.yield_shape.bisected_scale`, as
-    :func:`~allocation.yield_shape.scaled_to_yield` does on the exact chain); the lower
-    bounds themselves when not even they reach it."""
+    (:func:`allocation.machine_yield.yield_shape.bisected_scale`, as
+    :func:`~allocation.machine_yield.yield_shape.scaled_to_yield` does on the exact chain); the
+    lower bounds themselves when not even they reach it."""
     def judged(scale):
         worst = _worst_rows(rows, np.clip(scale * tolerances, lower, upper), draws)
         return None, worst, np.quantile(worst, yield_target)

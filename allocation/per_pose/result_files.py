@@ -17,7 +17,7 @@ constraints, GWO history and per-requirement elasticities, and what is needed to
 without the machine: the error names, the reference allocation and the bounds, the cost
 weights (so the cost is re-checked on reload), the reading (side, workspace, k) and the
 machine's name, axes and units. A reloaded result carries a :class:`SavedProblem` in
-place of the :class:`~allocation.problem.AllocationProblem` unless the problem is given.
+place of the :class:`~allocation.per_pose.problem.AllocationProblem` unless the problem is given.
 """
 
 from __future__ import annotations
@@ -36,7 +36,7 @@ from reliability.basics.saved_results import check_count, encode_frame, load_pay
 from reliability.model.iso_names import plain_names
 from reliability.model.machine import OUTPUTS
 
-from .cost import GROUPS, CostModel
+from ..cost.cost import GROUPS, CostModel
 
 KIND = "precrel.allocation_result"
 METHODS = ("exact", "gwo")

@@ -8,7 +8,7 @@ and reversal. It is concave in ``u`` when every item the plan informs is tabled 
 operator concave). Held at the table's rule of the current point ``u_k``, the residual
 variance is linear in ``u`` (``fixed_rule_terms``) and, since the posterior mean at ``u`` is
 at least as good a rule as the one of ``u_k``, bounds ``V(u)`` from above and touches it at
-``u_k``. So each convex solve of :func:`allocation.convex.solve_convex_allocation` on these
+``u_k``. So each convex solve of :func:`allocation.solvers.convex.solve_convex_allocation` on these
 rows gives an allocation that meets the targets after compensation, at a cost no higher
 than the one before: a sequence of feasible iterates, decreasing in cost.
 
@@ -31,7 +31,7 @@ from reliability.compensation.compensation_plans import K
 from reliability.compensation.residual import (fixed_rule_terms, positioning_variance,
                                                posterior_covariance)
 
-from .convex import solve_convex_allocation
+from ..solvers.convex import solve_convex_allocation
 from .problem import screen_rows
 from .solve import AllocationResult, TargetUnreachableError
 

@@ -35,7 +35,7 @@ coordinates (``z = 0``, the box's lower corner). Near the end of a run only the 
 ``a`` (``2 / n_iterations`` at the last move) reduces the steps, and the attainable
 resolution is about that times the normalised coordinate of the optimum. GWO therefore
 ends close to, but not at, an interior optimum; the allocation problem's exact optimum is
-computed by :mod:`allocation.convex` and GWO is measured against it.
+computed by :mod:`allocation.solvers.convex` and GWO is measured against it.
 """
 
 from dataclasses import dataclass

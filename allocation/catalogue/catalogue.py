@@ -22,7 +22,7 @@ reads a file; :meth:`Catalogue.from_dict` checks a parsed table; :meth:`Catalogu
 checks the item names against a machine (and turns ISO 230-1 symbols into the machine's
 names). Given a machine, both check a component's items before its classes, so a typo in
 ``items`` is named as the unknown item, with the machine's close names.
-:func:`unit_warnings` lists the class tolerances that look written in µm or arc seconds. The discrete optimum over a catalogue is :func:`allocation.discrete.solve_catalogue`.
+:func:`unit_warnings` lists the class tolerances that look written in µm or arc seconds. The discrete optimum over a catalogue is :func:`allocation.catalogue.discrete.solve_catalogue`.
 """
 
 from __future__ import annotations

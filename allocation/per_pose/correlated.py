@@ -10,11 +10,11 @@ linear function of ``t``, hence convex in ``t``. The FOSM requirement ``σ ≤ I
                 lower ≤ t ≤ upper,           a_r = j_r / (k I_o / z_o)
 
 is convex in ``t`` (``Q_r`` is positive semi-definite, ``F`` convex for t > 0). Without
-correlation ``tᵀ Q_r t = Σ a_ri² t_i²`` is the linear row of :mod:`allocation.convex` in
+correlation ``tᵀ Q_r t = Σ a_ri² t_i²`` is the linear row of :mod:`allocation.solvers.convex` in
 ``u = t²``; with it the row is a quadratic form, no longer linear in ``u``, and a shrinking
 tolerance can *raise* σ when it partly cancelled a correlated partner.
 
-How it is solved and certified (the structure of :mod:`allocation.convex`):
+How it is solved and certified (the structure of :mod:`allocation.solvers.convex`):
 
 * **Rows.** One per (output, pose) of the grid. Rows equal up to sign give the same form
   and are kept once; a row whose load stays ≤ 1 over the whole box even with ``|R|`` in
@@ -54,7 +54,7 @@ from reliability.model.correlation import check_correlation_matrix
 from reliability.model.iso_names import iso_names
 from reliability.model.machine import OUTPUTS
 
-from .convex import ROW_ADD_TOLERANCE, ROWS_PER_ROUND, largest_fraction
+from ..solvers.convex import ROW_ADD_TOLERANCE, ROWS_PER_ROUND, largest_fraction
 from .problem import AllocationProblem
 
 ACTIVE_TOLERANCE = 1e-6  # a row with load ≥ 1 − this gets a multiplier
@@ -136,8 +136,8 @@ def solve_correlated(machine, poses=None, *, correlation=None, side: str = "two_
         ``(n_errors, n_errors)`` correlation matrix; default ``machine.correlation``
         (the identity when the machine has none).
     side, bounds, lower, upper, locked, reference, k, cost_factors
-        As in :meth:`allocation.problem.AllocationProblem.build` (locks and bounds by paper
-        name or ISO 230-1 symbol).
+        As in :meth:`allocation.per_pose.problem.AllocationProblem.build` (locks and bounds by
+        paper name or ISO 230-1 symbol).
     gap_tol : float
         Relative duality gap accepted as certified.
     max_iter : int

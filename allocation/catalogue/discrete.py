@@ -2,7 +2,7 @@
 
 With the FOSM readings the variance of output ``o`` at a pose is linear in the items'
 variances (Eq. 20, σ_i = t_i/k), so every constraint row of the worst-case allocation
-problem (:class:`~allocation.problem.AllocationProblem`, ``row @ u ≤ 1`` with ``u = t²``;
+problem (:class:`~allocation.per_pose.problem.AllocationProblem`, ``row @ u ≤ 1`` with ``u = t²``;
 ``u = t`` for the worst-case stack) is linear in the class indicators ``x_cj`` (1 when
 component ``c`` takes class ``j``)::
 
@@ -50,9 +50,9 @@ from reliability.basics.files import write_csv
 from reliability.basics.saved_results import check_count
 from reliability.model.machine import OUTPUTS
 
+from ..per_pose.problem import AllocationProblem
+from ..solvers.convex import InfeasibleAllocationError
 from .catalogue import Catalogue
-from .convex import InfeasibleAllocationError
-from .problem import AllocationProblem
 
 #: Relative gap between the price found and HiGHS's dual bound at which the search stops.
 MIP_REL_GAP = 1e-9

@@ -1,14 +1,14 @@
-"""Solving an :class:`~allocation.problem.AllocationProblem`: exactly and by GWO.
+"""Solving an :class:`~allocation.per_pose.problem.AllocationProblem`: exactly and by GWO.
 
 ``solve_exact`` returns the certified global optimum of the worst-case problem (a convex
-problem in ``u = t²``, :mod:`allocation.convex`) with its duality gap, the active
+problem in ``u = t²``, :mod:`allocation.solvers.convex`) with its duality gap, the active
 constraints (which output at which pose) and their Lagrange multipliers. For the
 workspace-mean reading the constraint ``mean_p P(β_p) ≥ R`` is not linear in ``u``; it is
 concave — so the problem convex — wherever every β ≥ √3 (P ≥ 0.92 two-sided). It is
 solved by supporting-hyperplane cuts on the same convex solver, whose dual bound is a
 certificate where that concavity holds (the result says whether it does).
 
-``solve_gwo`` runs the Grey Wolf Optimiser (:mod:`allocation.gwo`) on the same problem,
+``solve_gwo`` runs the Grey Wolf Optimiser (:mod:`allocation.solvers.gwo`) on the same problem,
 over the free items, with Deb's feasibility rules, as the paper does.
 """
 
@@ -27,8 +27,8 @@ from reliability.basics.ties import worst_rows
 from reliability.first_order.fosm import probability
 from reliability.model.machine import OUTPUTS
 
-from .convex import InfeasibleAllocationError, largest_fraction, solve_convex_allocation
-from .gwo import grey_wolf
+from ..solvers.convex import InfeasibleAllocationError, largest_fraction, solve_convex_allocation
+from ..solvers.gwo import grey_wolf
 from .result_files import (NEARLY_FREE_SHARE, allocation_summary, allocation_to_csv,
                            load_allocation, save_allocation)
 
@@ -57,8 +57,25 @@ class TargetUnreachableError(InfeasibleAllocationError):
         self.loads = np.asarray(loads, dtype=float)
 
 
-def _unreachable_worst(problem, rows=(), loads=()) -> TargetUnreachableError:
-    """The error for the worst-case reading, listing every blocked (output, pose)."""
+def unreachable_worst(problem, rows=(), loads=()) -> TargetUnreachableError:
+    """The error for the worst-case reading, listing every blocked (output, pose).
+
+    Parameters
+    ----------
+    problem : AllocationProblem
+        A problem with ``workspace='worst'`` whose rows the box cannot hold: some
+        (output, pose) pair misses its requirement with every tolerance at its lower bound.
+    rows, loads : sequence, optional
+        The rows and loads of the solver's :class:`InfeasibleAllocationError`, kept on the
+        error.
+
+    Returns
+    -------
+    TargetUnreachableError
+        Its message names the worst blocked pair and counts the others; its ``blocking``
+        frame lists every blocked pair (output, pose, the pose's axes, what is needed and
+        what the lower bounds give), the worst first.
+    """
     at_lower = problem.loads(problem.variable(problem.lower))  # (n_poses, 6)
     pose, output = np.nonzero(at_lower > 1.0)
     order = np.argsort(-at_lower[pose, output], kind="stable")
@@ -188,7 +205,7 @@ class AllocationResult:
     def to_csv(self, path, overwrite: bool = False, *, significant: int | None = None):
         """Write the allocation CSV (columns ``error, reference, allocated``, one row per
         error) with all digits or ``significant`` digits; returns the path
-        (:func:`allocation.result_files.allocation_to_csv`)."""
+        (:func:`allocation.per_pose.result_files.allocation_to_csv`)."""
         return allocation_to_csv(self, path, overwrite, significant=significant)
 
     def save(self, path, overwrite: bool = False):
@@ -199,7 +216,7 @@ class AllocationResult:
     @classmethod
     def load(cls, path, problem=None) -> "AllocationResult":
         """Reload a result written by :meth:`save`, verifying every field. Without
-        ``problem`` the result carries a :class:`~allocation.result_files.SavedProblem`;
+        ``problem`` the result carries a :class:`~allocation.per_pose.result_files.SavedProblem`;
         a given problem is checked to be the saved one."""
         return load_allocation(cls, path, problem)
 
@@ -223,7 +240,7 @@ def solve_exact(problem, *, gap_tol: float = 1e-6) -> AllocationResult:
                                            problem.variable(problem.upper), gap_tol=gap_tol,
                                            power=problem.variable_power)
     except InfeasibleAllocationError as exc:
-        raise _unreachable_worst(problem, exc.rows, exc.loads) from None
+        raise unreachable_worst(problem, exc.rows, exc.loads) from None
     active = _row_frame(problem, solution.active)
     active["multiplier"] = solution.multipliers[solution.active]
     scale = 2.0 / problem.variable_power  # rows scale as 1/I² (FOSM) or 1/I (stack)

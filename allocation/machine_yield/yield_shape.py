@@ -1,9 +1,9 @@
 """The shape of an allocation for a machine-yield target, moved error by error.
 
-The per-output search of :mod:`allocation.yield_target` moves six targets; this stage moves
-all ``n`` tolerances. It rests on one property of the machine yield: a built machine's
-worst ratio ``g(t) = max_r |y_r|/I_r`` over every (pose, output) row is, to first order,
-homogeneous of degree one in the tolerances (every error is ``(t_i/k)`` times a draw that
+The per-output search of :mod:`allocation.machine_yield.yield_target` moves six targets; this
+stage moves all ``n`` tolerances. It rests on one property of the machine yield: a built
+machine's worst ratio ``g(t) = max_r |y_r|/I_r`` over every (pose, output) row is, to first
+order, homogeneous of degree one in the tolerances (every error is ``(t_i/k)`` times a draw that
 does not depend on ``t``, under either reading). So on a fixed sample of built machines the
 yield of ``t̂/s`` is the share of machines with ``g(t̂) < s``, and the cheapest scale of a
 *shape* ``t̂`` that reaches a yield ``Y_d`` is ``s = q_{Y_d}(t̂)``, the ``Y_d``-quantile of
@@ -81,7 +81,7 @@ def shape_search(model, cost, lower, upper, start, design_target, u, *,
     ----------
     model : reliability.sampling.machine_yield.YieldModel
         The machine, its grid, profile and reading.
-    cost : allocation.cost.CostModel
+    cost : allocation.cost.cost.CostModel
     lower, upper : ndarray (n_errors,)
         The box.
     start : ndarray (n_errors,)

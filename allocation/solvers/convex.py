@@ -40,7 +40,7 @@ This module solves it and certifies the answer on its own terms:
 
 It is a pure numerical core that imports nothing else of the toolkit, so bad shapes or
 entries raise the built-in ``ValueError`` rather than :class:`reliability.basics.errors.InputError`
-(:class:`~allocation.problem.AllocationProblem` checks its inputs before they reach it).
+(:class:`~allocation.per_pose.problem.AllocationProblem` checks its inputs before they reach it).
 """
 
 import itertools

@@ -32,10 +32,10 @@ from reliability.first_order.fosm import required_index
 from reliability.first_order.system_reliability import worst_system_reliability
 from reliability.model.machine import OUTPUTS
 
-from .convex import InfeasibleAllocationError
-from .front import CommonTargetSolver
+from ..solvers.convex import InfeasibleAllocationError
+from .common_target import CommonTargetSolver
 from .problem import AllocationProblem, ScreenedRows, with_requirements
-from .solve import AllocationResult, _unreachable_worst
+from .solve import AllocationResult, unreachable_worst
 
 #: Standard errors of the exact system probability kept as a safety margin.
 SYSTEM_MARGIN_Z = 3.0
@@ -98,7 +98,7 @@ def system_allocation(machine, target: float, *, steps: int = 12, n_points: int 
         try:
             solution = solver(value)
         except InfeasibleAllocationError as exc:
-            raise _unreachable_worst(_at_target(problem, value), exc.rows, exc.loads) from None
+            raise unreachable_worst(_at_target(problem, value), exc.rows, exc.loads) from None
         certified.append(bool(solution.success))
         return solution
 

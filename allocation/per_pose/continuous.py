@@ -2,13 +2,13 @@
 certified over the continuous workspace or searched only (docs/continuous-allocation.md).
 
 Eq. (35) asks the targets over the whole stroke of every axis; the grid problem
-(:class:`~allocation.problem.AllocationProblem`) holds them at the poses of a grid only. A
+(:class:`~allocation.per_pose.problem.AllocationProblem`) holds them at the poses of a grid only. A
 finite pose set is a relaxation of the continuous problem, so its optimum costs at most the
 continuous optimum. :func:`solve_continuous` closes the gap by an exchange (cutting-plane)
 method:
 
 1. solve the problem on the current pose set (certified convex optimum,
-   :mod:`allocation.convex`);
+   :mod:`allocation.solvers.convex`);
 2. find the worst pose of each output at that optimum: first by the local search from the
    worst poses of the set (:func:`reliability.first_order.workspace_search.searched_worst`,
    cheap, for the σ readings), and, when the search finds no output short by more than a
