@@ -1,0 +1,209 @@
+"""A result's saved payload described field by field, written and read back checked.
+
+A result module lists the fields it saves, each with its kind::
+
+    FIELDS = (Array("poses", ("n", None)), Array("probability", ("n",), low=0, high=1),
+              Integer("n_points", low=1), Text("distribution", ("normal", "truncated")))
+
+:func:`write_fields` turns a result into the JSON-ready payload of
+:func:`~reliability.basics.saved_results.save_payload`; :func:`read_fields` reads a payload
+(a :class:`~reliability.basics.saved_results.PayloadReader`) back into the keyword arguments
+of the result's constructor, every field checked by its kind. A shape entry that is a text
+(``"n"``) is a length shared by the fields that name it: the first field read fixes it and
+every later one must agree. A field declared ``optional`` may be saved as ``null`` (None).
+A damaged field raises :class:`~reliability.basics.errors.SavedResultError` naming the file
+and the field.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .saved_results import encode_frame, load_payload, save_payload
+
+PLAIN = (str, int, float, bool, type(None))
+
+
+class Field:
+    """One saved field: its name, whether it may be None, how it is written and read."""
+
+    def __init__(self, name: str, optional: bool = False):
+        self.name, self.optional = name, optional
+
+    def write(self, value):
+        """The JSON-ready form of ``value`` (numpy values are converted on writing)."""
+        return value
+
+    def read(self, data, dims: dict):
+        """The field's value from ``data``, checked; ``dims`` holds the shared lengths."""
+        raise NotImplementedError
+
+
+class Number(Field):
+    """A float, finite unless ``finite=False``, optionally ``> 0`` or within
+    ``[low, high]``."""
+
+    def __init__(self, name, optional=False, *, positive=False, finite=True, low=None,
+                 high=None):
+        super().__init__(name, optional)
+        self.positive, self.finite, self.low, self.high = positive, finite, low, high
+
+    def read(self, data, dims):
+        value = data.number(self.name, positive=self.positive, finite=self.finite)
+        if (self.low is not None and value < self.low) or \
+                (self.high is not None and value > self.high):
+            raise data.error(self.name, f"expected a number in [{self.low}, {self.high}], "
+                                        f"got {value!r}")
+        return value
+
+
+class Integer(Field):
+    """A whole number, optionally ``>= low``."""
+
+    def __init__(self, name, optional=False, *, low=None):
+        super().__init__(name, optional)
+        self.low = low
+
+    def read(self, data, dims):
+        return data.integer(self.name, low=self.low)
+
+
+class Flag(Field):
+    """``true`` or ``false``."""
+
+    def read(self, data, dims):
+        return data.boolean(self.name)
+
+
+class Text(Field):
+    """A text, optionally one of ``choices``."""
+
+    def __init__(self, name, choices=None, optional=False):
+        super().__init__(name, optional)
+        self.choices = choices
+
+    def read(self, data, dims):
+        return data.text(self.name, self.choices)
+
+
+class Texts(Field):
+    """A tuple of texts; ``size`` an int or a shared length's name."""
+
+    def __init__(self, name, size=None, optional=False, *, unique=False):
+        super().__init__(name, optional)
+        self.size, self.unique = size, unique
+
+    def read(self, data, dims):
+        size = dims.get(self.size, self.size) if isinstance(self.size, str) else self.size
+        value = data.texts(self.name, size=size if isinstance(size, int) else None,
+                           unique=self.unique)
+        if isinstance(self.size, str):
+            dims[self.size] = len(value)
+        return value
+
+
+class Array(Field):
+    """A numeric array of ``shape`` (ints, None for any length, or shared lengths' names),
+    of ``dtype`` (``float``, ``int`` or ``bool``), finite (or NaN where ``nan``),
+    optionally ``> 0`` or within ``[low, high]``."""
+
+    def __init__(self, name, shape, optional=False, *, dtype=float, low=None, high=None,
+                 positive=False, nan=False):
+        super().__init__(name, optional)
+        self.shape, self.dtype, self.positive, self.nan = tuple(shape), dtype, positive, nan
+        self.low, self.high = (0, 1) if dtype is bool else (low, high)
+
+    def read(self, data, dims):
+        wanted = tuple(dims.get(n) if isinstance(n, str) else n for n in self.shape)
+        array = data.array(self.name, wanted, dtype=np.int64 if self.dtype is int else float,
+                           low=self.low, high=self.high, positive=self.positive,
+                           nan=self.nan)
+        for n, length in zip(self.shape, array.shape):
+            if isinstance(n, str):
+                dims[n] = length
+        return array.astype(bool) if self.dtype is bool else array
+
+
+class Frame(Field):
+    """A table (:func:`~reliability.basics.saved_results.encode_frame`) with at least
+    ``columns``; its index is named as saved."""
+
+    def __init__(self, name, columns=(), optional=False):
+        super().__init__(name, optional)
+        self.columns = tuple(columns)
+
+    def write(self, value):
+        return encode_frame(value)
+
+    def read(self, data, dims):
+        return data.frame(self.name, columns=self.columns)
+
+
+class Mapping(Field):
+    """A dict of names to plain values (numbers, texts, flags, None or lists of them)."""
+
+    def write(self, value):
+        return {str(key): item for key, item in value.items()}
+
+    def read(self, data, dims):
+        part = data.table(self.name)
+        for key, item in part.data.items():
+            items = item if isinstance(item, list) else [item]
+            if not all(isinstance(v, PLAIN) for v in items):
+                raise part.error(key, f"expected a plain value, got {item!r}")
+        return dict(part.data)
+
+
+class Nested(Field):
+    """Another result saved inside this one, through ``kind.payload(value)`` and
+    ``kind.from_payload(data)`` (``kind`` the result's class, or a class that saves a
+    result of another)."""
+
+    def __init__(self, name, kind: type, optional=False):
+        super().__init__(name, optional)
+        self.kind = kind
+
+    def write(self, value):
+        return self.kind.payload(value)
+
+    def read(self, data, dims):
+        return self.kind.from_payload(data.table(self.name))
+
+
+def write_fields(result, fields) -> dict:
+    """The payload of ``result``: each field's value (an attribute of the same name)."""
+    payload = {}
+    for field in fields:
+        value = getattr(result, field.name)
+        payload[field.name] = None if value is None else field.write(value)
+    return payload
+
+
+def read_fields(data, fields) -> dict:
+    """The checked value of each field in ``data``, by name.
+
+    Raises
+    ------
+    SavedResultError
+        A field is missing, None without being optional, or not of its kind.
+    """
+    dims, values = {}, {}
+    for field in fields:
+        if data.raw(field.name) is None:
+            if not field.optional:
+                raise data.error(field.name, "expected a value, got null")
+            values[field.name] = None
+        else:
+            values[field.name] = field.read(data, dims)
+    return values
+
+
+def save_fields(result, path, kind: str, fields, overwrite: bool = False):
+    """Save ``result``'s ``fields`` under the format tag ``kind``; returns the path."""
+    return save_payload(path, kind, write_fields(result, fields), overwrite)
+
+
+def load_fields(path, kind: str, fields) -> tuple:
+    """The payload reader of a file of ``kind`` and its fields' checked values."""
+    data = load_payload(path, kind)
+    return data, read_fields(data, fields)
