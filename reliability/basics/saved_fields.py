@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .saved_results import encode_frame, load_payload, save_payload
+from .saved_results import PayloadReader, encode_frame, load_payload, save_payload
 
 PLAIN = (str, int, float, bool, type(None))
 
@@ -102,6 +102,27 @@ class Texts(Field):
         return value
 
 
+class TextLists(Field):
+    """A tuple of tuples of texts; ``size`` (of the outer tuple) an int or a shared
+    length's name."""
+
+    def __init__(self, name, size=None, optional=False):
+        super().__init__(name, optional)
+        self.size = size
+
+    def read(self, data, dims):
+        rows = data.raw(self.name)
+        if not isinstance(rows, list) or not all(
+                isinstance(row, list) and all(isinstance(v, str) for v in row) for row in rows):
+            raise data.error(self.name, "expected a list of lists of texts")
+        size = dims.get(self.size, self.size) if isinstance(self.size, str) else self.size
+        if isinstance(size, int) and len(rows) != size:
+            raise data.error(self.name, f"expected {size} entries, got {len(rows)}")
+        if isinstance(self.size, str):
+            dims[self.size] = len(rows)
+        return tuple(tuple(row) for row in rows)
+
+
 class Array(Field):
     """A numeric array of ``shape`` (ints, None for any length, or shared lengths' names),
     of ``dtype`` (``float``, ``int`` or ``bool``), finite (or NaN where ``nan``),
@@ -168,6 +189,27 @@ class Nested(Field):
 
     def read(self, data, dims):
         return self.kind.from_payload(data.table(self.name))
+
+
+class Records(Field):
+    """A tuple of objects (e.g. a machine's axes), each saved as its ``fields`` and rebuilt
+    by ``build(**values)``."""
+
+    def __init__(self, name, fields, build, optional=False):
+        super().__init__(name, optional)
+        self.fields, self.build = tuple(fields), build
+
+    def write(self, value):
+        return [write_fields(item, self.fields) for item in value]
+
+    def read(self, data, dims):
+        items = data.raw(self.name)
+        if not isinstance(items, list):
+            raise data.error(self.name, "expected a list")
+        return tuple(self.build(**read_fields(PayloadReader(data.path, item, f"{data.where}."
+                                                            f"{self.name}[{i}]".lstrip(".")),
+                                              self.fields))
+                     for i, item in enumerate(items))
 
 
 def write_fields(result, fields) -> dict:
