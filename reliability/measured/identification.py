@@ -250,6 +250,29 @@ class Identification:
                 "iterations": int(self.iterations), "change": float(self.change),
                 "settled": bool(self.settled)}
 
+    def to_frame(self) -> pd.DataFrame:
+        """The errors' posterior, one row per error: :attr:`errors`."""
+        return self.errors
+
+    def save(self, folder, overwrite: bool = False) -> tuple:
+        """Write the identification's folder
+        (:func:`reliability.measured.identification_files.write_identification`): with
+        ``overwrite`` an earlier identification's files this one does not write are
+        removed. Returns the names of the files written."""
+        from .identification_files import write_identification  # it imports this module
+        return write_identification(self, folder, overwrite)
+
+    @classmethod
+    def load(cls, folder, machine) -> "Identification":
+        """The identification saved in ``folder``, on ``machine`` (the one it was identified
+        on, which the folder does not hold), checked
+        (:func:`reliability.measured.identification_files.read_identification`); a
+        damaged file raises :class:`~reliability.basics.errors.SavedResultError` naming it.
+        The posterior means and σ come back to the six digits of ``errors.csv`` under
+        ``constant``, every digit under ``gp``."""
+        from .identification_files import read_identification  # it imports this module
+        return read_identification(folder, machine)
+
     def summary(self) -> str:
         """The identification in words: rank, condition, combinations, χ² check."""
         lines = [f"{len(self.residuals)} readings, {self.machine.n_errors} errors, "
