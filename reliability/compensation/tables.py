@@ -74,6 +74,51 @@ class CompensationTables:
             out[..., self.machine.error_index(name)] = value
         return out
 
+    def to_frame(self) -> pd.DataFrame:
+        """Every tabled value, one row each: ``table`` (an axis or ``assembly``),
+        ``position`` (mm or degrees; NaN for a constant error), ``error`` (ISO 230-1
+        symbol) and ``value`` (mm, rad)."""
+        parts = [pd.DataFrame({"table": name, "position": table.iloc[:, 0].to_numpy()
+                               .repeat(table.shape[1] - 1),
+                               "error": np.tile(table.columns[1:], len(table)),
+                               "value": table.iloc[:, 1:].to_numpy().ravel()})
+                 for name, table in self.axes.items()]
+        parts.append(pd.DataFrame({"table": "assembly", "position": np.nan,
+                                   "error": self.assembly["iso"].to_numpy(),
+                                   "value": self.assembly["value"].to_numpy()}))
+        return pd.concat(parts, ignore_index=True)
+
+    def summary(self) -> str:
+        """What the tables correct, their spacing and their largest value."""
+        frame = self.to_frame()
+        lines = [f"Compensation tables of {self.machine.name!r}: {len(self.items)} errors "
+                 f"corrected, every {self.spacing_mm:g} mm and {self.spacing_deg:g} degrees"]
+        for name, table in self.axes.items():
+            values = frame[frame["table"] == name]["value"].abs()
+            largest = f"largest |value| {values.max():.3g}" if len(values) else "no error"
+            lines.append(f"  axis {name}: {len(table)} positions, {table.shape[1] - 1} "
+                         f"errors, {largest}")
+        lines.append(f"  constant errors: {len(self.assembly)} "
+                     f"({', '.join(self.assembly['iso']) or 'none'})")
+        return "\n".join(lines)
+
+    def save(self, folder, overwrite: bool = False):
+        """Write the folder of tables
+        (:func:`reliability.compensation.compensation_files.write_compensation`; with
+        ``overwrite`` earlier tables it does not replace are removed). Returns the
+        folder."""
+        from .compensation_files import write_compensation  # it imports this module
+        return write_compensation(self, folder, overwrite)
+
+    @classmethod
+    def load(cls, folder, machine) -> "CompensationTables":
+        """The tables saved in ``folder`` for ``machine`` (which the folder names but does
+        not hold), checked
+        (:func:`reliability.compensation.compensation_files.read_compensation`); every
+        value comes back to the last digit."""
+        from .compensation_files import read_compensation  # it imports this module
+        return read_compensation(folder, machine)
+
 
 def compensation_tables(identification, *, spacing_mm: float = DEFAULT_SPACING_MM,
                         spacing_deg: float = DEFAULT_SPACING_DEG, items=None,
