@@ -15,7 +15,6 @@ import pandas as pd
 
 from ..basics.errors import SavedResultError
 from ..basics.files import atomic_write_text, check_destination
-from .tables import CompensationTables, internal_positions
 
 #: The file of the constant errors, and its columns.
 ASSEMBLY_FILE = "assembly.csv"
@@ -34,8 +33,9 @@ def table_file_names(machine) -> tuple[str, ...]:
     return tuple(f"{axis}.csv" for axis in machine.axes) + (ASSEMBLY_FILE,)
 
 
-def write_compensation(tables: CompensationTables, folder, overwrite: bool = False) -> Path:
-    """Write the tables into ``folder`` (created if absent); returns the folder.
+def write_compensation(tables, folder, overwrite: bool = False) -> Path:
+    """Write ``tables`` (a :class:`~reliability.compensation.tables.CompensationTables`)
+    into ``folder`` (created if absent); returns the folder.
 
     An earlier compensation folder (its ``assembly.csv`` or a table file opening with
     :data:`TABLE_HEADER`) is refused unless ``overwrite``; with it, the earlier tables this
@@ -83,9 +83,18 @@ def _opens_as_table(path) -> bool:
         return file.readline().startswith(TABLE_HEADER)
 
 
-def read_compensation(folder, machine) -> CompensationTables:
-    """Read a compensation folder written by :func:`write_compensation` (or by hand in its
-    format) and check it against ``machine``; a damaged or foreign file raises
+def internal_positions(axis, column) -> np.ndarray:
+    """A table's position column in mm or rad."""
+    values = np.asarray(column, dtype=float)
+    return np.radians(values) if axis.kind == "rotary" else values
+
+
+def read_compensation_fields(folder, machine) -> dict:
+    """The fields of the :class:`~reliability.compensation.tables.CompensationTables` in a
+    compensation folder written by :func:`write_compensation` (or by hand in its format),
+    checked against ``machine``: ``machine, spacing_mm, spacing_deg, axes, assembly``
+    (``CompensationTables.load`` builds the tables from them); a damaged or foreign file
+    raises
     :class:`~reliability.basics.errors.SavedResultError` (an ``InputError``) naming it, the
     row and the column."""
     folder = Path(folder)
@@ -102,8 +111,9 @@ def read_compensation(folder, machine) -> CompensationTables:
     spacing = _spacing(path)
     axes = {axis.name: _read_axis(folder / f"{axis.name}.csv", machine, a)
             for a, axis in enumerate(machine.axis_specs)}
-    return CompensationTables(machine, spacing["spacing_mm"], spacing["spacing_deg"], axes,
-                              _read_assembly(path, machine))
+    return {"machine": machine, "spacing_mm": spacing["spacing_mm"],
+            "spacing_deg": spacing["spacing_deg"], "axes": axes,
+            "assembly": _read_assembly(path, machine)}
 
 
 def _units_text(symbols) -> str:

@@ -16,6 +16,7 @@ import numpy as np
 import pandas as pd
 
 from ..basics.errors import InputError
+from .compensation_files import internal_positions, read_compensation_fields, write_compensation
 
 #: Default spacing of the table positions (mm along a linear axis, degrees about a rotary one).
 DEFAULT_SPACING_MM = 10.0
@@ -107,17 +108,20 @@ class CompensationTables:
         (:func:`reliability.compensation.compensation_files.write_compensation`; with
         ``overwrite`` earlier tables it does not replace are removed). Returns the
         folder."""
-        from .compensation_files import write_compensation  # it imports this module
         return write_compensation(self, folder, overwrite)
 
     @classmethod
     def load(cls, folder, machine) -> "CompensationTables":
         """The tables saved in ``folder`` for ``machine`` (which the folder names but does
         not hold), checked
-        (:func:`reliability.compensation.compensation_files.read_compensation`); every
-        value comes back to the last digit."""
-        from .compensation_files import read_compensation  # it imports this module
-        return read_compensation(folder, machine)
+        (:func:`reliability.compensation.compensation_files.read_compensation_fields`);
+        every value comes back to the last digit."""
+        return cls(**read_compensation_fields(folder, machine))
+
+
+def read_compensation(folder, machine) -> CompensationTables:
+    """The compensation tables in ``folder`` for ``machine``: :meth:`CompensationTables.load`."""
+    return CompensationTables.load(folder, machine)
 
 
 def compensation_tables(identification, *, spacing_mm: float = DEFAULT_SPACING_MM,
@@ -202,12 +206,6 @@ def _table_coordinate(axis, positions) -> np.ndarray:
     """Positions as a table reads them: a full turn's wrapped into [0, 2π)."""
     positions = np.asarray(positions, dtype=float)
     return positions % (2 * math.pi) if axis.full_turn else positions
-
-
-def internal_positions(axis, column) -> np.ndarray:
-    """A table's position column in mm or rad."""
-    values = np.asarray(column, dtype=float)
-    return np.radians(values) if axis.kind == "rotary" else values
 
 
 def _middle_pose(machine) -> np.ndarray:

@@ -1,14 +1,15 @@
 """An identification's folder, written and read back (docs/measurements.md).
 
 :func:`write_identification` (``Identification.save``, ``precrel identify --out DIR``)
-writes ``errors.csv``, ``setup.csv``, ``residuals.csv``, ``summary.json`` and ``covariance.npy`` (the posterior covariance of the errors, every digit
-kept); under a profile along travel (``gp:<ℓ>``) also ``profiles.csv`` and
-``coefficients.npz``: the prior σ = t/3 of every error, the posterior mean and covariance of
-the coefficients, and per axis the grid, the Karhunen–Loève loadings and the positions read,
-every digit kept; the tables are written to :data:`~reliability.basics.files.SIGNIFICANT`
-digits. :func:`read_identification` (``Identification.load``) rebuilds the
-:class:`Identification` from them and checks them first: the errors must be the machine's, in its order; the covariances
-square, finite, symmetric and positive semi-definite, the errors' diagonal the
+writes ``errors.csv``, ``setup.csv``, ``residuals.csv``, ``summary.json`` and
+``covariance.npy`` (the posterior covariance of the errors, every digit kept); under a
+profile along travel (``gp:<ℓ>``) also ``profiles.csv`` and ``coefficients.npz``: the prior
+σ = t/3 of every error, the posterior mean and covariance of the coefficients, and per axis
+the grid, the Karhunen–Loève loadings and the positions read, every digit kept; the tables
+are written to :data:`~reliability.basics.files.SIGNIFICANT` digits.
+:func:`read_identification_fields` (``Identification.load``) reads the identification back
+from them and checks them first: the errors must be the machine's, in its order; the
+covariances square, finite, symmetric and positive semi-definite, the errors' diagonal the
 ``posterior_sd`` of ``errors.csv``; the profile one an identification takes. Under ``gp``
 the basis is built again from the machine and the profile
 (:func:`reliability.measured.travel_bases.travel_bases`): the saved grid must be its grid
@@ -31,7 +32,6 @@ import pandas as pd
 from ..basics.errors import InputError, SavedResultError
 from ..basics.files import (SIGNIFICANT, atomic_write_bytes, atomic_write_text,
                             check_destination, write_csv)
-from .identification import Identification
 from .travel_bases import Coefficients, GaussianBasis, cross_correlation, travel_bases
 
 COVARIANCE_FILE = "covariance.npy"
@@ -121,8 +121,10 @@ def write_coefficients(identification, path, overwrite: bool = False) -> Path:
     return atomic_write_bytes(path, buffer.getvalue(), overwrite)
 
 
-def read_identification(folder, machine) -> Identification:
-    """The identification written by ``precrel identify --out folder``, checked.
+def read_identification_fields(folder, machine) -> dict:
+    """The fields of the :class:`~reliability.measured.identification.Identification`
+    written into ``folder`` by :func:`write_identification` (``precrel identify --out
+    folder``), checked; ``Identification.load`` builds the identification from them.
 
     Parameters
     ----------
@@ -155,7 +157,7 @@ def read_identification(folder, machine) -> Identification:
         posterior = _read_coefficients(folder / COEFFICIENTS_FILE, machine, bases, errors,
                                        covariance)
     status = {key: kind(summary[key]) for key, kind in STATUS_KEYS.items() if key in summary}
-    return Identification(
+    return dict(
         machine=machine, profile=summary["profile"], **posterior,
         setup=_read_table(folder / "setup.csv", ("setup", "estimate", "sd")),
         rank=int(summary["rank"]), condition=float(summary["condition"]),
