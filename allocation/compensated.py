@@ -141,19 +141,18 @@ class CompensatedAllocation:
     @classmethod
     def load(cls, path, problem, plan) -> "CompensatedAllocation":
         """Reload an allocation written by :meth:`save` with its ``problem`` (checked to be
-        the saved allocation's) and compensation ``plan`` (re-attached), every field
-        checked: the table's upper bounds lie within the problem's box and the allocation
-        within them, so the bracket and the verdict are the saved ones. A damaged field
+        the saved allocation's in the box the table's range leaves) and compensation
+        ``plan`` (re-attached), every field checked: the table's upper bounds lie within the
+        problem's box and the allocation within them, so the bracket and the verdict are the saved ones. A damaged field
         raises :class:`~reliability.basics.errors.SavedResultError` naming the file and
         field."""
         data = load_payload(path, SAVED_FORMAT)
         values = read_fields(data, SAVED_FIELDS)
-        result = AllocationResult.from_payload(data.table("result"), problem)
         upper = values["upper"]
-        if upper.shape != result.tolerances.shape or np.any(upper > problem.upper) \
-                or np.any(result.tolerances > upper * (1 + 1e-12)):
-            raise data.error("upper", "expected one bound per error within the problem's box "
-                                      "and above the allocation")
+        if upper.shape != problem.upper.shape or np.any(upper > problem.upper):
+            raise data.error("upper", "expected one bound per error within the problem's box")
+        result = AllocationResult.from_payload(data.table("result"),
+                                               replace(problem, upper=upper))
         if values["lower_bound"] > result.cost * (1 + 1e-9):
             raise data.error("lower_bound", "exceeds the allocation's cost")
         return cls(result=result, plan=plan, **values)

@@ -161,7 +161,8 @@ class Frame(Field):
 
 
 class Mapping(Field):
-    """A dict of names to plain values (numbers, texts, flags, None or lists of them)."""
+    """A dict of names to plain values: numbers, texts, flags, None, and lists and dicts of
+    them."""
 
     def write(self, value):
         return {str(key): item for key, item in value.items()}
@@ -169,10 +170,18 @@ class Mapping(Field):
     def read(self, data, dims):
         part = data.table(self.name)
         for key, item in part.data.items():
-            items = item if isinstance(item, list) else [item]
-            if not all(isinstance(v, PLAIN) for v in items):
+            if not _plain(item):
                 raise part.error(key, f"expected a plain value, got {item!r}")
         return dict(part.data)
+
+
+def _plain(value) -> bool:
+    """Whether ``value`` is built from plain JSON values only."""
+    if isinstance(value, list):
+        return all(_plain(v) for v in value)
+    if isinstance(value, dict):
+        return all(isinstance(k, str) and _plain(v) for k, v in value.items())
+    return isinstance(value, PLAIN)
 
 
 class Nested(Field):

@@ -32,6 +32,7 @@ import pandas as pd
 from ..basics.errors import InputError, SavedResultError
 from ..basics.files import (SIGNIFICANT, atomic_write_bytes, atomic_write_text,
                             check_destination, write_csv)
+from ..basics.saved_results import PayloadReader
 from .travel_bases import Coefficients, GaussianBasis, cross_correlation, travel_bases
 
 COVARIANCE_FILE = "covariance.npy"
@@ -55,7 +56,7 @@ BASIS_AGREEMENT = 1e-6
 #: coefficients give (both every digit, formed in a different order).
 COVARIANCE_AGREEMENT = 1e-9
 #: Keys of ``summary.json`` that pass into the identification when present.
-STATUS_KEYS = {"iterations": int, "change": float, "settled": bool}
+STATUS_KEYS = ("iterations", "change", "settled")
 
 
 def write_identification(identification, folder, overwrite: bool = False) -> tuple:
@@ -156,15 +157,15 @@ def read_identification_fields(folder, machine) -> dict:
     if any(isinstance(basis, GaussianBasis) for basis in bases):
         posterior = _read_coefficients(folder / COEFFICIENTS_FILE, machine, bases, errors,
                                        covariance)
-    status = {key: kind(summary[key]) for key, kind in STATUS_KEYS.items() if key in summary}
+    status = {key: summary[key] for key in STATUS_KEYS if key in summary}
     return dict(
         machine=machine, profile=summary["profile"], **posterior,
         setup=_read_table(folder / "setup.csv", ("setup", "estimate", "sd")),
-        rank=int(summary["rank"]), condition=float(summary["condition"]),
-        combinations=tuple(summary["combinations"]), prior_like=tuple(summary["prior_like"]),
+        rank=summary["rank"], condition=summary["condition"],
+        combinations=summary["combinations"], prior_like=summary["prior_like"],
         residuals=_read_table(folder / "residuals.csv",
                               ("row", "run", "quantity", "value", "fitted", "normalised")),
-        chi2=float(summary["chi2"]), dof=int(summary["dof"]), **status)
+        chi2=summary["chi2"], dof=summary["dof"], **status)
 
 
 def _read_table(path, columns) -> pd.DataFrame:
@@ -211,7 +212,17 @@ def _read_summary(path) -> dict:
     missing = [key for key in SUMMARY_KEYS if key not in summary]
     if missing:
         raise SavedResultError(f"{path}: missing key {missing[0]!r}")
-    return summary
+    data = PayloadReader(path, summary, "")
+    checked = {"rank": data.integer("rank", low=0),
+               "condition": data.number("condition", finite=False),
+               "chi2": data.number("chi2"), "dof": data.integer("dof"),
+               "profile": summary["profile"], "combinations": data.texts("combinations"),
+               "prior_like": data.texts("prior_like")}
+    status = {"iterations": lambda: data.integer("iterations", low=0),
+              "change": lambda: data.number("change", finite=False),
+              "settled": lambda: data.boolean("settled")}
+    checked.update({key: status[key]() for key in STATUS_KEYS if key in summary})
+    return checked
 
 
 def _profile_bases(path, machine, profile) -> tuple:
