@@ -368,3 +368,44 @@ def _same(back, memory, rtol) -> None:
         np.testing.assert_allclose(back, memory, rtol=rtol, atol=0)
     else:
         assert back == memory
+
+
+# ----- folders rewritten hold only the new run -------------------------------------------
+def test_an_identification_rewritten_under_constant_drops_the_gp_files(
+        mill3, comp_plan, identification, tmp_path):
+    built = simulate_measurements(mill3, comp_plan.runs, rng=7)
+    along = reliability.identify(mill3, built.measurements, profile="gp:300")
+    folder = tmp_path / "id"
+    assert "coefficients.npz" in along.save(folder)
+    (folder / "notes.txt").write_text("kept\n")
+    with pytest.raises(FileExistsError):
+        identification.save(folder)
+    written = identification.save(folder, overwrite=True)
+    assert "profiles.csv" not in written and "coefficients.npz" not in written
+    assert sorted(p.name for p in folder.iterdir()) == sorted(written + ("notes.txt",))
+    back = reliability.Identification.load(folder, mill3)
+    assert back.profile == "constant" and not back.coefficients.varies
+
+
+def test_compensation_tables_rewritten_drop_an_earlier_machines_tables(
+        mill3, identification, tmp_path):
+    tables = compensation_tables(identification, spacing_mm=100.0)
+    folder = tmp_path / "tables"
+    tables.save(folder)
+    (folder / "W.csv").write_text("# compensation table of 'another', axis W (linear)\n")
+    (folder / "notes.txt").write_text("kept\n")
+    with pytest.raises(FileExistsError):
+        tables.save(folder)
+    tables.save(folder, overwrite=True)
+    assert sorted(p.name for p in folder.iterdir()) == \
+        ["X.csv", "Y.csv", "Z.csv", "assembly.csv", "notes.txt"]
+    _same(reliability.CompensationTables.load(folder, mill3).to_frame(), tables.to_frame(), 0)
+
+
+def test_a_folder_of_another_machines_tables_is_refused_without_overwrite(
+        mill3, identification, tmp_path):
+    folder = tmp_path / "tables"
+    folder.mkdir()
+    (folder / "W.csv").write_text("# compensation table of 'another', axis W (linear)\n")
+    with pytest.raises(FileExistsError, match="W.csv"):
+        compensation_tables(identification, spacing_mm=100.0).save(folder)
