@@ -108,8 +108,8 @@ from reliability.basics.errors import InputError
 from reliability.basics.threads import one_blas_thread
 from reliability.basics.display import significant_percent
 from reliability.basics.saved_fields import (Array, Flag, Integer, Mapping, Nested, Number,
-                                            Text, Texts, load_fields, read_fields,
-                                            save_fields, write_fields)
+                                            Text, Texts, read_fields, write_fields)
+from reliability.basics.saved_results import load_payload, save_payload
 from reliability.basics.statistics import ProportionEstimate, all_within_share
 from reliability.first_order.fosm import required_index
 from reliability.model.machine import OUTPUTS
@@ -450,12 +450,9 @@ class YieldAllocation:
         """Save as JSON (:data:`SAVED_FIELDS`, tag :data:`SAVED_FORMAT`, with
         ``from_narrower_box``); the problems are not saved. An existing file is kept
         unless ``overwrite``. Returns the path."""
-        return save_fields(self, path, SAVED_FORMAT, SAVED_FIELDS, overwrite)
-
-    @property
-    def narrower(self) -> bool:
-        """:attr:`from_narrower_box` (the name it is saved under)."""
-        return self.from_narrower_box
+        payload = write_fields(self, SAVED_FIELDS)
+        payload["from_narrower_box"] = self.from_narrower_box
+        return save_payload(path, SAVED_FORMAT, payload, overwrite)
 
     @classmethod
     def load(cls, path, problem, search_problem=None) -> "YieldAllocation":
@@ -465,8 +462,9 @@ class YieldAllocation:
         (lower bound at most the cost), so the verdicts (verified or not, the bracket, the
         yields and their intervals) are the saved ones. A damaged field raises
         :class:`~reliability.basics.errors.SavedResultError` naming the file and field."""
-        data, values = load_fields(path, SAVED_FORMAT, SAVED_FIELDS)
-        narrower = values.pop("narrower")
+        data = load_payload(path, SAVED_FORMAT)
+        values = read_fields(data, SAVED_FIELDS)
+        narrower = data.boolean("from_narrower_box")
         if narrower and search_problem is None:
             raise InputError(f"{path}: the allocation came from the narrower box; pass its "
                              f"search_problem")
@@ -550,7 +548,7 @@ SAVED_FIELDS = (
     Array("lower_bound_tolerances", (None,), positive=True), Nested("naive", SavedNaive),
     Text("profile"), Text("distribution", ("normal", "truncated")), Integer("points", low=2),
     Integer("machines", low=1), Integer("seed"), Integer("evaluations", low=0),
-    Mapping("seconds"), Flag("narrower"))
+    Mapping("seconds"))
 
 
 @one_blas_thread

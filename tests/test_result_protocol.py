@@ -120,6 +120,12 @@ def interior(mill3, grid):
 
 
 @pytest.fixture(scope="module")
+def verification(mill3):
+    return verify(mill3, mill3.initial_allocation, points=2, repeats=2, samples=300,
+                  machines=100, rng=1)
+
+
+@pytest.fixture(scope="module")
 def acceptance_setup(mill3):
     test = PositioningTest("position_X", "X", {"Y": 200.0, "Z": -175.0},
                            {"E": 0.01, "A": 0.02, "R": 0.01, "B": 0.01})
@@ -136,7 +142,7 @@ def build(name, request):
         "FosmResult": lambda: (reliability.fosm(mill3, t, get("grid")), {}),
         "SystemReliability": lambda: (system_reliability(mill3, t, get("grid")[:4],
                                                          n_points=64, n_batches=2, rng=1), {}),
-        "GridExperimentResult": lambda: (_verification(mill3).grid, {}),
+        "GridExperimentResult": lambda: (get("verification").grid, {}),
         "RandomPoseResult": lambda: (sample_random_poses(mill3, t, 500, rng=1), {}),
         "PoseSamplingResult": lambda: (sample_at_poses(mill3, t, get("grid")[:2],
                                                        samples=500, rng=1), {}),
@@ -146,7 +152,7 @@ def build(name, request):
                                                points_per_axis=2, rng=1), {}),
         "YieldSensitivity": lambda: (yield_sensitivity(
             YieldModel(mill3, points_per_axis=2), t, machines=300, rng=1), {}),
-        "Verification": lambda: (_verification(mill3), {}),
+        "Verification": lambda: (get("verification"), {}),
         "YieldEstimate": lambda: (machine_yield(mill3, t, points_per_axis=2, machines=200,
                                                 rng=1), {}),
         "Identification": lambda: (get("identification"), {"machine": mill3}),
@@ -174,16 +180,6 @@ def build(name, request):
                                                              [0.1, 0.1, 0.2, 0.3, 0.3]]), {}),
     }
     return builders[name]()
-
-
-_CACHE = {}
-
-
-def _verification(mill3):
-    if "verification" not in _CACHE:
-        _CACHE["verification"] = verify(mill3, mill3.initial_allocation, points=2, repeats=2,
-                                        samples=300, machines=100, rng=1)
-    return _CACHE["verification"]
 
 
 def _continuous(interior):
