@@ -22,15 +22,14 @@ The names most users need are exported here.
 """
 
 from .basics.errors import MachineDescriptionError
-from .compensation.compensation_files import read_compensation, write_compensation
-from .compensation.tables import CompensationTables, compensation_tables
+from .compensation.compensation_files import write_compensation
+from .compensation.tables import CompensationTables, compensation_tables, read_compensation
 from .first_order.fosm import FosmResult, fosm
 from .first_order.system_reliability import (SystemReliability, system_reliability,
                                              worst_system_reliability)
 from .model.machine import (COMPONENTS, OUTPUTS, Axis, CostCoefficients, Machine, hobbing_machine,
                             load_machine, machine_from_dict, machine_from_toml)
-from .measured.identification import Identification, identify
-from .measured.identification_files import read_identification
+from .measured.identification import Identification, identify, read_identification
 from .measured.measurement_files import read_measurements
 from .model.poses import random_poses, workspace_grid
 from .sampling import rare_events as rare

@@ -12,7 +12,7 @@ import pytest
 
 import reliability
 from reliability.basics.errors import InputError
-from reliability.compensation.compensation_files import read_compensation
+from reliability.compensation.tables import read_compensation
 from reliability.compensation.residual import measured_residual, positioning_variance
 from reliability.measured.identification_files import COEFFICIENTS_FILE
 from reliability.measured.measurement_files import write_measurements

@@ -47,6 +47,9 @@ from scipy.optimize import Bounds, LinearConstraint, milp
 from reliability.basics.display import axis_units, pose_text
 from reliability.basics.errors import InputError, InputTypeError
 from reliability.basics.files import write_csv
+from reliability.basics.errors import SavedResultError
+from reliability.basics.saved_fields import (Array, Flag, Frame, Mapping, Number, load_fields,
+                                            save_fields)
 from reliability.basics.saved_results import check_count
 from reliability.model.machine import OUTPUTS
 
@@ -199,6 +202,43 @@ class CatalogueResult:
             f"%.{check_count(significant, 'significant')}g"
         return write_csv(self.to_frame(), path, overwrite, index=False,
                          float_format=float_format)
+
+    def save(self, path, overwrite: bool = False):
+        """Save as JSON (:data:`SAVED_FIELDS`, tag :data:`SAVED_FORMAT`); the problem and
+        the catalogue are not saved. An existing file is kept unless ``overwrite``.
+        Returns the path."""
+        return save_fields(self, path, SAVED_FORMAT, SAVED_FIELDS, overwrite)
+
+    @classmethod
+    def load(cls, path, problem, catalogue) -> "CatalogueResult":
+        """Reload a choice written by :meth:`save` for ``problem`` and ``catalogue`` (the
+        ones it was solved for), every field checked: each component's class is one of
+        the catalogue's, the price is the sum of the chosen classes' prices and the
+        tolerances are one per error of the problem, so the choice, its price and its
+        certificate are the saved ones. A damaged field raises
+        :class:`~reliability.basics.errors.SavedResultError` naming the file and field."""
+        data, values = load_fields(path, SAVED_FORMAT, SAVED_FIELDS)
+        classes = {c.name: {k.name: k.price for k in c.classes}
+                   for c in catalogue.components}
+        choice = values["choice"]
+        if list(choice) != list(classes) or any(choice[c] not in classes[c] for c in choice):
+            raise data.error("choice", "expected one of its classes for every component of "
+                                       "the catalogue, in its order")
+        price = sum(classes[c][choice[c]] for c in choice)
+        if not np.isclose(values["price"], price, rtol=1e-12):
+            raise data.error("price", f"is not the price of the chosen classes ({price!r})")
+        if len(values["tolerances"]) != len(problem.names):
+            raise SavedResultError(f"{path}: field 'tolerances': expected one per error of "
+                                   f"the problem ({len(problem.names)})")
+        return cls(problem=problem, catalogue=catalogue, **values)
+
+
+SAVED_FORMAT = "precrel.catalogue_result"
+SAVED_FIELDS = (Mapping("choice"), Number("price", low=0.0), Number("gap"),
+                Number("dual_bound"), Array("tolerances", (None,), positive=True),
+                Flag("feasible"), Flag("certified"), Frame("worst", ("load", "pose")),
+                Frame("neighbours", ("component", "direction", "meets", "breaks")),
+                Mapping("details"))
 
 
 def neighbour_table(result: CatalogueResult) -> pd.DataFrame:

@@ -15,6 +15,7 @@ import pandas as pd
 
 from reliability.basics import checks
 from reliability.basics.errors import InputError
+from reliability.basics.saved_fields import Array, Number, load_fields, save_fields
 
 __all__ = ["FcemResult", "fcem_coefficient"]
 
@@ -50,6 +51,34 @@ class FcemResult:
         """
         grades = pd.Index(np.arange(1, self.b.size + 1), name="grade")
         return pd.DataFrame({"membership": self.b, "score": self.scores}, index=grades)
+
+    def summary(self) -> str:
+        """The cost coefficient and the membership of each grade."""
+        grades = ", ".join(f"{g + 1}: {m:.3f}" for g, m in enumerate(self.b))
+        return (f"Fuzzy comprehensive evaluation: cost coefficient F = {self.value:.4g} "
+                f"(memberships by grade {grades}; scores {self.scores.tolist()})")
+
+    def save(self, path, overwrite: bool = False):
+        """Save as JSON (:data:`SAVED_FIELDS`, tag :data:`SAVED_FORMAT`); an existing file
+        is kept unless ``overwrite``. Returns the path."""
+        return save_fields(self, path, SAVED_FORMAT, SAVED_FIELDS, overwrite)
+
+    @classmethod
+    def load(cls, path) -> "FcemResult":
+        """Reload a result written by :meth:`save`, checked: the memberships sum to one and
+        the value is ``B Sᵀ`` (Eq. 30). A damaged field raises
+        :class:`~reliability.basics.errors.SavedResultError` naming the file and field."""
+        data, values = load_fields(path, SAVED_FORMAT, SAVED_FIELDS)
+        if abs(values["b"].sum() - 1.0) > SUM_TOLERANCE:
+            raise data.error("b", "the memberships do not sum to one")
+        if not np.isclose(values["value"], values["b"] @ values["scores"], rtol=1e-12):
+            raise data.error("value", "is not the memberships times the scores (Eq. 30)")
+        return cls(**values)
+
+
+SAVED_FORMAT = "precrel.fcem_result"
+SAVED_FIELDS = (Array("b", ("grades",), low=0.0, high=1.0), Number("value"),
+                Array("scores", ("grades",)))
 
 
 def fcem_coefficient(weights, membership, scores=(5, 4, 3, 2, 1)):

@@ -99,16 +99,21 @@ import time
 from dataclasses import dataclass, field, replace
 
 import numpy as np
+import pandas as pd
 
 from reliability.basics import checks
+from reliability.basics.errors import InputError
 from reliability.basics.threads import one_blas_thread
 from reliability.basics.display import significant_percent
-from reliability.basics.statistics import all_within_share
+from reliability.basics.saved_fields import (Array, Flag, Integer, Mapping, Nested, Number,
+                                            Text, Texts, read_fields, write_fields)
+from reliability.basics.saved_results import load_payload, save_payload
+from reliability.basics.statistics import ProportionEstimate, all_within_share
 from reliability.model.machine import OUTPUTS
 
 from ..per_pose.problem import DEFAULT_FACTORS
 from ..solvers.convex import InfeasibleAllocationError
-from .yield_bound import pose_chain_bound
+from .yield_bound import ChainBound, pose_chain_bound
 from .yield_search import YieldSearch, YieldUnreachableError, two_sided_target
 
 #: Standard errors of a yield on N machines added to Y for the design and calibration
@@ -400,6 +405,120 @@ class YieldAllocation:
 
     def __repr__(self) -> str:
         return self.summary()
+
+    def to_frame(self) -> pd.DataFrame:
+        """One row per error: the initial (reference) tolerance, the allocation, the
+        search's allocation before calibration, the row relaxation's optimum and the naive
+        method's allocation."""
+        return pd.DataFrame({"reference": self.problem.reference,
+                             "allocated": self.tolerances, "searched": self.search_tolerances,
+                             "lower_bound": self.lower_bound_tolerances,
+                             "naive": self.naive.tolerances},
+                            index=pd.Index(self.problem.names, name="error"))
+
+    def save(self, path, overwrite: bool = False):
+        """Save as JSON (:data:`SAVED_FIELDS`, tag :data:`SAVED_FORMAT`, with
+        ``from_narrower_box``); the problems are not saved. An existing file is kept
+        unless ``overwrite``. Returns the path."""
+        payload = write_fields(self, SAVED_FIELDS)
+        payload["from_narrower_box"] = self.from_narrower_box
+        return save_payload(path, SAVED_FORMAT, payload, overwrite)
+
+    @classmethod
+    def load(cls, path, problem, search_problem=None) -> "YieldAllocation":
+        """Reload an allocation written by :meth:`save` for ``problem`` (the one it was
+        found for) and, when it came from the narrower box, its ``search_problem``; every
+        field is checked: one tolerance per error of the problem, the bracket in order
+        (lower bound at most the cost), so the verdicts (verified or not, the bracket, the
+        yields and their intervals) are the saved ones. A damaged field raises
+        :class:`~reliability.basics.errors.SavedResultError` naming the file and field."""
+        data = load_payload(path, SAVED_FORMAT)
+        values = read_fields(data, SAVED_FIELDS)
+        narrower = data.boolean("from_narrower_box")
+        if narrower and search_problem is None:
+            raise InputError(f"{path}: the allocation came from the narrower box; pass its "
+                             f"search_problem")
+        n = len(problem.names)
+        for key in ("tolerances", "search_tolerances", "lower_bound_tolerances"):
+            if len(values[key]) != n:
+                raise data.error(key, f"expected one entry per error of the problem ({n})")
+        if values["lower_bound"] > values["cost"] * (1 + 1e-9):
+            raise data.error("lower_bound", "exceeds the cost")
+        return cls(problem=problem, search_problem=search_problem if narrower else problem,
+                   **values)
+
+
+class SavedProportion:
+    """The payload writer and reader of a one-number :class:`ProportionEstimate`."""
+
+    FIELDS = (Number("estimate", low=0.0, high=1.0), Number("lower", low=0.0, high=1.0),
+              Number("upper", low=0.0, high=1.0), Number("standard_error", low=0.0),
+              Integer("n", low=1), Text("method", ("wilson", "clopper-pearson")),
+              Number("confidence", low=0.0, high=1.0), Texts("names", optional=True))
+
+    @staticmethod
+    def payload(estimate) -> dict:
+        return write_fields(estimate, SavedProportion.FIELDS)
+
+    @staticmethod
+    def from_payload(data) -> ProportionEstimate:
+        values = read_fields(data, SavedProportion.FIELDS)
+        if not values["lower"] <= values["estimate"] <= values["upper"]:
+            raise data.error("estimate", "lies outside its interval [lower, upper]")
+        return ProportionEstimate(**values)
+
+
+class SavedChainBound:
+    """The payload writer and reader of a :class:`~allocation.yield_bound.ChainBound`."""
+
+    FIELDS = (Number("bound", positive=True), Array("tolerances", (None,), positive=True),
+              Array("poses", (None,), dtype=int, low=0), Integer("rows", low=0))
+
+    @staticmethod
+    def payload(bound) -> dict:
+        return write_fields(bound, SavedChainBound.FIELDS)
+
+    @staticmethod
+    def from_payload(data) -> ChainBound:
+        return ChainBound(**read_fields(data, SavedChainBound.FIELDS))
+
+
+class SavedNaive:
+    """The payload writer and reader of a :class:`NaiveAllocation`."""
+
+    FIELDS = (Number("target", low=0.0, high=1.0), Number("toward_lower", low=0.0, high=1.0),
+              Array("tolerances", (None,), positive=True), Number("cost", positive=True),
+              Number("search_cost", positive=True),
+              *(Nested(key, SavedProportion)
+                for key in ("design_yield", "calibration_yield", "verified_yield")))
+
+    @staticmethod
+    def payload(naive) -> dict:
+        return write_fields(naive, SavedNaive.FIELDS)
+
+    @staticmethod
+    def from_payload(data) -> NaiveAllocation:
+        return NaiveAllocation(**read_fields(data, SavedNaive.FIELDS))
+
+
+SAVED_FORMAT = "precrel.yield_allocation"
+SAVED_FIELDS = (
+    Number("yield_target", low=0.0, high=1.0), Number("design_yield_target", low=0.0, high=1.0),
+    Array("tolerances", (None,), positive=True), Number("cost", positive=True),
+    Array("search_tolerances", (None,), positive=True), Number("search_cost", positive=True),
+    Number("search_calibrated_cost", positive=True), Text("search_stage"),
+    Number("convex_step_cost", optional=True, positive=True),
+    Number("convex_step_calibrated_cost", optional=True, positive=True),
+    Text("convex_step_text"), Array("output_targets", (len(OUTPUTS),), low=0.0, high=1.0),
+    Text("method", ("per-output targets", "error shape", "naive start", "convex step")),
+    Nested("design_yield", SavedProportion), Flag("calibrated"),
+    Nested("calibration_yield", SavedProportion), Nested("verified_yield", SavedProportion),
+    Number("lower_bound", positive=True), Number("row_bound", positive=True),
+    Nested("chain_bound", SavedChainBound, optional=True),
+    Array("lower_bound_tolerances", (None,), positive=True), Nested("naive", SavedNaive),
+    Text("profile"), Text("distribution", ("normal", "truncated")), Integer("points", low=2),
+    Integer("machines", low=1), Integer("seed"), Integer("evaluations", low=0),
+    Mapping("seconds"))
 
 
 @one_blas_thread

@@ -27,6 +27,8 @@ import numpy as np
 import pandas as pd
 
 from reliability.basics.display import error_units, quantity_text
+from reliability.basics.saved_fields import Array, Flag, Frame, Number, read_fields, write_fields
+from reliability.basics.saved_results import load_payload, save_payload
 from reliability.compensation.compensation_plans import K
 from reliability.compensation.residual import (fixed_rule_terms, positioning_variance,
                                                posterior_covariance)
@@ -123,6 +125,43 @@ class CompensatedAllocation:
                       f"{'seen' if row.seen else 'not seen'} by the plan"
                       for row, unit in zip(tight.itertuples(), units)]
         return "\n".join(lines)
+
+    def to_frame(self) -> pd.DataFrame:
+        """Per item, the allocation and what limits it: :meth:`items`."""
+        return self.items()
+
+    def save(self, path, overwrite: bool = False):
+        """Save as JSON (tag :data:`SAVED_FORMAT`): the allocation (as
+        :meth:`AllocationResult.save` writes it) and :data:`SAVED_FIELDS`; the plan is not
+        saved. An existing file is kept unless ``overwrite``. Returns the path."""
+        payload = write_fields(self, SAVED_FIELDS)
+        payload["result"] = self.result.payload()
+        return save_payload(path, SAVED_FORMAT, payload, overwrite)
+
+    @classmethod
+    def load(cls, path, problem, plan) -> "CompensatedAllocation":
+        """Reload an allocation written by :meth:`save` with its ``problem`` (checked to be
+        the saved allocation's in the box the table's range leaves) and compensation
+        ``plan`` (re-attached), every field checked: the table's upper bounds lie within the
+        problem's box and the allocation within them, so the bracket and the verdict are the saved ones. A damaged field
+        raises :class:`~reliability.basics.errors.SavedResultError` naming the file and
+        field."""
+        data = load_payload(path, SAVED_FORMAT)
+        values = read_fields(data, SAVED_FIELDS)
+        upper = values["upper"]
+        if upper.shape != problem.upper.shape or np.any(upper > problem.upper):
+            raise data.error("upper", "expected one bound per error within the problem's box")
+        result = AllocationResult.from_payload(data.table("result"),
+                                               replace(problem, upper=upper))
+        if values["lower_bound"] > result.cost * (1 + 1e-9):
+            raise data.error("lower_bound", "exceeds the allocation's cost")
+        return cls(result=result, plan=plan, **values)
+
+
+SAVED_FORMAT = "precrel.compensated_allocation"
+SAVED_FIELDS = (Array("upper", (None,), positive=True), Number("lower_bound", positive=True),
+                Number("cost_without", positive=True), Frame("rounds", ("round", "cost")),
+                Flag("feasible"))
 
 
 def allocate_compensated(problem, plan, *, without=None, max_rounds: int = MAX_ROUNDS,

@@ -49,10 +49,14 @@ import pandas as pd
 from reliability.basics import checks
 from reliability.basics.display import OUTPUT_UNITS, axis_units, pose_frame, pose_text
 from reliability.basics.errors import InputError
+from reliability.basics.saved_fields import (Flag, Frame, Integer, Number, Text, read_fields,
+                                            write_fields)
+from reliability.basics.saved_results import load_payload, save_payload
 from reliability.first_order.certificate import DEFAULT_RTOL, MAX_BOX_CALLS, WORKSPACES
 from reliability.first_order.workspace_search import certified_worst, searched_worst
 
 from .result_files import gap_text
+from .solve import AllocationResult
 
 #: The pose sets an allocation can be certified over: the continuous strokes or the grid.
 WORKSPACE_CHOICES = WORKSPACES
@@ -177,6 +181,52 @@ class ContinuousAllocation:
 
     def __repr__(self) -> str:
         return self.summary()
+
+    def to_frame(self) -> pd.DataFrame:
+        """The allocation (:meth:`AllocationResult.to_frame` of :attr:`result`) with the
+        workspace's verdict in every row: ``certified`` and ``searched_only``."""
+        frame = self.result.to_frame()
+        frame["certified"] = self.certified
+        frame["searched_only"] = self.searched_only
+        return frame
+
+    def save(self, path, overwrite: bool = False):
+        """Save as JSON (tag :data:`SAVED_FORMAT`): :data:`SAVED_FIELDS`, both allocations
+        (``result`` and ``grid``, as :meth:`AllocationResult.save` writes them) and whether
+        the certificate is current. An existing file is kept unless ``overwrite``. Returns
+        the path."""
+        payload = write_fields(self, SAVED_FIELDS)
+        payload.update(result=self.result.payload(), grid=self.grid.payload(),
+                       certificate_current=self.certificate is None
+                       or bool(self.certificate.attrs.get("current", True)))
+        return save_payload(path, SAVED_FORMAT, payload, overwrite)
+
+    @classmethod
+    def load(cls, path, problem, grid_problem) -> "ContinuousAllocation":
+        """Reload an allocation written by :meth:`save`, every field checked; ``problem``
+        (the grid plus the added poses, ``result.problem``) and ``grid_problem`` (the grid
+        alone) are checked to be the saved allocations' problems and attached. The
+        verdict (certified, searched only, capped) and the certificate are the saved
+        ones. A damaged field raises
+        :class:`~reliability.basics.errors.SavedResultError` naming the file and field."""
+        data = load_payload(path, SAVED_FORMAT)
+        values = read_fields(data, SAVED_FIELDS)
+        values["result"] = AllocationResult.from_payload(data.table("result"), problem)
+        values["grid"] = AllocationResult.from_payload(data.table("grid"), grid_problem)
+        if values["certified"] and values["searched_only"]:
+            raise data.error("certified", "cannot be true for a search-only result")
+        if values["certificate"] is not None:
+            values["certificate"].attrs["current"] = data.boolean("certificate_current")
+        return cls(**values)
+
+
+SAVED_FORMAT = "precrel.continuous_allocation"
+SAVED_FIELDS = (Flag("certified"), Number("rtol", positive=True),
+                Frame("certificate", ("allowed", "excess", "meets"), optional=True),
+                Frame("added", ("solve", "source", "output", "ratio")),
+                Integer("solves", low=0), Integer("certificate_calls", low=0),
+                Integer("searches", low=0), Number("seconds", low=0.0), Text("reason"),
+                Flag("searched_only"), Flag("capped"), Text("workspace", WORKSPACES))
 
 
 def continuous_unavailable(machine) -> str | None:

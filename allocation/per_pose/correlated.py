@@ -49,7 +49,10 @@ from scipy.optimize import minimize, nnls
 from threadpoolctl import threadpool_limits
 
 from reliability.basics.display import axis_units, pose_text
-from reliability.basics.errors import InputError
+from reliability.basics.errors import InputError, MachineDescriptionError
+from reliability.basics.saved_fields import (Array, Flag, Frame, Mapping, Number, Text, Texts,
+                                            read_fields, write_fields)
+from reliability.basics.saved_results import load_payload, save_payload
 from reliability.model.correlation import check_correlation_matrix
 from reliability.model.iso_names import iso_names
 from reliability.model.machine import OUTPUTS
@@ -119,6 +122,42 @@ class CorrelatedAllocation:
         verdict = "certified" if self.certified else "NOT certified"
         return (f"cost {self.cost:.6e} (dual bound {self.dual_bound:.6e}, relative gap "
                 f"{self.relative_gap:.2e}, {verdict}); {len(self.active)} binding row(s)")
+
+    def save(self, path, overwrite: bool = False):
+        """Save as JSON (:data:`SAVED_FIELDS` and ``forms``, the binding rows' linear forms
+        :meth:`sensitivity` reads; tag :data:`SAVED_FORMAT`). An existing file is kept
+        unless ``overwrite``. Returns the path."""
+        payload = write_fields(self, SAVED_FIELDS)
+        payload["forms"] = self._forms
+        return save_payload(path, SAVED_FORMAT, payload, overwrite)
+
+    @classmethod
+    def load(cls, path) -> "CorrelatedAllocation":
+        """Reload an allocation written by :meth:`save`, every field checked: the
+        relative gap follows from cost and dual bound, the correlation is a correlation
+        matrix and ``forms`` has one row per binding row; the certificate and the
+        sensitivities are the saved ones. A damaged field raises
+        :class:`~reliability.basics.errors.SavedResultError` naming the file and field."""
+        data = load_payload(path, SAVED_FORMAT)
+        values = read_fields(data, SAVED_FIELDS)
+        try:
+            check_correlation_matrix(values["correlation"], values["names"])
+        except MachineDescriptionError as exc:
+            raise data.error("correlation", str(exc)) from None
+        gap = (values["cost"] - values["dual_bound"]) / values["cost"]
+        if not np.isclose(values["relative_gap"], gap, rtol=1e-9, atol=1e-15):
+            raise data.error("relative_gap", "is not (cost - dual_bound) / cost")
+        forms = data.array("forms", (len(values["active"]), len(values["names"])))
+        return cls(**values, _forms=forms)
+
+
+SAVED_FORMAT = "precrel.correlated_allocation"
+SAVED_FIELDS = (Texts("names", "n", unique=True), Array("tolerances", ("n",), positive=True),
+                Number("cost", positive=True), Number("dual_bound"), Number("relative_gap"),
+                Number("stationarity", low=0.0), Number("primal_feasibility", low=0.0),
+                Flag("certified"), Frame("active", ("output", "multiplier")),
+                Array("correlation", ("n", "n"), low=-1.0, high=1.0), Mapping("rows"),
+                Text("message"))
 
 
 def solve_correlated(machine, poses=None, *, correlation=None, side: str = "two_sided",

@@ -29,8 +29,9 @@ from reliability.model.machine import OUTPUTS
 
 from ..solvers.convex import InfeasibleAllocationError, largest_fraction, solve_convex_allocation
 from ..solvers.gwo import grey_wolf
-from .result_files import (NEARLY_FREE_SHARE, allocation_summary, allocation_to_csv,
-                           load_allocation, save_allocation)
+from .result_files import (NEARLY_FREE_SHARE, allocation_from_payload, allocation_payload,
+                           allocation_summary, allocation_to_csv, load_allocation,
+                           save_allocation)
 
 CONVEX_BETA = np.sqrt(3.0)  # Φ(β) and 2Φ(β)−1 are concave in σ² for β ≥ √3
 
@@ -219,6 +220,17 @@ class AllocationResult:
         ``problem`` the result carries a :class:`~allocation.per_pose.result_files.SavedProblem`;
         a given problem is checked to be the saved one."""
         return load_allocation(cls, path, problem)
+
+    def payload(self) -> dict:
+        """The JSON-ready fields :meth:`save` writes, for saving inside another result
+        (:func:`allocation.result_files.allocation_payload`)."""
+        return allocation_payload(self)
+
+    @classmethod
+    def from_payload(cls, data, problem=None) -> "AllocationResult":
+        """The result :meth:`payload` wrote, read through ``data`` and checked as
+        :meth:`load` says."""
+        return allocation_from_payload(cls, data, problem)
 
 
 def solve_exact(problem, *, gap_tol: float = 1e-6) -> AllocationResult:

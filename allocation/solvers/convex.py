@@ -50,6 +50,9 @@ import numpy as np
 import pandas as pd
 from scipy.optimize import minimize, nnls
 
+from reliability.basics.saved_fields import (Array, Flag, Nested, Number, Text, load_fields,
+                                            read_fields, save_fields, write_fields)
+
 __all__ = [
     "ConvexSolution",
     "InfeasibleAllocationError",
@@ -114,6 +117,19 @@ class KktResiduals:
     stationarity: float
     primal_feasibility: float
     complementary_slackness: float
+
+    def payload(self) -> dict:
+        """The three residuals, JSON-ready (saved inside a :class:`ConvexSolution`)."""
+        return write_fields(self, KKT_FIELDS)
+
+    @classmethod
+    def from_payload(cls, data) -> "KktResiduals":
+        """The residuals :meth:`payload` wrote, read through ``data`` and checked."""
+        return cls(**read_fields(data, KKT_FIELDS))
+
+
+KKT_FIELDS = (Number("stationarity", low=0.0), Number("primal_feasibility", low=0.0),
+              Number("complementary_slackness", low=0.0))
 
 
 @dataclass(frozen=True, eq=False)
@@ -181,6 +197,49 @@ class ConvexSolution:
         frame = pd.DataFrame({"u": self.u, "t": self.t, "status": status})
         frame.index.name = "item"
         return frame
+
+    def summary(self) -> str:
+        """The cost, the certificate (gap and KKT residuals) and what binds."""
+        verdict = "certified" if self.success else "NOT certified"
+        return (f"Convex allocation: cost {self.fun:.6g}, dual bound {self.dual_bound:.6g} "
+                f"(relative gap {self.relative_gap:.2e}), {verdict}; stationarity "
+                f"{self.kkt.stationarity:.2e}, primal feasibility "
+                f"{self.kkt.primal_feasibility:.2e}; {len(self.active)} active rows, "
+                f"{len(self.at_lower)} items at their lower and {len(self.at_upper)} at their "
+                f"upper bound, {len(self.locked)} locked\n{self.message}")
+
+    def save(self, path, overwrite: bool = False):
+        """Save as JSON (:data:`SAVED_FIELDS`, tag :data:`SAVED_FORMAT`); an existing file
+        is kept unless ``overwrite``. Returns the path."""
+        return save_fields(self, path, SAVED_FORMAT, SAVED_FIELDS, overwrite)
+
+    @classmethod
+    def load(cls, path) -> "ConvexSolution":
+        """Reload a solution written by :meth:`save`, checked: ``t`` follows from ``u``
+        (``√u`` or ``u``), the gap is ``fun − dual_bound`` and the item and row numbers are
+        in range, so the certificate is the saved one. A damaged field raises
+        :class:`~reliability.basics.errors.SavedResultError` naming the file and field."""
+        data, values = load_fields(path, SAVED_FORMAT, SAVED_FIELDS)
+        u, t = values["u"], values["t"]
+        if not (np.allclose(t, np.sqrt(u), rtol=1e-12) or np.array_equal(t, u)):
+            raise data.error("t", "is neither sqrt(u) nor u")
+        if not np.isclose(values["duality_gap"], values["fun"] - values["dual_bound"],
+                          rtol=1e-9, atol=1e-300):
+            raise data.error("duality_gap", "is not fun - dual_bound")
+        for key, size in (("active", len(values["multipliers"])), ("at_lower", len(u)),
+                          ("at_upper", len(u)), ("locked", len(u))):
+            if np.any(values[key] >= size):
+                raise data.error(key, f"holds numbers beyond {size - 1}")
+        return cls(**values)
+
+
+SAVED_FORMAT = "precrel.convex_solution"
+SAVED_FIELDS = (Array("u", ("n",), positive=True), Array("t", ("n",), positive=True),
+                Number("fun"), Array("multipliers", (None,), low=0.0), Number("dual_bound"),
+                Number("duality_gap"), Number("relative_gap"), Nested("kkt", KktResiduals),
+                *(Array(key, (None,), dtype=int, low=0)
+                  for key in ("active", "at_lower", "at_upper", "locked")),
+                Flag("success"), Text("message"))
 
 
 def solve_convex_allocation(

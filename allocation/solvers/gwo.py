@@ -47,6 +47,8 @@ import pandas as pd
 
 from reliability.basics import streams
 from reliability.basics.errors import InputError
+from reliability.basics.saved_fields import (Array, Flag, Frame, Integer, Number, load_fields,
+                                            save_fields)
 
 __all__ = ["GwoResult", "grey_wolf", "grey_wolf_reference"]
 
@@ -95,6 +97,33 @@ class GwoResult:
                 "n_evaluations": [self.n_evaluations],
             }
         )
+
+    def summary(self) -> str:
+        """The best objective, its feasibility and the run's length."""
+        verdict = "feasible" if self.feasible else f"NOT feasible (violation {self.violation:.3g})"
+        return (f"Grey Wolf Optimiser: best objective {self.fun:.6g}, {verdict}; "
+                f"{self.n_evaluations} evaluations over {len(self.history) - 1} iterations")
+
+    def save(self, path, overwrite: bool = False):
+        """Save as JSON (:data:`SAVED_FIELDS`, tag :data:`SAVED_FORMAT`); an existing file
+        is kept unless ``overwrite``. Returns the path."""
+        return save_fields(self, path, SAVED_FORMAT, SAVED_FIELDS, overwrite)
+
+    @classmethod
+    def load(cls, path) -> "GwoResult":
+        """Reload a run written by :meth:`save`, checked: feasible exactly when the
+        violation is 0. A damaged field raises
+        :class:`~reliability.basics.errors.SavedResultError` naming the file and field."""
+        data, values = load_fields(path, SAVED_FORMAT, SAVED_FIELDS)
+        if values["feasible"] != (values["violation"] == 0):
+            raise data.error("feasible", "must be true exactly when 'violation' is 0")
+        return cls(**values)
+
+
+SAVED_FORMAT = "precrel.gwo_result"
+SAVED_FIELDS = (Array("x", (None,)), Number("fun"), Number("violation", low=0.0),
+                Flag("feasible"), Frame("history", ("fun", "violation", "feasible")),
+                Integer("n_evaluations", low=1))
 
 
 def grey_wolf(

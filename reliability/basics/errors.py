@@ -21,8 +21,9 @@ class SizeBudgetError(InputError):
     proceed (fewer points, explicit poses, smaller chunks)."""
 
 
-class SavedResultError(ValueError):
-    """A saved result is damaged or inconsistent; the message names the file, row and column."""
+class SavedResultError(InputError):
+    """A saved result is damaged or inconsistent; the message names the file, row and column
+    (or field). An :class:`InputError`: a damaged file is bad input to the reader."""
 
 
 class MachineDescriptionError(ValueError):

@@ -19,6 +19,7 @@ import json
 import math
 from importlib import metadata
 from pathlib import Path
+from typing import Protocol, runtime_checkable
 
 import numpy as np
 import pandas as pd
@@ -28,6 +29,22 @@ from .files import atomic_write_text, check_destination, check_path
 
 FORMAT_VERSION = 1
 DISTRIBUTION = "precision-reliability"
+
+
+@runtime_checkable
+class SavedResult(Protocol):
+    """What every result a user can get offers: ``summary()`` (readable text),
+    ``to_frame()`` (a DataFrame), ``save(path, overwrite=False)`` and the classmethod
+    ``load(path)``, which checks the file and keeps the result's verdicts."""
+
+    def summary(self) -> str: ...
+
+    def to_frame(self) -> pd.DataFrame: ...
+
+    def save(self, path, overwrite: bool = False) -> Path: ...
+
+    @classmethod
+    def load(cls, path): ...
 
 
 def toolkit_version() -> str:
@@ -200,9 +217,10 @@ class PayloadReader:
         return value
 
     def array(self, key: str, shape: tuple, *, dtype=float, low=None, high=None,
-              positive: bool = False) -> np.ndarray:
-        """A numeric array of exactly ``shape`` (None entries match any length), finite,
-        optionally ``> 0`` or within ``[low, high]``."""
+              positive: bool = False, nan: bool = False) -> np.ndarray:
+        """A numeric array of exactly ``shape`` (None entries match any length), finite
+        (or NaN, a value not computed, when ``nan``), optionally ``> 0`` or within
+        ``[low, high]``."""
         value = self.raw(key)
         try:
             array = np.array(value, dtype=float)
@@ -212,17 +230,17 @@ class PayloadReader:
                          for i, n in enumerate(shape))
         if array.shape != expected:
             raise self.error(key, f"expected shape {_shape_text(shape)}, got {array.shape}")
-        self._check_values(key, array, low, high, positive, dtype)
+        self._check_values(key, array, low, high, positive, dtype, nan)
         return array.astype(dtype)
 
-    def _check_values(self, key, array, low, high, positive, dtype):
-        bad = ~np.isfinite(array)
-        what = ["finite"]
+    def _check_values(self, key, array, low, high, positive, dtype, nan=False):
+        bad = np.isinf(array) if nan else ~np.isfinite(array)
+        what = ["finite or NaN" if nan else "finite"]
         if dtype is not float:
             bad |= array != np.round(array)
             what.append("whole numbers")
         if positive:
-            bad |= ~(array > 0)
+            bad |= ~(array > 0) & ~np.isnan(array)
             what.append("> 0")
         if low is not None or high is not None:
             bad |= (array < (-np.inf if low is None else low)) | \

@@ -16,6 +16,7 @@ import numpy as np
 import pandas as pd
 
 from ..basics.errors import InputError
+from .compensation_files import internal_positions, read_compensation_fields, write_compensation
 
 #: Default spacing of the table positions (mm along a linear axis, degrees about a rotary one).
 DEFAULT_SPACING_MM = 10.0
@@ -73,6 +74,54 @@ class CompensationTables:
         for name, value in zip(self.assembly["error"], self.assembly["value"]):
             out[..., self.machine.error_index(name)] = value
         return out
+
+    def to_frame(self) -> pd.DataFrame:
+        """Every tabled value, one row each: ``table`` (an axis or ``assembly``),
+        ``position`` (mm or degrees; NaN for a constant error), ``error`` (ISO 230-1
+        symbol) and ``value`` (mm, rad)."""
+        parts = [pd.DataFrame({"table": name, "position": table.iloc[:, 0].to_numpy()
+                               .repeat(table.shape[1] - 1),
+                               "error": np.tile(table.columns[1:], len(table)),
+                               "value": table.iloc[:, 1:].to_numpy().ravel()})
+                 for name, table in self.axes.items()]
+        parts.append(pd.DataFrame({"table": "assembly", "position": np.nan,
+                                   "error": self.assembly["iso"].to_numpy(),
+                                   "value": self.assembly["value"].to_numpy()}))
+        return pd.concat(parts, ignore_index=True)
+
+    def summary(self) -> str:
+        """What the tables correct, their spacing and their largest value."""
+        frame = self.to_frame()
+        lines = [f"Compensation tables of {self.machine.name!r}: {len(self.items)} errors "
+                 f"corrected, every {self.spacing_mm:g} mm and {self.spacing_deg:g} degrees"]
+        for name, table in self.axes.items():
+            values = frame[frame["table"] == name]["value"].abs()
+            largest = f"largest |value| {values.max():.3g}" if len(values) else "no error"
+            lines.append(f"  axis {name}: {len(table)} positions, {table.shape[1] - 1} "
+                         f"errors, {largest}")
+        lines.append(f"  constant errors: {len(self.assembly)} "
+                     f"({', '.join(self.assembly['iso']) or 'none'})")
+        return "\n".join(lines)
+
+    def save(self, folder, overwrite: bool = False):
+        """Write the folder of tables
+        (:func:`reliability.compensation.compensation_files.write_compensation`; with
+        ``overwrite`` earlier tables it does not replace are removed). Returns the
+        folder."""
+        return write_compensation(self, folder, overwrite)
+
+    @classmethod
+    def load(cls, folder, machine) -> "CompensationTables":
+        """The tables saved in ``folder`` for ``machine`` (which the folder names but does
+        not hold), checked
+        (:func:`reliability.compensation.compensation_files.read_compensation_fields`);
+        every value comes back to the last digit."""
+        return cls(**read_compensation_fields(folder, machine))
+
+
+def read_compensation(folder, machine) -> CompensationTables:
+    """The compensation tables in ``folder`` for ``machine``: :meth:`CompensationTables.load`."""
+    return CompensationTables.load(folder, machine)
 
 
 def compensation_tables(identification, *, spacing_mm: float = DEFAULT_SPACING_MM,
@@ -157,12 +206,6 @@ def _table_coordinate(axis, positions) -> np.ndarray:
     """Positions as a table reads them: a full turn's wrapped into [0, 2π)."""
     positions = np.asarray(positions, dtype=float)
     return positions % (2 * math.pi) if axis.full_turn else positions
-
-
-def internal_positions(axis, column) -> np.ndarray:
-    """A table's position column in mm or rad."""
-    values = np.asarray(column, dtype=float)
-    return np.radians(values) if axis.kind == "rotary" else values
 
 
 def _middle_pose(machine) -> np.ndarray:

@@ -246,7 +246,11 @@ class FosmResult:
     def save(self, path, overwrite: bool = False):
         """Save as JSON with its metadata (:mod:`reliability.basics.saved_results`); an
         existing file is kept unless ``overwrite``. Returns the path."""
-        payload = {"machine": self.machine, "axes": self.axes, "units": self.units,
+        return save_payload(path, SAVED_FORMAT, self.payload(), overwrite)
+
+    def payload(self) -> dict:
+        """The JSON-ready fields :meth:`save` writes (also inside other saved results)."""
+        return {"machine": self.machine, "axes": self.axes, "units": self.units,
                    "k": self.k, "distribution": self.distribution, "frame": self.frame,
                    "poses": self.poses,
                    "limits": self.limits, "targets": self.targets, "mean": self.mean,
@@ -254,7 +258,6 @@ class FosmResult:
                    "two_sided": self.two_sided, "exact_two_sided": self.exact_two_sided,
                    "worst_pose": self.worst_pose,
                    "contributions": encode_frame(self.contributions)}
-        return save_payload(path, SAVED_FORMAT, payload, overwrite)
 
     @classmethod
     def load(cls, path) -> "FosmResult":
@@ -267,7 +270,13 @@ class FosmResult:
         before that field existed loads (the field is ``two_sided``) unless its reading was
         'truncated'.
         """
-        data = load_payload(path, SAVED_FORMAT)
+        return cls.from_payload(load_payload(path, SAVED_FORMAT))
+
+    @classmethod
+    def from_payload(cls, data) -> "FosmResult":
+        """The result from the fields :meth:`payload` wrote, read through ``data`` (a
+        :class:`~reliability.basics.saved_results.PayloadReader`), checked as
+        :meth:`load` says."""
         axes = data.texts("axes", unique=True)
         units = data.texts("units", size=len(axes))
         for position, unit in enumerate(units):

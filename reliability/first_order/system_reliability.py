@@ -37,6 +37,7 @@ from scipy.stats import qmc
 from ..basics import streams
 from ..basics.display import axis_units, bound_text, pose_text
 from ..basics.errors import InputError
+from ..basics.saved_fields import Array, Integer, Texts, load_fields, save_fields
 from ..basics.ties import worst_rows
 from ..model.machine import OUTPUTS
 from .fosm import two_sided_probability
@@ -86,6 +87,25 @@ class SystemReliability:
     n_points: int
     n_batches: int
     units: tuple = ()
+
+    def save(self, path, overwrite: bool = False):
+        """Save as JSON (:data:`SAVED_FIELDS`, tag :data:`SAVED_FORMAT`); an existing file
+        is kept unless ``overwrite``. Returns the path."""
+        return save_fields(self, path, SAVED_FORMAT, SAVED_FIELDS, overwrite)
+
+    @classmethod
+    def load(cls, path) -> "SystemReliability":
+        """Reload a result written by :meth:`save`, every field checked; the bounds must
+        follow from the saved marginals, so the worst pose and its verdicts are the saved
+        ones. A damaged field raises
+        :class:`~reliability.basics.errors.SavedResultError` naming the file and field."""
+        data, values = load_fields(path, SAVED_FORMAT, SAVED_FIELDS)
+        marginal = values["marginal"]
+        for key, expected in (("product", marginal.prod(axis=1)),
+                              ("bonferroni", np.maximum(0.0, 1.0 - (1.0 - marginal).sum(1)))):
+            if not np.allclose(values[key], expected, rtol=1e-12, atol=1e-15):
+                raise data.error(key, "does not follow from the saved marginals")
+        return cls(**values)
 
     @property
     def worst(self) -> int:
@@ -140,6 +160,18 @@ class SystemReliability:
         return (f"SystemReliability(n_poses={len(self.probability)}, worst pose "
                 f"{positions}: {self.worst_probability:.6g} ± "
                 f"{self.error[self.worst]:.2g})")
+
+
+SAVED_FORMAT = "precrel.system_reliability"
+SAVED_FIELDS = (Array("poses", ("n", None)), Array("index", ("n",), dtype=int, low=0),
+                Texts("axes", unique=True),
+                Array("probability", ("n",), low=0.0, high=1.0),
+                Array("error", ("n",), low=0.0),
+                Array("product", ("n",), low=0.0, high=1.0),
+                Array("bonferroni", ("n",), low=0.0, high=1.0),
+                Array("marginal", ("n", len(OUTPUTS)), low=0.0, high=1.0),
+                Integer("n_points", low=1), Integer("n_batches", low=1),
+                Texts("units"))
 
 
 def system_reliability(machine, tolerances, poses, *, k: float = 3.0, n_points: int = 1024,

@@ -36,6 +36,7 @@ from ..basics.chunks import chunks, jacobian_bytes
 from ..basics.errors import InputError
 from ..model.error_draws import psd_factor
 from .measurement_files import QUANTITIES, Measurements
+from .identification_files import read_identification_fields, write_identification
 from .information import add_readings, eliminate_setups, empty_blocks, setup_effect, solve
 from .plans import planned_readings
 from .relinearisation import gauss_newton
@@ -250,6 +251,27 @@ class Identification:
                 "iterations": int(self.iterations), "change": float(self.change),
                 "settled": bool(self.settled)}
 
+    def to_frame(self) -> pd.DataFrame:
+        """The errors' posterior, one row per error: :attr:`errors`."""
+        return self.errors
+
+    def save(self, folder, overwrite: bool = False) -> tuple:
+        """Write the identification's folder
+        (:func:`reliability.measured.identification_files.write_identification`): with
+        ``overwrite`` an earlier identification's files this one does not write are
+        removed. Returns the names of the files written."""
+        return write_identification(self, folder, overwrite)
+
+    @classmethod
+    def load(cls, folder, machine) -> "Identification":
+        """The identification saved in ``folder``, on ``machine`` (the one it was identified
+        on, which the folder does not hold), checked
+        (:func:`reliability.measured.identification_files.read_identification_fields`); a
+        damaged file raises :class:`~reliability.basics.errors.SavedResultError` naming it.
+        The posterior means and σ come back to the six digits of ``errors.csv`` under
+        ``constant``, every digit under ``gp``."""
+        return cls(**read_identification_fields(folder, machine))
+
     def summary(self) -> str:
         """The identification in words: rank, condition, combinations, χ² check."""
         lines = [f"{len(self.residuals)} readings, {self.machine.n_errors} errors, "
@@ -285,6 +307,11 @@ class Identification:
         return (f"re-linearised on the exact chain at the posterior mean: {self.iterations} "
                 f"iteration{'s' if self.iterations > 1 else ''}, {settled}; the largest "
                 f"change of a posterior mean is {self.change:.3g} of its posterior sigma")
+
+
+def read_identification(folder, machine) -> Identification:
+    """The identification saved in ``folder`` on ``machine``: :meth:`Identification.load`."""
+    return Identification.load(folder, machine)
 
 
 def identify(machine, measurements: Measurements, *, tolerances=None, profile="constant",

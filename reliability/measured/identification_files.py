@@ -1,13 +1,15 @@
-"""An identification's folder read back (docs/measurements.md).
+"""An identification's folder, written and read back (docs/measurements.md).
 
-``precrel identify --out DIR`` writes ``errors.csv``, ``setup.csv``, ``residuals.csv``,
-``summary.json`` and ``covariance.npy`` (the posterior covariance of the errors, every digit
-kept); under a profile along travel (``gp:<ℓ>``) also ``profiles.csv`` and
-``coefficients.npz``: the prior σ = t/3 of every error, the posterior mean and covariance of
-the coefficients, and per axis the grid, the Karhunen–Loève loadings and the positions read,
-every digit kept. :func:`read_identification` rebuilds the :class:`Identification` from them
-and checks them first: the errors must be the machine's, in its order; the covariances
-square, finite, symmetric and positive semi-definite, the errors' diagonal the
+:func:`write_identification` (``Identification.save``, ``precrel identify --out DIR``)
+writes ``errors.csv``, ``setup.csv``, ``residuals.csv``, ``summary.json`` and
+``covariance.npy`` (the posterior covariance of the errors, every digit kept); under a
+profile along travel (``gp:<ℓ>``) also ``profiles.csv`` and ``coefficients.npz``: the prior
+σ = t/3 of every error, the posterior mean and covariance of the coefficients, and per axis
+the grid, the Karhunen–Loève loadings and the positions read, every digit kept; the tables
+are written to :data:`~reliability.basics.files.SIGNIFICANT` digits.
+:func:`read_identification_fields` (``Identification.load``) reads the identification back
+from them and checks them first: the errors must be the machine's, in its order; the
+covariances square, finite, symmetric and positive semi-definite, the errors' diagonal the
 ``posterior_sd`` of ``errors.csv``; the profile one an identification takes. Under ``gp``
 the basis is built again from the machine and the profile
 (:func:`reliability.measured.travel_bases.travel_bases`): the saved grid must be its grid
@@ -27,13 +29,18 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from ..basics.errors import InputError
-from ..basics.files import SIGNIFICANT, atomic_write_bytes
-from .identification import Identification
+from ..basics.errors import InputError, SavedResultError
+from ..basics.files import (SIGNIFICANT, atomic_write_bytes, atomic_write_text,
+                            check_destination, write_csv)
+from ..basics.saved_results import PayloadReader
 from .travel_bases import Coefficients, GaussianBasis, cross_correlation, travel_bases
 
 COVARIANCE_FILE = "covariance.npy"
 COEFFICIENTS_FILE = "coefficients.npz"
+#: Every file an identification folder may hold (``profiles.csv`` and ``coefficients.npz``
+#: only under ``gp``).
+IDENTIFICATION_FILES = ("errors.csv", "profiles.csv", "setup.csv", "residuals.csv",
+                        "summary.json", COVARIANCE_FILE, COEFFICIENTS_FILE)
 ERROR_COLUMNS = ("error", "prior_sd", "posterior_mean", "posterior_sd", "lower", "upper")
 SUMMARY_KEYS = ("rank", "condition", "chi2", "dof", "profile", "combinations", "prior_like")
 #: Relative disagreement allowed between ``posterior_sd`` (written to :data:`SIGNIFICANT`
@@ -49,7 +56,45 @@ BASIS_AGREEMENT = 1e-6
 #: coefficients give (both every digit, formed in a different order).
 COVARIANCE_AGREEMENT = 1e-9
 #: Keys of ``summary.json`` that pass into the identification when present.
-STATUS_KEYS = {"iterations": int, "change": float, "settled": bool}
+STATUS_KEYS = ("iterations", "change", "settled")
+
+
+def write_identification(identification, folder, overwrite: bool = False) -> tuple:
+    """Write ``identification`` into ``folder`` (made if missing): the files of
+    :data:`IDENTIFICATION_FILES` it holds, ``profiles.csv`` and ``coefficients.npz`` only
+    under a profile along travel.
+
+    With ``overwrite`` an earlier identification in the folder is replaced, and those of
+    its files this one does not write (``profiles.csv`` and ``coefficients.npz`` of an
+    earlier ``gp`` run under ``constant``) are removed, so the folder holds this run only;
+    other files in the folder are left alone. Returns the names written, in the order of
+    :data:`IDENTIFICATION_FILES`.
+
+    Raises
+    ------
+    FileExistsError
+        The folder holds an identification's file and not ``overwrite``.
+    """
+    folder = check_destination(folder, overwrite, folder=True, markers=IDENTIFICATION_FILES)
+    folder.mkdir(exist_ok=True)
+    digits = f"%.{SIGNIFICANT}g"
+    varies = identification.coefficients.varies
+    tables = {"errors.csv": identification.errors, "setup.csv": identification.setup,
+              "residuals.csv": identification.residuals}
+    if varies:
+        tables["profiles.csv"] = identification.profiles
+    for name, table in tables.items():
+        write_csv(table, folder / name, overwrite=overwrite, index=False, float_format=digits)
+    atomic_write_text(folder / "summary.json",
+                      json.dumps(identification.summary_dict(), indent=2) + "\n", overwrite)
+    write_covariance(identification, folder / COVARIANCE_FILE, overwrite)
+    if varies:
+        write_coefficients(identification, folder / COEFFICIENTS_FILE, overwrite)
+    written = tuple(name for name in IDENTIFICATION_FILES
+                    if varies or name not in ("profiles.csv", COEFFICIENTS_FILE))
+    for name in set(IDENTIFICATION_FILES) - set(written):
+        (folder / name).unlink(missing_ok=True)
+    return written
 
 
 def write_covariance(identification, path, overwrite: bool = False) -> Path:
@@ -77,8 +122,10 @@ def write_coefficients(identification, path, overwrite: bool = False) -> Path:
     return atomic_write_bytes(path, buffer.getvalue(), overwrite)
 
 
-def read_identification(folder, machine) -> Identification:
-    """The identification written by ``precrel identify --out folder``, checked.
+def read_identification_fields(folder, machine) -> dict:
+    """The fields of the :class:`~reliability.measured.identification.Identification`
+    written into ``folder`` by :func:`write_identification` (``precrel identify --out
+    folder``), checked; ``Identification.load`` builds the identification from them.
 
     Parameters
     ----------
@@ -88,8 +135,9 @@ def read_identification(folder, machine) -> Identification:
 
     Raises
     ------
-    InputError
-        Naming the file and what is wrong: a missing file, column or array, errors that
+    SavedResultError
+        (an :class:`~reliability.basics.errors.InputError`) Naming the file and what is
+        wrong: a missing file, column or array, errors that
         are not the machine's, a covariance of the wrong shape, not symmetric, not positive
         semi-definite or not matching ``posterior_sd``, a profile an identification does
         not take, coefficients whose basis is not the profile's or that do not give
@@ -97,8 +145,8 @@ def read_identification(folder, machine) -> Identification:
     """
     folder = Path(folder)
     if not folder.is_dir():
-        raise InputError(f"identification {folder}: not a folder (expected what precrel "
-                         f"identify --out writes)")
+        raise SavedResultError(f"identification {folder}: not a folder (expected what precrel "
+                               f"identify --out writes)")
     errors = _read_errors(folder / "errors.csv", machine)
     summary = _read_summary(folder / "summary.json")
     bases = _profile_bases(folder / "summary.json", machine, summary["profile"])
@@ -109,24 +157,25 @@ def read_identification(folder, machine) -> Identification:
     if any(isinstance(basis, GaussianBasis) for basis in bases):
         posterior = _read_coefficients(folder / COEFFICIENTS_FILE, machine, bases, errors,
                                        covariance)
-    status = {key: kind(summary[key]) for key, kind in STATUS_KEYS.items() if key in summary}
-    return Identification(
+    status = {key: summary[key] for key in STATUS_KEYS if key in summary}
+    return dict(
         machine=machine, profile=summary["profile"], **posterior,
         setup=_read_table(folder / "setup.csv", ("setup", "estimate", "sd")),
-        rank=int(summary["rank"]), condition=float(summary["condition"]),
-        combinations=tuple(summary["combinations"]), prior_like=tuple(summary["prior_like"]),
+        rank=summary["rank"], condition=summary["condition"],
+        combinations=summary["combinations"], prior_like=summary["prior_like"],
         residuals=_read_table(folder / "residuals.csv",
                               ("row", "run", "quantity", "value", "fitted", "normalised")),
-        chi2=float(summary["chi2"]), dof=int(summary["dof"]), **status)
+        chi2=summary["chi2"], dof=summary["dof"], **status)
 
 
 def _read_table(path, columns) -> pd.DataFrame:
     if not path.is_file():
-        raise InputError(f"{path}: missing; an identification folder holds it")
+        raise SavedResultError(f"{path}: missing; an identification folder holds it")
     table = pd.read_csv(path)
     missing = [c for c in columns if c not in table.columns]
     if missing:
-        raise InputError(f"{path}: missing column {missing[0]!r}; expected {', '.join(columns)}")
+        raise SavedResultError(f"{path}: missing column {missing[0]!r}; expected "
+                               f"{', '.join(columns)}")
     return table
 
 
@@ -139,72 +188,82 @@ def _read_errors(path, machine) -> pd.DataFrame:
         what = (f"error {extra[0]!r} is not one of the machine's" if extra else
                 f"error {missing[0]!r} of the machine is missing" if missing else
                 "the errors are not in the machine's order")
-        raise InputError(f"{path}: {what}; identify this machine ({machine.name!r}) to read "
-                         f"its identification")
+        raise SavedResultError(f"{path}: {what}; identify this machine ({machine.name!r}) to read "
+                               f"its identification")
     numbers = table[list(ERROR_COLUMNS[1:])].apply(pd.to_numeric, errors="coerce")
     bad = np.argwhere(~np.isfinite(numbers.to_numpy(dtype=float)))
     if bad.size:
         row, column = bad[0]
-        raise InputError(f"{path}: row {row + 1}, column {numbers.columns[column]!r}: "
-                         f"expected a finite number")
+        raise SavedResultError(f"{path}: row {row + 1}, column {numbers.columns[column]!r}: "
+                               f"expected a finite number")
     if np.any(numbers["prior_sd"] <= 0):
         row = int(np.flatnonzero(numbers["prior_sd"].to_numpy() <= 0)[0])
-        raise InputError(f"{path}: row {row + 1}, column 'prior_sd': expected a number > 0")
+        raise SavedResultError(f"{path}: row {row + 1}, column 'prior_sd': expected a number > 0")
     return pd.concat([table[["error"]], numbers], axis=1)
 
 
 def _read_summary(path) -> dict:
     if not path.is_file():
-        raise InputError(f"{path}: missing; an identification folder holds it")
+        raise SavedResultError(f"{path}: missing; an identification folder holds it")
     try:
         summary = json.loads(path.read_text(encoding="utf-8"))
     except json.JSONDecodeError as exc:
-        raise InputError(f"{path}: not valid JSON: {exc}") from None
+        raise SavedResultError(f"{path}: not valid JSON: {exc}") from None
     missing = [key for key in SUMMARY_KEYS if key not in summary]
     if missing:
-        raise InputError(f"{path}: missing key {missing[0]!r}")
-    return summary
+        raise SavedResultError(f"{path}: missing key {missing[0]!r}")
+    data = PayloadReader(path, summary, "")
+    checked = {"rank": data.integer("rank", low=0),
+               "condition": data.number("condition", finite=False),
+               "chi2": data.number("chi2"), "dof": data.integer("dof"),
+               "profile": summary["profile"], "combinations": data.texts("combinations"),
+               "prior_like": data.texts("prior_like")}
+    status = {"iterations": lambda: data.integer("iterations", low=0),
+              "change": lambda: data.number("change", finite=False),
+              "settled": lambda: data.boolean("settled")}
+    checked.update({key: status[key]() for key in STATUS_KEYS if key in summary})
+    return checked
 
 
 def _profile_bases(path, machine, profile) -> tuple:
     """The bases of ``profile`` on ``machine``, built again; a profile an identification
     does not take is refused naming ``path``."""
     if not isinstance(profile, str):
-        raise InputError(f"{path}: 'profile': expected 'constant' or 'gp:<length mm>'; got "
-                         f"{profile!r}")
+        raise SavedResultError(f"{path}: 'profile': expected 'constant' or "
+                                     f"'gp:<length mm>'; got {profile!r}")
     try:
         return travel_bases(machine, profile)
     except InputError as exc:
-        raise InputError(f"{path}: {exc}") from None
+        raise SavedResultError(f"{path}: {exc}") from None
 
 
 def _read_covariance(path, errors) -> np.ndarray:
     if not path.is_file():
-        raise InputError(f"{path}: missing; precrel identify --out writes it")
+        raise SavedResultError(f"{path}: missing; precrel identify --out writes it")
     try:
         covariance = np.load(path, allow_pickle=False)
     except (ValueError, OSError) as exc:
-        raise InputError(f"{path}: not a numpy array file: {exc}") from None
+        raise SavedResultError(f"{path}: not a numpy array file: {exc}") from None
     n = len(errors)
     if covariance.shape != (n, n) or not np.issubdtype(covariance.dtype, np.floating):
-        raise InputError(f"{path}: expected a ({n}, {n}) float array, one row and column per "
-                         f"error; got {covariance.dtype} {covariance.shape}")
+        raise SavedResultError(f"{path}: expected a ({n}, {n}) float array, one row and column per "
+                               f"error; got {covariance.dtype} {covariance.shape}")
     _check_covariance(path, "the covariance", covariance)
     _check_sd(path, errors, covariance)
     return covariance
 
 
 def _check_covariance(path, what: str, covariance) -> None:
-    """Finite, symmetric and positive semi-definite, or an InputError naming ``what``."""
+    """Finite, symmetric and positive semi-definite, or a SavedResultError naming ``what``."""
     if not np.all(np.isfinite(covariance)):
-        raise InputError(f"{path}: {what} holds numbers that are not finite")
+        raise SavedResultError(f"{path}: {what} holds numbers that are not finite")
     scale = np.abs(covariance).max()
     if np.abs(covariance - covariance.T).max() > SYMMETRY_TOLERANCE * scale:
-        raise InputError(f"{path}: {what} is not symmetric")
+        raise SavedResultError(f"{path}: {what} is not symmetric")
     values = np.linalg.eigvalsh(covariance)
     if values[0] < -PSD_TOLERANCE * max(values[-1], 0.0):
-        raise InputError(f"{path}: {what} is not positive semi-definite (eigenvalue "
-                         f"{values[0]:.3g})")
+        raise SavedResultError(f"{path}: {what} is not positive semi-definite (eigenvalue "
+                               f"{values[0]:.3g})")
 
 
 def _check_sd(path, errors, covariance) -> None:
@@ -213,9 +272,9 @@ def _check_sd(path, errors, covariance) -> None:
     off = np.abs(sd - written) > SD_AGREEMENT * np.maximum(np.abs(written), 1e-300)
     if off.any():
         row = int(np.flatnonzero(off)[0])
-        raise InputError(f"{path}: the covariance gives error {errors['error'].iloc[row]!r} "
-                         f"sd {sd[row]:.6g}, errors.csv says {written[row]:.6g}; the files "
-                         f"are not of one identification")
+        raise SavedResultError(f"{path}: the covariance gives error {errors['error'].iloc[row]!r} "
+                               f"sd {sd[row]:.6g}, errors.csv says {written[row]:.6g}; the files "
+                               f"are not of one identification")
 
 
 def _read_coefficients(path, machine, bases, errors, covariance) -> dict:
@@ -224,9 +283,9 @@ def _read_coefficients(path, machine, bases, errors, covariance) -> dict:
     arrays = _load_arrays(path)
     prior_sd = _array(path, arrays, "prior_sd", (machine.n_errors,))
     if np.any(prior_sd <= 0):
-        raise InputError(f"{path}: 'prior_sd' of error "
-                         f"{machine.error_names[int(np.argmax(prior_sd <= 0))]!r}: expected "
-                         f"a number > 0")
+        raise SavedResultError(f"{path}: 'prior_sd' of error "
+                               f"{machine.error_names[int(np.argmax(prior_sd <= 0))]!r}: expected "
+                               f"a number > 0")
     saved = tuple(_saved_basis(path, arrays, a, basis) for a, basis in enumerate(bases))
     coefficients = Coefficients(saved, prior_sd)
     theta = _array(path, arrays, "theta", (coefficients.size,))
@@ -242,35 +301,35 @@ def _read_coefficients(path, machine, bases, errors, covariance) -> dict:
     _check_rows(path, errors, posterior)
     given = rows @ theta_covariance @ rows.T
     if np.abs(given - covariance).max() > COVARIANCE_AGREEMENT * np.abs(covariance).max():
-        raise InputError(f"{path}: the coefficients' covariance does not give "
-                         f"{COVARIANCE_FILE}; the files are not of one identification")
+        raise SavedResultError(f"{path}: the coefficients' covariance does not give "
+                               f"{COVARIANCE_FILE}; the files are not of one identification")
     return posterior
 
 
 def _load_arrays(path) -> dict:
     if not path.is_file():
-        raise InputError(f"{path}: missing; precrel identify --out writes it under a "
-                         f"profile along travel")
+        raise SavedResultError(f"{path}: missing; precrel identify --out writes it under a "
+                               f"profile along travel")
     try:
         with np.load(path, allow_pickle=False) as loaded:
             return {key: loaded[key] for key in loaded.files}
     except (ValueError, OSError, EOFError, zipfile.BadZipFile, AttributeError) as exc:
-        raise InputError(f"{path}: not a numpy archive of arrays: {exc}") from None
+        raise SavedResultError(f"{path}: not a numpy archive of arrays: {exc}") from None
 
 
 def _array(path, arrays, key: str, shape: tuple) -> np.ndarray:
     """``arrays[key]``, a finite float array of ``shape`` (None: any length there)."""
     if key not in arrays:
-        raise InputError(f"{path}: missing array {key!r}")
+        raise SavedResultError(f"{path}: missing array {key!r}")
     value = arrays[key]
     fits = value.ndim == len(shape) and all(want is None or want == got
                                             for want, got in zip(shape, value.shape))
     if not fits or not np.issubdtype(value.dtype, np.floating):
         wanted = tuple("any" if want is None else want for want in shape)
-        raise InputError(f"{path}: array {key!r}: expected a float array of shape "
-                         f"{wanted}; got {value.dtype} {value.shape}")
+        raise SavedResultError(f"{path}: array {key!r}: expected a float array of shape "
+                               f"{wanted}; got {value.dtype} {value.shape}")
     if not np.all(np.isfinite(value)):
-        raise InputError(f"{path}: array {key!r} holds numbers that are not finite")
+        raise SavedResultError(f"{path}: array {key!r} holds numbers that are not finite")
     return value
 
 
@@ -281,15 +340,15 @@ def _saved_basis(path, arrays, a: int, rebuilt):
     name = rebuilt.axis.name
     points = _array(path, arrays, f"points_{a}", rebuilt.points.shape)
     if not np.allclose(points, rebuilt.points, rtol=1e-12, atol=1e-12):
-        raise InputError(f"{path}: array 'points_{a}': not the grid profile "
-                         f"{rebuilt.model} lays along axis {name!r}")
+        raise SavedResultError(f"{path}: array 'points_{a}': not the grid profile "
+                               f"{rebuilt.model} lays along axis {name!r}")
     loadings = _array(path, arrays, f"loadings_{a}", (len(points), None))
     saved = GaussianBasis(rebuilt.axis, rebuilt.model, points, loadings)
     gap = _grid_correlation_gap(saved, rebuilt)
     if gap > BASIS_AGREEMENT:
-        raise InputError(f"{path}: array 'loadings_{a}': not a basis of profile "
-                         f"{rebuilt.model} along axis {name!r} (the correlation it gives on "
-                         f"the grid differs by {gap:.2g}, at most {BASIS_AGREEMENT:g})")
+        raise SavedResultError(f"{path}: array 'loadings_{a}': not a basis of profile "
+                               f"{rebuilt.model} along axis {name!r} (the correlation it gives on "
+                               f"the grid differs by {gap:.2g}, at most {BASIS_AGREEMENT:g})")
     return saved
 
 
@@ -308,8 +367,8 @@ def _positions(path, arrays, a: int, axis) -> np.ndarray:
     low, high = axis.stroke
     margin = 1e-9 * max(1.0, abs(low), abs(high))
     if np.any((positions < low - margin) | (positions > high + margin)):
-        raise InputError(f"{path}: array {key!r}: positions outside the stroke of axis "
-                         f"{axis.name!r}")
+        raise SavedResultError(f"{path}: array {key!r}: positions outside the stroke of axis "
+                               f"{axis.name!r}")
     return positions
 
 
@@ -321,7 +380,7 @@ def _check_rows(path, errors, posterior) -> None:
         off = np.abs(given - written) > SD_AGREEMENT * np.maximum(np.abs(written), 1e-300)
         if off.any():
             row = int(np.flatnonzero(off)[0])
-            raise InputError(f"{path}: the coefficients give error "
-                             f"{errors['error'].iloc[row]!r} {column} {given[row]:.6g}, "
-                             f"errors.csv says {written[row]:.6g}; the files are not of one "
-                             f"identification")
+            raise SavedResultError(f"{path}: the coefficients give error "
+                                   f"{errors['error'].iloc[row]!r} {column} {given[row]:.6g}, "
+                                   f"errors.csv says {written[row]:.6g}; the files are not of one "
+                                   f"identification")

@@ -35,8 +35,11 @@ from typing import Mapping
 import numpy as np
 import pandas as pd
 
-from ..basics.errors import InputError
+from ..basics.errors import InputError, SavedResultError
 from ..basics.files import read_toml
+from ..basics.saved_fields import Array, Frame, Number, Text, read_fields, write_fields
+from ..basics.saved_fields import Mapping as SavedMapping
+from ..basics.saved_results import load_payload, save_payload
 from ..model.kinematics import output_variance
 from ..model.machine import OUTPUTS
 from ..model.poses import workspace_grid
@@ -124,6 +127,45 @@ class MeasurementPlan:
                   for i, added in zip(self.chosen, self.added)]
         return "\n".join(lines)
 
+    def to_frame(self) -> pd.DataFrame:
+        """Every candidate and whether it was chosen: :meth:`candidate_table`."""
+        return self.candidate_table()
+
+    def save(self, path, overwrite: bool = False):
+        """Save as JSON (:data:`SAVED_FIELDS` and every candidate's plan-file entry, tag
+        :data:`SAVED_FORMAT`); the machine is not saved. An existing file is kept unless
+        ``overwrite``. Returns the path."""
+        payload = write_fields(self, SAVED_FIELDS)
+        payload["candidates"] = [candidate.entry for candidate in self.candidates]
+        return save_payload(path, SAVED_FORMAT, payload, overwrite)
+
+    @classmethod
+    def load(cls, path, machine) -> "MeasurementPlan":
+        """Reload a plan written by :meth:`save` for ``machine`` (the one it was planned
+        for): the candidates are parsed again from their saved entries against it and
+        every field is checked (the chosen runs within the budget), so the choice and its
+        cost are the saved ones. A damaged field raises
+        :class:`~reliability.basics.errors.SavedResultError` naming the file and field."""
+        data = load_payload(path, SAVED_FORMAT)
+        entries = data.raw("candidates")
+        try:
+            candidates = parse_candidates({"tests": entries}, machine,
+                                          source=f"{path}: field 'candidates'")
+        except InputError as exc:
+            raise SavedResultError(str(exc)) from None
+        values = read_fields(data, SAVED_FIELDS)
+        chosen = values["chosen"]
+        if np.any(chosen >= len(candidates)) or len(set(chosen)) != len(chosen):
+            raise data.error("chosen", "expected distinct candidate numbers")
+        if len(values["added"]) != len(chosen) or len(values["alone"]) != len(candidates):
+            raise data.error("added", "expected one entry per chosen run ('alone': one per "
+                                      "candidate)")
+        values["chosen"] = tuple(int(i) for i in chosen)
+        plan = cls(machine=machine, candidates=candidates, **values)
+        if plan.cost > plan.budget * (1 + 1e-12):
+            raise data.error("chosen", "the chosen runs cost more than the budget")
+        return plan
+
     def to_toml(self, source: str = "") -> str:
         """The chosen runs as a plan file, in the candidates' order."""
         import tomli_w
@@ -132,6 +174,12 @@ class MeasurementPlan:
                 f"{self.machine.name!r}: {len(entries)} runs, cost {self.cost:g} of the "
                 f"budget {self.budget:g} (docs/measurements.md).\n\n")
         return head + tomli_w.dumps({"tests": entries})
+
+
+SAVED_FORMAT = "precrel.measurement_plan"
+SAVED_FIELDS = (Number("budget", positive=True), Array("chosen", (None,), dtype=int, low=0),
+                Array("added", (None,)), Text("method"), SavedMapping("objective"),
+                Frame("outputs", ("limit", "prior_sd")), Array("alone", (None,)))
 
 
 def read_candidates(path, machine) -> tuple[Candidate, ...]:

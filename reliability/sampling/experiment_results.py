@@ -12,6 +12,7 @@ from ..basics import checks
 from ..basics.display import output_limits_text
 from ..basics.errors import InputError, InputTypeError, SavedResultError
 from ..basics.files import write_csv
+from ..basics.saved_results import encode_frame
 from ..basics.statistics import all_within_share, between_experiment_interval, proportion
 from ..model.machine import OUTPUTS
 
@@ -194,6 +195,18 @@ class GridExperimentResult:
     def load(cls, path) -> "GridExperimentResult":
         """Read and verify a file written by :meth:`save` (see :meth:`from_frame`)."""
         return cls.from_frame(read_saved_csv(path), source=str(path))
+
+    def payload(self) -> dict:
+        """The table :meth:`save` writes, JSON-ready, for saving inside another result."""
+        return {"table": encode_frame(self.to_frame())}
+
+    @classmethod
+    def from_payload(cls, data) -> "GridExperimentResult":
+        """The result from :meth:`payload`'s fields read through ``data`` (a
+        :class:`~reliability.basics.saved_results.PayloadReader`), verified as
+        :meth:`from_frame` says."""
+        return cls.from_frame(data.frame("table", columns=FRAME_COLUMNS + METADATA_COLUMNS),
+                              source=f"{data.path}: field {data.where}.table")
 
 
 @dataclass(frozen=True, eq=False)

@@ -34,6 +34,8 @@ from ..basics import checks, streams
 from ..basics.display import shown_positions
 from ..basics.errors import InputError, InputTypeError
 from ..basics.pass_rule import passes
+from ..basics.saved_fields import (Array, Flag, Integer, Number, Text, Texts, load_fields,
+                                   save_fields)
 from ..basics.statistics import proportion
 from ..first_order.fosm import (error_sigma, one_sided_probability, output_sigma,
                                 two_sided_probability)
@@ -145,6 +147,37 @@ class PoseSamplingResult:
 
     def __str__(self) -> str:
         return self.summary()
+
+    def save(self, path, overwrite: bool = False):
+        """Save the counts and the FOSM answer as JSON (:data:`SAVED_FIELDS`, tag
+        :data:`SAVED_FORMAT`); an existing file is kept unless ``overwrite``. Returns the
+        path."""
+        return save_fields(self, path, SAVED_FORMAT, SAVED_FIELDS, overwrite)
+
+    @classmethod
+    def load(cls, path) -> "PoseSamplingResult":
+        """Reload a result written by :meth:`save`, every field checked (counts within
+        the sample count); the intervals are computed again from the saved counts, so they
+        are the saved result's. A damaged field raises
+        :class:`~reliability.basics.errors.SavedResultError` naming the file and field."""
+        data, values = load_fields(path, SAVED_FORMAT, SAVED_FIELDS)
+        if np.any(values["failures"] > values["n_samples"]):
+            raise data.error("failures", "counts exceed 'n_samples'")
+        if (values["precision"] is None) != (values["reached"] is None):
+            raise data.error("reached", "must be null exactly when 'precision' is")
+        return cls(**values)
+
+
+SAVED_FORMAT = "precrel.pose_sampling"
+SAVED_FIELDS = (Texts("axes", "axes"), Array("poses", ("n", "axes")),
+                Texts("labels", "n"), Array("tracked", ("n", len(EVENTS)), dtype=bool),
+                Array("failures", ("n", len(EVENTS)), dtype=int, low=0),
+                Integer("n_samples", low=1),
+                Array("fosm_failure", ("n", len(EVENTS)), low=0.0, high=1.0, nan=True),
+                Number("confidence", low=0.0, high=1.0),
+                Number("precision", optional=True, positive=True),
+                Flag("reached", optional=True), Text("distribution"),
+                Number("k", positive=True), Text("interval", INTERVALS))
 
 
 def axis_labels(machine) -> tuple:

@@ -48,11 +48,13 @@ from ..basics import checks, streams
 from ..basics.display import pose_text, shown_positions
 from ..basics.errors import InputError, InputTypeError
 from ..basics.pass_rule import passes
+from ..basics.saved_fields import (Array, Flag, Integer, Number, Records, Text, load_fields,
+                                   save_fields)
 from ..first_order.fosm import two_sided_probability
 from ..first_order.worst_grid_pose import EVENTS, worst_grid_poses
 from ..model.error_draws import DISTRIBUTIONS
 from ..model.kinematics import chain_factors, transports
-from ..model.machine import OUTPUTS
+from ..model.machine import OUTPUTS, Axis
 
 METHODS = ("importance", "subset")
 P0 = 0.1  # conditional probability of each subset level (Au & Beck 2001)
@@ -148,6 +150,47 @@ class RareEventResult:
 
     def __str__(self) -> str:
         return self.summary()
+
+    def save(self, path, overwrite: bool = False):
+        """Save as JSON (:data:`SAVED_FIELDS`, tag :data:`SAVED_FORMAT`; the axes with all
+        their fields); an existing file is kept unless ``overwrite``. Returns the path."""
+        return save_fields(self, path, SAVED_FORMAT, SAVED_FIELDS, overwrite)
+
+    @classmethod
+    def load(cls, path) -> "RareEventResult":
+        """Reload a result written by :meth:`save`, every field checked: the interval
+        holds the probability and ``reached`` is ``cov <= target_cov``, so the verdicts are
+        the saved ones. A damaged field raises
+        :class:`~reliability.basics.errors.SavedResultError` naming the file and field."""
+        data, values = load_fields(path, SAVED_FORMAT, SAVED_FIELDS)
+        if len(values["pose"]) != len(values["axes"]):
+            raise data.error("pose", "expected one position per axis")
+        low, high = values["interval"]
+        if not low <= values["probability"] <= high:
+            raise data.error("interval", "does not hold the probability")
+        values["interval"] = (float(low), float(high))
+        return cls(**values)
+
+
+def saved_axis(stroke, offset, **fields) -> Axis:
+    """An axis from its saved fields (stroke and offset saved as lists)."""
+    return Axis(stroke=tuple(float(v) for v in stroke), offset=tuple(float(v) for v in offset),
+                **fields)
+
+
+AXIS_FIELDS = (Text("name"), Text("kind", ("linear", "rotary")),
+               Text("direction", ("x", "y", "z")), Array("stroke", (2,)),
+               Number("size", positive=True), Flag("full_turn"), Array("offset", (3,)),
+               Number("repeatability", low=0.0), Number("reversal", low=0.0))
+SAVED_FORMAT = "precrel.rare_event"
+SAVED_FIELDS = (Text("event", EVENTS), Text("method", ("importance", "subset", "exact-zero")),
+                Text("distribution", ("normal", "truncated")),
+                Records("axes", AXIS_FIELDS, saved_axis),
+                Array("pose", (None,)), Number("probability", low=0.0, high=1.0),
+                Number("cov", finite=False), Array("interval", (2,), low=0.0),
+                Number("confidence", low=0.0, high=1.0), Integer("n_evaluations", low=0),
+                Number("target_cov", positive=True), Flag("reached"),
+                Number("fosm_probability", low=0.0, high=1.0), Text("note"))
 
 
 def linear_model(jacobian):

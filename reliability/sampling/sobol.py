@@ -32,6 +32,7 @@ from scipy.stats import norm
 
 from ..basics import checks, streams
 from ..basics.errors import InputError
+from ..basics.saved_fields import Array, Integer, Number, Text, Texts, load_fields, save_fields
 from ..first_order.fosm import error_sigma
 from ..first_order.worst_grid_pose import worst_grid_poses
 from ..model.error_draws import check_reading, normal_to_marginal
@@ -161,6 +162,32 @@ class SobolIndices:
         flagged = int(self.interaction_flags().sum())
         lines.append(f"  interactions (ST - S1 beyond both intervals): {flagged}")
         return "\n".join(lines)
+
+    def save(self, path, overwrite: bool = False):
+        """Save as JSON (:data:`SAVED_FIELDS`, tag :data:`SAVED_FORMAT`); an existing file
+        is kept unless ``overwrite``. Returns the path."""
+        return save_fields(self, path, SAVED_FORMAT, SAVED_FIELDS, overwrite)
+
+    @classmethod
+    def load(cls, path) -> "SobolIndices":
+        """Reload indices written by :meth:`save`, every field checked (NaN marks an
+        output no error moves); the interaction flags follow from the saved indices. A
+        damaged field raises :class:`~reliability.basics.errors.SavedResultError` naming
+        the file and field."""
+        data, values = load_fields(path, SAVED_FORMAT, SAVED_FIELDS)
+        if values["model_calls"] != values["samples"] * (len(values["errors"]) + 2):
+            raise data.error("model_calls", "is not samples × (errors + 2)")
+        return cls(**values)
+
+
+SAVED_FORMAT = "precrel.sobol_indices"
+_INDEX_SHAPE = (len(OUTPUTS), "errors")
+SAVED_FIELDS = (Texts("errors", "errors", unique=True), Array("poses", (len(OUTPUTS), None)),
+                *(Array(name, _INDEX_SHAPE, nan=True)
+                  for name in ("S1", "S1_conf", "ST", "ST_conf", "analytic")),
+                Array("variance", (len(OUTPUTS),), low=0.0), Integer("samples", low=1),
+                Integer("model_calls", low=1), Number("confidence", low=0.0, high=1.0),
+                Text("distribution"))
 
 
 def sobol_indices(machine, tolerances=None, poses=None, *, samples: int = DEFAULT_SAMPLES,

@@ -37,17 +37,20 @@ from scipy.stats import norm
 
 from ..basics import checks
 from ..basics.errors import InputError
+from ..basics.saved_fields import Frame, Nested, Text, load_fields, save_fields
 from ..basics.streams import spawn, verification_streams
 from ..first_order.certificate import DEFAULT_RTOL, WORKSPACES, certified_worst
-from ..first_order.fosm import fosm
+from ..first_order.fosm import FosmResult, fosm
 from ..first_order.worst_grid_pose import worst_grid_poses
 from ..model.machine import OUTPUTS
 from ..model.poses import workspace_grid
+from .experiment_results import GridExperimentResult
 from .fosm_comparison import fosm_versus_monte_carlo
 from .grid_experiment import GridExperiment
 from .machine_yield import DEFAULT_MACHINES, YieldModel
 from .pose_sampling import EVENTS, sample_at_poses, sample_random_poses
 from .rare_events import failure_probability
+from .saved_yield import SavedYield
 
 
 @dataclass(frozen=True, repr=False)
@@ -112,6 +115,33 @@ class Verification:
 
     def __repr__(self) -> str:
         return self.summary()
+
+    def save(self, path, overwrite: bool = False):
+        """Save as JSON (:data:`SAVED_FIELDS`, tag :data:`SAVED_FORMAT`): the FOSM result,
+        the grid experiments' counts (not their per-pose values), the three tables of
+        estimates and the machine yield. An existing file is kept unless ``overwrite``.
+        Returns the path."""
+        return save_fields(self, path, SAVED_FORMAT, SAVED_FIELDS, overwrite)
+
+    @classmethod
+    def load(cls, path) -> "Verification":
+        """Reload a verification written by :meth:`save`, every field checked (the FOSM
+        result and the grid counts as their own ``load`` checks them); the estimates,
+        intervals and verdicts are the saved ones. A damaged field raises
+        :class:`~reliability.basics.errors.SavedResultError` naming the file and field."""
+        return cls(**load_fields(path, SAVED_FORMAT, SAVED_FIELDS)[1])
+
+
+SAVED_FORMAT = "precrel.verification"
+SAVED_FIELDS = (
+    Nested("fosm", FosmResult), Nested("grid", GridExperimentResult),
+    Frame("grid_comparison", ("output", "mc_estimate", "mc_lower", "mc_upper",
+                              "fosm_two_sided")),
+    Frame("random_poses", ("output", "estimate", "lower", "upper", "fosm_two_sided", "n")),
+    Frame("worst_poses", ("output", "mc_estimate", "mc_lower", "mc_upper", "fosm_two_sided",
+                          "exact_linear", "samples")),
+    Text("distribution", ("normal", "truncated")),
+    Nested("machine_yield", SavedYield, optional=True))
 
 
 def reading_text(distribution: str) -> str:

@@ -47,6 +47,8 @@ import pandas as pd
 
 from ..basics import checks
 from ..basics.errors import InputError
+from ..basics.saved_fields import (Array, Integer, Number, Text, TextLists, Texts,
+                                   load_fields, save_fields)
 from ..model.error_draws import grid_factors
 from ..model.identifiability import indistinguishable_groups
 from ..model.profiles import travel_factors
@@ -111,6 +113,31 @@ class YieldSensitivity:
         for row in self.ranked().head(top).itertuples(index=False):
             lines.append(f"  {row.error:<24} {row.dyield_dlnt:+.5f} ± {row.se:.5f}")
         return "\n".join(lines)
+
+    def save(self, path, overwrite: bool = False):
+        """Save as JSON (:data:`SAVED_FIELDS`, tag :data:`SAVED_FORMAT`); an existing file
+        is kept unless ``overwrite``. Returns the path."""
+        return save_fields(self, path, SAVED_FORMAT, SAVED_FIELDS, overwrite)
+
+    @classmethod
+    def load(cls, path) -> "YieldSensitivity":
+        """Reload derivatives written by :meth:`save`, every field checked (each row's name
+        is its members joined by ``+``). A damaged field raises
+        :class:`~reliability.basics.errors.SavedResultError` naming the file and field."""
+        data, values = load_fields(path, SAVED_FORMAT, SAVED_FIELDS)
+        joined = tuple("+".join(row) for row in values["members"])
+        if joined != values["errors"]:
+            raise data.error("members", "each row's members must join with '+' into its "
+                                        "name in 'errors'")
+        return cls(**values)
+
+
+SAVED_FORMAT = "precrel.yield_sensitivity"
+SAVED_FIELDS = (Texts("errors", "rows", unique=True), TextLists("members", "rows"),
+                Array("dyield_dlnt", ("rows",)),
+                Array("se", ("rows",), low=0.0), Number("yield_estimate", low=0.0, high=1.0),
+                Integer("machines", low=1), Text("method", ("score", "difference")),
+                Number("step", optional=True, positive=True))
 
 
 def yield_sensitivity(model, tolerances, *, draws=None, machines: int = DEFAULT_MACHINES,

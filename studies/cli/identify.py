@@ -3,19 +3,14 @@ measurements, with their posterior uncertainty."""
 
 from __future__ import annotations
 
-import json
-
-from reliability.basics.files import SIGNIFICANT, atomic_write_text, write_csv
 from reliability.measured.identification import identify
-from reliability.measured.identification_files import (COEFFICIENTS_FILE, COVARIANCE_FILE,
-                                                       write_coefficients, write_covariance)
+from reliability.measured.identification_files import IDENTIFICATION_FILES
 from reliability.measured.measurement_files import read_measurements
 
 from . import options
 
 #: The files written into ``--out DIR``.
-RESULT_FILES = ("errors.csv", "profiles.csv", "setup.csv", "residuals.csv", "summary.json",
-                COVARIANCE_FILE, COEFFICIENTS_FILE)
+RESULT_FILES = IDENTIFICATION_FILES
 
 
 def add_parser(subparsers):
@@ -64,25 +59,6 @@ def run(args) -> int:
           f"of the {source}; {model}.\n")
     print(result.summary())
     if out is not None:
-        _write(result, out, args.overwrite)
+        written = result.save(out, overwrite=args.overwrite)
+        print(f"\nwritten {', '.join(written)} into {out}")
     return 0
-
-
-def _write(result, out, overwrite) -> None:
-    out.mkdir(exist_ok=True)
-    digits = f"%.{SIGNIFICANT}g"
-    tables = {"errors.csv": result.errors, "setup.csv": result.setup,
-              "residuals.csv": result.residuals}
-    if result.coefficients.varies:
-        tables["profiles.csv"] = result.profiles
-    for name, table in tables.items():
-        write_csv(table, out / name, overwrite=overwrite, index=False, float_format=digits)
-    atomic_write_text(out / "summary.json", json.dumps(result.summary_dict(), indent=2) + "\n",
-                      overwrite)
-    write_covariance(result, out / COVARIANCE_FILE, overwrite)
-    written = ["summary.json", COVARIANCE_FILE]
-    if result.coefficients.varies:
-        write_coefficients(result, out / COEFFICIENTS_FILE, overwrite)
-        written.append(COEFFICIENTS_FILE)
-    written = [name for name in RESULT_FILES if name in tables or name in written]
-    print(f"\nwritten {', '.join(written)} into {out}")

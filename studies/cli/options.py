@@ -22,7 +22,7 @@ from reliability.basics import display
 from reliability.basics.errors import InputError
 from reliability.basics.files import check_destination
 from reliability.measured.identification import identify
-from reliability.measured.identification_files import read_identification
+from reliability.measured.identification import read_identification
 from reliability.measured.measurement_files import read_measurements
 from reliability.model.kinematics import FRAMES
 from reliability.model.machine import load_machine
