@@ -15,7 +15,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg  # noqa: E402
 
 from reliability.first_order.system_reliability import system_reliability  # noqa: E402
 from reliability.model.identifiability import indistinguishable_groups  # noqa: E402
-from reliability.model.machine import machine_from_toml  # noqa: E402
+from reliability.model.machine_file import machine_from_toml  # noqa: E402
 from reliability.model.poses import workspace_grid  # noqa: E402
 from studies.report.machine_sections import (allocation_section, answers,  # noqa: E402
                                              verification_section)
