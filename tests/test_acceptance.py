@@ -7,6 +7,7 @@ Statistical checks use z = 4 on the estimator's standard error, with fixed seeds
 from __future__ import annotations
 
 import copy
+import inspect
 import json
 import math
 import tomllib
@@ -549,9 +550,10 @@ def test_a_value_exactly_on_its_limit_fails():
 def test_a_saved_acceptance_result_reloads_with_its_verdicts(hobbing, tmp_path):
     tests = _paper_tests(hobbing)
     result = acceptance(hobbing, tests, machines=300, driver_machines=10, rng=4)
+    assert inspect.signature(result.save).parameters["overwrite"].default is False
     path = result.save(tmp_path / "acceptance.json")
     again = AcceptanceResult.load(path)
-    assert again.tests == result.tests
+    assert inspect.ismethod(AcceptanceResult.load) and again.tests == result.tests
     assert (again.profile, again.distribution, again.k, again.confidence) == \
         (result.profile, result.distribution, result.k, result.confidence)
     pd.testing.assert_frame_equal(again.values, result.values)

@@ -8,6 +8,7 @@ at z = 4 (fixed seeds), unless said otherwise.
 
 from __future__ import annotations
 
+import inspect
 import json
 from pathlib import Path
 
@@ -361,9 +362,10 @@ def test_a_saved_yield_reloads_with_its_verdicts_and_refuses_a_changed_count(
     give its yield (or whose file exists) is refused."""
     result = machine_yield(mill, scale * mill.initial_allocation, points_per_axis=3,
                            machines=1500, rng=12, method=method, target_cov=0.2)
+    assert inspect.signature(result.save).parameters["overwrite"].default is False
     path = result.save(tmp_path / "yield.json")
     again = YieldEstimate.load(path)
-    assert again.to_dict() == result.to_dict()
+    assert inspect.ismethod(YieldEstimate.load) and again.to_dict() == result.to_dict()
     assert again.summary() == result.summary()
     pd.testing.assert_frame_equal(again.to_frame(), result.to_frame())
     pd.testing.assert_frame_equal(again.failure_shares, result.failure_shares,

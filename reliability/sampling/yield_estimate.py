@@ -172,6 +172,7 @@ class YieldEstimate:
         """Save as JSON with its metadata (:mod:`reliability.basics.saved_results`); an
         existing file is kept unless ``overwrite``. Returns the path."""
         payload = {name: getattr(self, name) for name in SAVED_FIELDS}
+        payload["cov"] = None if math.isnan(self.cov) else self.cov
         payload["failure_shares"] = encode_frame(self.failure_shares)
         return save_payload(path, SAVED_FORMAT, payload, overwrite)
 
@@ -191,7 +192,8 @@ class YieldEstimate:
         values = {
             "estimate": data.number("estimate"), "lower": data.number("lower"),
             "upper": data.number("upper"), "confidence": data.number("confidence"),
-            "cov": data.number("cov", finite=False), "machines": machines,
+            "cov": math.nan if data.raw("cov") is None else data.number("cov"),
+            "machines": machines,
             "method": data.text("method", ("crude", "importance")),
             "method_reason": data.text("method_reason"), "profile": data.text("profile"),
             "distribution": data.text("distribution", ("normal", "truncated")),
@@ -229,6 +231,8 @@ def _check_interval(data, values) -> None:
     if values["failures"] > values["machines"]:
         raise data.error("failures", f"{values['failures']} failing of {values['machines']} "
                                      f"machines")
+    if values["cov"] < 0:
+        raise data.error("cov", f"expected a number >= 0 or null, got {values['cov']!r}")
     for key in ("estimate", "lower", "upper", "first_order_lower", "first_order_upper"):
         if not 0.0 <= values[key] <= 1.0:
             raise data.error(key, f"expected a yield in [0, 1], got {values[key]!r}")
