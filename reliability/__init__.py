@@ -27,8 +27,8 @@ from .compensation.tables import CompensationTables, compensation_tables, read_c
 from .first_order.fosm import FosmResult, fosm
 from .first_order.system_reliability import (SystemReliability, system_reliability,
                                              worst_system_reliability)
-from .model.machine import (COMPONENTS, OUTPUTS, Axis, CostCoefficients, Machine, hobbing_machine,
-                            load_machine, machine_from_dict, machine_from_toml)
+from .model.machine import COMPONENTS, OUTPUTS, Axis, CostCoefficients, Machine
+from .model.machine_file import hobbing_machine, load_machine, machine_from_dict, machine_from_toml
 from .measured.identification import Identification, identify, read_identification
 from .measured.measurement_files import read_measurements
 from .model.poses import random_poses, workspace_grid

@@ -32,7 +32,8 @@ ROOT = Path(__file__).resolve().parents[1]
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
-from reliability.model.machine import hobbing_machine, load_machine, machine_to_dict  # noqa: E402
+from reliability.model.machine import machine_to_dict  # noqa: E402
+from reliability.model.machine_file import hobbing_machine, load_machine  # noqa: E402
 from studies.cli import main  # noqa: E402
 
 #: The machines: how to load each, its catalogue and its acceptance tests.

@@ -7,6 +7,8 @@ Statistical checks use z = 4 on the estimator's standard error, with fixed seeds
 from __future__ import annotations
 
 import copy
+import inspect
+import json
 import math
 import tomllib
 from pathlib import Path
@@ -17,12 +19,14 @@ import pytest
 from scipy.stats import norm
 
 from reliability import load_machine, machine_from_dict
+from reliability.acceptance.acceptance_result import AcceptanceResult
 from reliability.acceptance.definitions import read_tests, parse_tests
-from reliability.acceptance.prediction import (CircularTest, PositioningTest, RotaryTest,
-                                               acceptance, build_path, circular_deviation,
-                                               default_targets, deviation_weights, ideal_chain,
-                                               positioning_statistics)
-from reliability.basics.errors import InputError, MachineDescriptionError
+from reliability.acceptance.iso_statistics import (circular_deviation, default_targets,
+                                                   positioning_statistics)
+from reliability.acceptance.iso_tests import (CircularTest, PositioningTest, RotaryTest,
+                                              build_path, deviation_weights, ideal_chain)
+from reliability.acceptance.prediction import acceptance
+from reliability.basics.errors import InputError, MachineDescriptionError, SavedResultError
 from reliability.model.measured_profiles import SystematicErrors, measured_profile
 from studies import cli
 
@@ -527,3 +531,45 @@ def test_constant_profile_is_explained_where_chosen(capsys):
                      "--profile", "constant"])
     out = capsys.readouterr().out
     assert code == 0 and "only reversal and repeatability" in out and "ellipse" in out
+
+
+def test_a_value_exactly_on_its_limit_fails():
+    """The toolkit's one rule, |y| < I: a result equal to its limit does not pass."""
+    test = CircularTest("c", "xy", CENTRE, 80.0, 0.001)
+    values = pd.DataFrame([[0.001], [0.0005], [0.0015]],
+                          columns=pd.MultiIndex.from_tuples([("c", "G")],
+                                                            names=["test", "quantity"]))
+    result = AcceptanceResult(tests=(test,), values=values,
+                              drivers=pd.DataFrame(columns=["test", "quantity", "item",
+                                                            "share"]),
+                              profile="gp:300", distribution="normal")
+    assert result.passed()["c"].tolist() == [False, True, False]
+    assert result.to_frame()["pass_probability"].iloc[0] == pytest.approx(1 / 3)
+
+
+def test_a_saved_acceptance_result_reloads_with_its_verdicts(hobbing, tmp_path):
+    tests = _paper_tests(hobbing)
+    result = acceptance(hobbing, tests, machines=300, driver_machines=10, rng=4)
+    assert inspect.signature(result.save).parameters["overwrite"].default is False
+    path = result.save(tmp_path / "acceptance.json")
+    again = AcceptanceResult.load(path)
+    assert inspect.ismethod(AcceptanceResult.load) and again.tests == result.tests
+    assert (again.profile, again.distribution, again.k, again.confidence) == \
+        (result.profile, result.distribution, result.k, result.confidence)
+    pd.testing.assert_frame_equal(again.values, result.values)
+    pd.testing.assert_frame_equal(again.drivers, result.drivers, check_dtype=False)
+    pd.testing.assert_frame_equal(again.passed(), result.passed())
+    pd.testing.assert_frame_equal(again.to_frame(), result.to_frame())
+    assert again.summary() == result.summary()
+    with pytest.raises(FileExistsError, match="overwrite=True"):
+        result.save(path)
+    document = json.loads(path.read_text())
+    document["payload"]["passing"]["all"] += 1
+    path.write_text(json.dumps(document))
+    with pytest.raises(SavedResultError, match="passing.all"):
+        AcceptanceResult.load(path)
+    document["payload"]["passing"]["all"] -= 1
+    document["payload"]["tests"][0]["kind"] = "spiral"
+    path.write_text(json.dumps(document))
+    with pytest.raises(SavedResultError, match="tests.*unknown kind 'spiral'"):
+        AcceptanceResult.load(path)

@@ -12,7 +12,8 @@ import pytest
 
 import reliability
 from reliability.acceptance.definitions import read_tests
-from reliability.acceptance.prediction import build_path, circular_deviation
+from reliability.acceptance.iso_statistics import circular_deviation
+from reliability.acceptance.iso_tests import build_path
 from reliability.basics.errors import InputError
 from reliability.measured.identification_files import COVARIANCE_FILE
 from reliability.measured.measurement_files import write_measurements

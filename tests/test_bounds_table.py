@@ -10,7 +10,7 @@ import pytest
 
 from allocation import AllocationProblem
 from reliability.basics.errors import MachineDescriptionError
-from reliability.model.machine import load_machine, machine_from_dict
+from reliability.model.machine_file import load_machine, machine_from_dict
 from reliability.model.poses import workspace_grid
 from studies import cli
 

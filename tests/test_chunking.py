@@ -145,7 +145,7 @@ def test_chunked_problem_equals_the_whole_array_problem(hobbing, grid3):
 
 
 def test_unreachable_target_is_reported_from_chunks(hobbing_dict, grid3):
-    from reliability.model.machine import machine_from_dict
+    from reliability.model.machine_file import machine_from_dict
     from allocation.per_pose.solve import TargetUnreachableError
 
     hobbing_dict["requirements"]["dx"]["limit"] = 1e-4  # far below any reachable σ

@@ -12,8 +12,8 @@ import numpy as np
 import pandas as pd
 from scipy.stats import norm
 
-from reliability.acceptance.prediction import (CircularTest, build_path, circular_deviation,
-                                               deviation_weights)
+from reliability.acceptance.iso_statistics import circular_deviation
+from reliability.acceptance.iso_tests import CircularTest, build_path, deviation_weights
 from reliability.compensation.compensation_plans import (CompensationPlan,
                                                          parse_compensation_plan)
 from reliability.compensation.residual import posterior_covariance

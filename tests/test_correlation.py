@@ -12,14 +12,14 @@ from scipy.stats import norm
 
 from allocation import AllocationProblem
 from allocation.per_pose.correlated import solve_correlated
-from reliability.basics.errors import InputError
+from reliability.basics.errors import InputError, MachineDescriptionError
 from reliability.first_order.fosm import error_sigma, fosm
 from reliability.first_order.output_covariance import output_covariance
 from reliability.model.correlation import (check_correlation_matrix, correlation_pairs,
                                            correlation_to_toml)
 from reliability.model.error_draws import (correlate_items, correlation_factor, draw_correlated,
                                            draw_grid_errors, grid_factors, normal_to_marginal)
-from reliability.model.machine import MachineDescriptionError, machine_from_dict
+from reliability.model.machine_file import machine_from_dict
 from reliability.model.poses import workspace_grid
 from reliability.sampling.grid_experiment import GridExperiment
 from reliability.sampling.pose_sampling import sample_random_poses

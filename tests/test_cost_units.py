@@ -11,7 +11,7 @@ import pytest
 
 from allocation import AllocationProblem, CostModel
 from reliability.basics.errors import MachineDescriptionError
-from reliability.model.machine import load_machine, machine_from_dict
+from reliability.model.machine_file import load_machine, machine_from_dict
 from reliability.model.machine_checks import likely_mistakes
 
 MILL = Path(__file__).parent / "machines" / "mill3.toml"

@@ -14,7 +14,7 @@ from allocation import AllocationProblem
 from allocation.per_pose.result_files import (DRAWING_COLUMNS, DRAWING_FILE, drawing_frame,
                                      drawing_to_csv, drawing_tolerances, read_allocation_csv)
 from reliability.basics.errors import InputError
-from reliability.model.machine import machine_from_toml
+from reliability.model.machine_file import machine_from_toml
 from reliability.model.poses import workspace_grid
 from studies import cli
 

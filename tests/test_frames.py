@@ -12,7 +12,7 @@ import pytest
 from reliability.basics.errors import MachineDescriptionError
 from reliability.first_order.fosm import fosm
 from reliability.model.kinematics import ideal_rotation, jacobian_and_derivative
-from reliability.model.machine import load_machine, machine_from_dict
+from reliability.model.machine_file import load_machine, machine_from_dict
 from reliability.model.poses import workspace_grid
 from reliability.sampling.grid_experiment import GridExperiment
 

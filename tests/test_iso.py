@@ -6,9 +6,10 @@ import numpy as np
 import pytest
 
 from allocation import AllocationProblem
-from reliability.basics.errors import InputError
+from reliability.basics.errors import InputError, MachineDescriptionError
 from reliability.model.iso_names import iso_names, iso_symbol, name_table
-from reliability.model.machine import MachineDescriptionError, error_names, machine_from_dict
+from reliability.model.machine import error_names
+from reliability.model.machine_file import machine_from_dict
 
 
 def test_the_standards_symbols_for_a_linear_and_a_rotary_axis(hobbing):

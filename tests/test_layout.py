@@ -250,22 +250,14 @@ def test_the_convex_core_knows_no_machine():
 
 #: Longest a module of ``reliability`` or ``allocation`` may be, in lines.
 MAX_LINES = 800
-#: Modules over :data:`MAX_LINES` while they are being split; empty once they are.
-BEING_SPLIT = {"reliability/sampling/machine_yield.py", "reliability/acceptance/prediction.py",
-               "reliability/model/machine.py"}
-
-
 def library_modules():
-    """Every module of ``reliability`` and ``allocation``, marked as an expected failure of
-    the length rule while it is in :data:`BEING_SPLIT`."""
+    """Every module of ``reliability`` and ``allocation``, by its path."""
     params = []
     for name, path in MODULES.items():
         if name.split(".")[0] not in ("reliability", "allocation"):
             continue
         relative = path.relative_to(ROOT).as_posix()
-        marks = [pytest.mark.xfail(reason="being split", strict=False)] \
-            if relative in BEING_SPLIT else []
-        params.append(pytest.param(relative, marks=marks, id=relative))
+        params.append(pytest.param(relative, id=relative))
     return params
 
 

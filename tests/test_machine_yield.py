@@ -8,21 +8,24 @@ at z = 4 (fixed seeds), unless said otherwise.
 
 from __future__ import annotations
 
+import inspect
 import json
 from pathlib import Path
 
 import numpy as np
+import pandas as pd
 import pytest
 from scipy.stats import norm
 
 from reliability import load_machine
-from reliability.basics.errors import InputError
+from reliability.basics.errors import InputError, SavedResultError
 from reliability.first_order.fosm import fosm
 from reliability.model.error_draws import draw_errors
 from reliability.sampling.grid_experiment import GridExperiment
 from reliability.model.profiles import axis_profiles
-from reliability.sampling.machine_yield import (RowEvents, YieldModel, deciding_points,
-                                                machine_yield)
+from reliability.sampling.machine_yield import YieldModel, deciding_points, machine_yield
+from reliability.sampling.row_events import RowEvents
+from reliability.sampling.yield_estimate import YieldEstimate
 from studies import cli
 from studies.workflows import machine_study
 
@@ -85,7 +88,7 @@ def test_row_vectors_are_the_linearised_chain_and_have_fosm_sigma(mill, profile)
     model = YieldModel(mill, profile=profile, distribution="normal", points_per_axis=3)
     t = mill.initial_allocation
     rows = np.array([0, 7, 50, 100, 161])
-    vectors = model.row_vectors(rows, t)
+    vectors = model.linear.row_vectors(rows, t)
     sigma = fosm(mill, t, model.experiment.poses, distribution="normal").sigma
     np.testing.assert_allclose(np.linalg.norm(vectors, axis=1),
                                sigma.reshape(-1)[rows], rtol=1e-10)
@@ -203,7 +206,7 @@ def test_proposal_weights_are_the_exact_density_ratio(mill):
     w = φ/q exactly), checked at z = 4."""
     model = YieldModel(mill, profile="constant", distribution="normal", points_per_axis=3)
     t = 0.8 * mill.initial_allocation
-    events = RowEvents.dominant(model, t)
+    events = RowEvents.dominant(model.linear, t)
     u = events.draw(np.random.default_rng(4), 40_000)
     w = events.weight(u)
     assert w.max() <= 1 / 0.1 + 1e-12
@@ -336,7 +339,7 @@ def test_summary_opens_with_the_yield_of_both_allocations(mill):
 
 
 def test_yields_near_one_are_printed_with_their_failure_probability():
-    from reliability.sampling.machine_yield import yield_text
+    from reliability.sampling.yield_estimate import yield_text
     assert yield_text(0.835) == "0.8350"
     assert yield_text(1 - 2.5e-7) == "0.99999975"
     assert yield_text(1 - 1e-12) != "1" and yield_text(1.0) == "1"
@@ -350,3 +353,41 @@ def test_kept_points_are_checked_by_axis_before_any_work():
     with pytest.raises(InputError, match=rf"kept_points of axis {machine.axes[4]} must be "
                                          r"increasing indices in \[0, 2\]; got \[2, 0\]"):
         GridExperiment(machine, 3, "constant", kept_points=bad)
+
+
+@pytest.mark.parametrize("scale, method", [(1.0, "crude"), (0.5, "importance")])
+def test_a_saved_yield_reloads_with_its_verdicts_and_refuses_a_changed_count(
+        mill, tmp_path, scale, method):
+    """save/load keeps every field and the failure shares; a file whose counts no longer
+    give its yield (or whose file exists) is refused."""
+    result = machine_yield(mill, scale * mill.initial_allocation, points_per_axis=3,
+                           machines=1500, rng=12, method=method, target_cov=0.2)
+    assert inspect.signature(result.save).parameters["overwrite"].default is False
+    path = result.save(tmp_path / "yield.json")
+    again = YieldEstimate.load(path)
+    assert inspect.ismethod(YieldEstimate.load) and again.to_dict() == result.to_dict()
+    assert again.summary() == result.summary()
+    pd.testing.assert_frame_equal(again.to_frame(), result.to_frame())
+    pd.testing.assert_frame_equal(again.failure_shares, result.failure_shares,
+                                  check_dtype=False)
+    frame = again.to_frame()
+    assert frame.shape[0] == 1 and frame["machines"].iloc[0] == result.machines
+    with pytest.raises(FileExistsError, match="overwrite=True"):
+        result.save(path)
+    document = json.loads(path.read_text())
+    document["payload"]["estimate"] = 0.5 * result.estimate
+    path.write_text(json.dumps(document))
+    with pytest.raises(SavedResultError, match=r"field 'payload\.(estimate|lower|upper)'"):
+        YieldEstimate.load(path)
+
+
+def test_a_saved_crude_yield_must_match_its_passing_machines(mill, tmp_path):
+    result = machine_yield(mill, mill.initial_allocation, points_per_axis=3, machines=1000,
+                           rng=13, method="crude")
+    assert result.failures > 0
+    path = result.save(tmp_path / "yield.json")
+    document = json.loads(path.read_text())
+    document["payload"]["failures"] -= 1
+    path.write_text(json.dumps(document))
+    with pytest.raises(SavedResultError, match="estimate|lower|upper|failure_shares"):
+        YieldEstimate.load(path)

@@ -8,7 +8,7 @@ import pytest
 from scipy import stats
 
 import reliability
-from reliability.acceptance.prediction import tool_point
+from reliability.acceptance.iso_tests import tool_point
 from reliability.basics.errors import InputError
 from reliability.measured.measurement_files import write_measurements
 from reliability.measured.plans import parse_plan

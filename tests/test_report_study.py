@@ -16,7 +16,7 @@ from allocation import load_catalogue
 from reliability.acceptance.definitions import read_tests
 from reliability.acceptance.prediction import acceptance
 from reliability.basics.streams import acceptance_stream, machine_yield_stream
-from reliability.model.machine import load_machine
+from reliability.model.machine_file import load_machine
 from reliability.sampling.machine_yield import machine_yield
 from studies import cli
 from studies.report.extras import acceptance_builder, catalogue_builder, profiles

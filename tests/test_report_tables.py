@@ -15,7 +15,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg  # noqa: E402
 
 from reliability.first_order.system_reliability import system_reliability  # noqa: E402
 from reliability.model.identifiability import indistinguishable_groups  # noqa: E402
-from reliability.model.machine import machine_from_toml  # noqa: E402
+from reliability.model.machine_file import machine_from_toml  # noqa: E402
 from reliability.model.poses import workspace_grid  # noqa: E402
 from studies.report.machine_sections import (allocation_section, answers,  # noqa: E402
                                              verification_section)
@@ -134,8 +134,8 @@ def test_failure_regions_say_which_positions_the_worst_poses_share(study):
     u = np.random.default_rng(11).standard_normal((3000, model.dimension))
     failed, rows = model.worst_rows(u, study.allocated)
     rows = rows[failed]
-    deciding = model.deciding_axes(model.row_sigma(study.allocated))
-    texts = np.array(model.region_texts(rows, deciding))
+    deciding = model.regions.deciding_axes(model.linear.row_sigma(study.allocated))
+    texts = np.array(model.regions.region_texts(rows, deciding))
     output = rows % 6
     undecided = [o for o in np.unique(output) if not deciding[o].any()]
     assert undecided, "the optimum should leave some output with no deciding axis"

@@ -250,11 +250,11 @@ ROUND_TRIPS = {
     "reliability.sampling.sobol.SobolIndices": "samples",
     "reliability.sampling.yield_sensitivity.YieldSensitivity": "dyield_dlnt",
     "reliability.sampling.verification.Verification": "distribution",
-    "reliability.sampling.machine_yield.YieldEstimate": "estimate",
+    "reliability.sampling.yield_estimate.YieldEstimate": "estimate",
     "reliability.measured.identification.Identification": "summary.json:rank",
     "reliability.compensation.tables.CompensationTables": "X.csv",
     "reliability.measured.planning.MeasurementPlan": "budget",
-    "reliability.acceptance.prediction.AcceptanceResult": "machines",
+    "reliability.acceptance.acceptance_result.AcceptanceResult": "machines",
     "reliability.acceptance.suggested_limits.SuggestedLimits": "probability",
     "allocation.per_pose.solve.AllocationResult": "tolerances",
     "allocation.per_pose.continuous.ContinuousAllocation": "certified",
@@ -267,7 +267,7 @@ ROUND_TRIPS = {
     "allocation.solvers.convex.ConvexSolution": "u",
 }
 #: Results whose module is split elsewhere; their protocol arrives with that split.
-FROM_SPLIT = {"YieldEstimate", "AcceptanceResult", "SuggestedLimits"}
+FROM_SPLIT = {"SuggestedLimits"}
 
 
 def test_every_result_class_found_has_a_round_trip():

@@ -15,7 +15,8 @@ import pandas as pd
 import pytest
 
 from reliability import machine_from_dict
-from reliability.acceptance.prediction import PositioningTest, acceptance
+from reliability.acceptance.iso_tests import PositioningTest
+from reliability.acceptance.prediction import acceptance
 from reliability.acceptance.suggested_limits import (
     minimum_machines,
     quantile_interval,

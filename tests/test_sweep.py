@@ -21,7 +21,7 @@ import pytest
 
 from allocation import AllocationProblem
 from reliability.basics.errors import InputError, InputTypeError, SavedResultError
-from reliability.model.machine import load_machine
+from reliability.model.machine_file import load_machine
 from reliability.model.poses import workspace_grid
 from reliability.sampling.verification import verify
 from studies.cli import sweep as command

@@ -18,7 +18,7 @@ from reliability.basics.display import in_units, quantity_text
 from reliability.first_order.fosm import fosm
 from reliability.model.identifiability import indistinguishable_groups
 from reliability.model.iso_names import plain_names
-from reliability.model.machine import machine_from_toml
+from reliability.model.machine_file import machine_from_toml
 from reliability.model.poses import workspace_grid
 from studies import cli
 from studies.report.machine_sections import advice, buy_ratios, in_people_units, \

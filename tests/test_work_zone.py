@@ -15,7 +15,7 @@ from reliability.basics.errors import InputError, MachineDescriptionError
 from reliability.first_order.certificate import certified_worst
 from reliability.first_order.fosm import error_sigma, fosm, pose_sigma
 from reliability.first_order.zone_enclosure import ZoneEnclosure
-from reliability.model.machine import machine_from_dict, machine_from_toml
+from reliability.model.machine_file import machine_from_dict, machine_from_toml
 from reliability.model.machine_checks import describe, likely_mistakes
 from reliability.model.poses import full_grid, random_poses, workspace_grid
 from reliability.model.work_zone import WorkZone, inside_zone, tool_points, tool_tilts

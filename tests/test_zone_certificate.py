@@ -15,7 +15,7 @@ from reliability.first_order.fosm import error_sigma, pose_sigma
 from reliability.first_order.pose_expansion import jacobian_expansion, variance_expansion
 from reliability.first_order.zone_bound import ZoneConstraints
 from reliability.first_order.zone_enclosure import ZoneEnclosure
-from reliability.model.machine import machine_from_dict
+from reliability.model.machine_file import machine_from_dict
 from reliability.model.poses import random_poses
 from reliability.model.work_zone import inside_zone
 

@@ -1,4 +1,5 @@
-"""Acceptance-test files: the ``[[tests]]`` TOML layout (docs/acceptance.md), read and checked.
+"""Acceptance-test files: the ``[[tests]]`` TOML layout (docs/acceptance.md), read, checked and
+written (:func:`table_of_test`).
 
 One ``[[tests]]`` table per test, each with ``name``, ``kind`` and ``limit``::
 
@@ -25,7 +26,7 @@ from typing import Mapping
 from ..basics.errors import InputError
 from ..basics.files import read_toml
 from ..model.machine_checks import implausible_values
-from .prediction import KINDS, CircularTest, PositioningTest, RotaryTest, build_path
+from .iso_tests import KINDS, CircularTest, PositioningTest, RotaryTest, build_path
 
 COMMON_KEYS = ("name", "kind", "limit")
 #: Keys of each kind: required, then optional.
@@ -85,7 +86,7 @@ def parse_tests(data: Mapping, machine, source: str = "tests") -> tuple:
         raise InputError(f"{source}: 'tests' must be one or more [[tests]] tables")
     tests, names = [], set()
     for position, entry in enumerate(entries):
-        test = _test(entry, source, position)
+        test = parse_test(entry, source, position)
         if test.name in names:
             raise InputError(f"{source}: test name {test.name!r} is used twice")
         names.add(test.name)
@@ -97,7 +98,10 @@ def parse_tests(data: Mapping, machine, source: str = "tests") -> tuple:
     return tuple(tests)
 
 
-def _test(entry: Mapping, source: str, position: int):
+def parse_test(entry: Mapping, source: str = "tests", position: int = 0):
+    """One ``[[tests]]`` table checked and built into its test (not yet against a machine:
+    :func:`~reliability.acceptance.iso_tests.build_path` does that); errors name ``source``
+    and the test, or its ``position`` when it has no name."""
     name = entry.get("name")
     if not isinstance(name, str) or not name.strip():
         raise InputError(f"{source}: tests[{position}], key 'name': expected a non-empty "
@@ -195,3 +199,22 @@ def _positive(value, where, key) -> float:
     if value <= 0:
         raise InputError(f"{where}, key {key!r}: must be > 0 mm; got {value!r}")
     return value
+
+
+def table_of_test(test) -> dict:
+    """The ``[[tests]]`` table of ``test``: what :func:`parse_test` reads back into an equal
+    test."""
+    table = {"name": test.name, "kind": test.kind}
+    if isinstance(test, CircularTest):
+        return {**table, "plane": test.plane, "centre": dict(test.centre),
+                "radius": test.radius, "limit": test.limit}
+    if isinstance(test, PositioningTest):
+        table.update(axis=test.axis, line=dict(test.line), limit=dict(test.limits),
+                     runs=test.runs)
+        if test.targets is not None:
+            table["targets"] = list(test.targets)
+        return table
+    table.update(axis=test.axis, centre=dict(test.centre), limit=dict(test.limits))
+    if test.sweep is not None:
+        table["sweep"] = list(test.sweep)
+    return table

@@ -30,7 +30,7 @@ import numpy as np
 import pandas as pd
 from scipy import stats
 
-from ..acceptance.prediction import tool_point
+from ..acceptance.iso_tests import tool_point
 from ..basics import streams
 from ..basics.chunks import chunks, jacobian_bytes
 from ..basics.errors import InputError

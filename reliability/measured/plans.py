@@ -15,7 +15,7 @@ from typing import Mapping
 import numpy as np
 
 from ..acceptance.definitions import parse_tests
-from ..acceptance.prediction import PositioningTest, build_path, tool_point
+from ..acceptance.iso_tests import PositioningTest, build_path, tool_point
 from ..basics.errors import InputError
 from ..basics.files import read_toml
 from .measurement_files import Measurements

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..acceptance.prediction import tool_point
+from ..acceptance.iso_tests import tool_point
 from ..basics.chunks import chunks
 from ..model.kinematics import (chain_factors, deviation_from_transports, ideal_rotation,
                                 transports, vectors_in_frame)

@@ -14,7 +14,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 import pandas as pd
 
-from ..acceptance.prediction import tool_point
+from ..acceptance.iso_tests import tool_point
 from ..basics import streams
 from ..model.kinematics import comprehensive_error
 from ..model.profiles import axis_profiles, to_marginal

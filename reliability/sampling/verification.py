@@ -50,7 +50,7 @@ from .grid_experiment import GridExperiment
 from .machine_yield import DEFAULT_MACHINES, YieldModel
 from .pose_sampling import EVENTS, sample_at_poses, sample_random_poses
 from .rare_events import failure_probability
-from .saved_yield import SavedYield
+from .yield_estimate import YieldEstimate
 
 
 @dataclass(frozen=True, repr=False)
@@ -141,7 +141,7 @@ SAVED_FIELDS = (
     Frame("worst_poses", ("output", "mc_estimate", "mc_lower", "mc_upper", "fosm_two_sided",
                           "exact_linear", "samples")),
     Text("distribution", ("normal", "truncated")),
-    Nested("machine_yield", SavedYield, optional=True))
+    Nested("machine_yield", YieldEstimate, optional=True))
 
 
 def reading_text(distribution: str) -> str:

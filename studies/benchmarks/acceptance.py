@@ -26,9 +26,10 @@ import numpy as np
 
 import reliability
 from reliability.acceptance.definitions import read_tests
-from reliability.acceptance.prediction import (CircularTest, PositioningTest, acceptance,
-                                               build_path, deviation_weights, ideal_chain,
-                                               positioning_statistics)
+from reliability.acceptance.iso_statistics import positioning_statistics
+from reliability.acceptance.iso_tests import (CircularTest, PositioningTest, build_path,
+                                              deviation_weights, ideal_chain)
+from reliability.acceptance.prediction import acceptance
 from reliability.basics.chunks import chunks
 from reliability.basics.streams import generator
 from reliability.model.profiles import GaussianProfile

@@ -35,7 +35,8 @@ import reliability
 from allocation import AllocationProblem
 from reliability.model.poses import workspace_grid
 from reliability.sampling.grid_experiment import GridExperiment
-from reliability.sampling.machine_yield import DEFAULT_MACHINES, YieldModel, yield_text
+from reliability.sampling.machine_yield import DEFAULT_MACHINES, YieldModel
+from reliability.sampling.yield_estimate import yield_text
 from studies.paper.tables import TABLE6
 from studies.workflows.timing import one_blas_thread
 

@@ -3,7 +3,8 @@ ISO 230 acceptance tests?"""
 
 from __future__ import annotations
 
-from reliability.acceptance.prediction import acceptance, path_profile, profile_note
+from reliability.acceptance.acceptance_result import profile_note
+from reliability.acceptance.prediction import acceptance, path_profile
 from reliability.acceptance.suggested_limits import check_machines, suggest_limits
 from reliability.basics.errors import InputError
 from reliability.basics.files import SIGNIFICANT, write_csv

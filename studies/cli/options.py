@@ -25,7 +25,7 @@ from reliability.measured.identification import identify
 from reliability.measured.identification import read_identification
 from reliability.measured.measurement_files import read_measurements
 from reliability.model.kinematics import FRAMES
-from reliability.model.machine import load_machine
+from reliability.model.machine_file import load_machine
 from reliability.model.machine_checks import tolerance_warnings, unit_mistakes
 from reliability.sampling.machine_yield import DEFAULT_MACHINES
 

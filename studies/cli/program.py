@@ -58,7 +58,7 @@ def build_parser() -> argparse.ArgumentParser:
 def _toolkit_errors() -> tuple[type[BaseException], ...]:
     from allocation import InfeasibleAllocationError
     from reliability.basics.errors import InputError, InputTypeError, SavedResultError
-    from reliability.model.machine import MachineDescriptionError
+    from reliability.basics.errors import MachineDescriptionError
     return (InputError, InputTypeError, SavedResultError, MachineDescriptionError,
             InfeasibleAllocationError, OSError)
 

@@ -26,7 +26,7 @@ import sys
 
 import pandas as pd
 
-from reliability.model.machine import hobbing_machine
+from reliability.model.machine_file import hobbing_machine
 from studies.report.correlation_section import correlation_section
 from studies.report.writer import check_output_folder, write_section
 from studies.workflows.correlation_sweep import VALUES, correlation_sweep

@@ -9,7 +9,8 @@ import math
 import numpy as np
 from matplotlib.figure import Figure
 
-from reliability.acceptance.prediction import DEFAULT_PROFILE, acceptance, profile_note
+from reliability.acceptance.acceptance_result import profile_note
+from reliability.acceptance.prediction import DEFAULT_PROFILE, acceptance
 from reliability.acceptance.suggested_limits import suggest_limits
 from reliability.basics.streams import acceptance_stream
 from studies.workflows.compensated_acceptance import SUFFIX, comparison_frame

@@ -12,7 +12,7 @@ import numpy as np
 import pandas as pd
 from matplotlib.figure import Figure
 
-from reliability.sampling.machine_yield import yield_text
+from reliability.sampling.yield_estimate import yield_text
 
 from .markdown import markdown_table
 from .section import Section
@@ -127,7 +127,7 @@ def failure_share_figure(study) -> Figure:
 
 def plot_failure_shares(estimate, *, ax=None, title: str = "", count: int = PLOTTED_SHARES):
     """Horizontal bars of the largest failure shares of a
-    :class:`~reliability.sampling.machine_yield.YieldEstimate`, with their intervals.
+    :class:`~reliability.sampling.yield_estimate.YieldEstimate`, with their intervals.
 
     Returns
     -------

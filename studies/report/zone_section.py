@@ -14,7 +14,7 @@ from matplotlib.patches import Circle, Rectangle
 
 from reliability.basics.display import OUTPUT_UNITS, axis_units, pose_text, with_unit
 from reliability.model.work_zone import tool_frames
-from reliability.sampling.machine_yield import yield_text
+from reliability.sampling.yield_estimate import yield_text
 
 from .markdown import markdown_table
 from .section import Section

@@ -29,8 +29,9 @@ import numpy as np
 import pandas as pd
 from scipy.special import ndtr
 
-from reliability.acceptance.prediction import (AcceptanceResult, acceptance, build_path,
-                                               deviation_weights, results_of_deviations)
+from reliability.acceptance.acceptance_result import AcceptanceResult
+from reliability.acceptance.iso_tests import build_path, deviation_weights
+from reliability.acceptance.prediction import acceptance, results_of_deviations
 from reliability.basics import checks, streams
 from reliability.basics.chunks import chunks
 from reliability.basics.display import (UNIT_SCALES, axis_units, output_people_units,

@@ -7,7 +7,7 @@ A compensated machine keeps the residual errors of the residual model
 ``Cov(r) = P + (I − S)(Σ − P)(I − S)``), each one value per machine along the whole travel
 (the constant profile, the one an identification holds). The residual errors are drawn
 correlated from that covariance, carried to the tool point in the workpiece frame
-(:func:`reliability.acceptance.prediction.deviation_weights`) and put through the same test
+(:func:`reliability.acceptance.iso_tests.deviation_weights`) and put through the same test
 simulation as machines before compensation
 (:func:`reliability.acceptance.prediction.results_of_deviations`): that simulation draws each
 linear axis' repeatability (σ_R per approach) and reversal (±B/2 by the direction of
@@ -20,8 +20,9 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from reliability.acceptance.prediction import (AcceptanceResult, build_path,
-                                               deviation_weights, results_of_deviations)
+from reliability.acceptance.acceptance_result import AcceptanceResult
+from reliability.acceptance.iso_tests import build_path, deviation_weights
+from reliability.acceptance.prediction import results_of_deviations
 from reliability.acceptance.suggested_limits import suggest_limits
 from reliability.basics import checks, streams
 from reliability.basics.chunks import chunks

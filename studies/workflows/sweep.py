@@ -48,7 +48,8 @@ from reliability.basics.files import SIGNIFICANT, probability_text, write_csv
 from reliability.basics.result_store import ResultStore, canonical_json, machine_fingerprint
 from reliability.basics.streams import verification_streams
 from reliability.model.error_draws import DISTRIBUTIONS
-from reliability.model.machine import OUTPUTS, hobbing_machine, load_machine
+from reliability.model.machine import OUTPUTS
+from reliability.model.machine_file import hobbing_machine, load_machine
 from reliability.model.poses import workspace_grid
 from reliability.model.profiles import profile_model
 from reliability.sampling.grid_experiment import GridExperiment
