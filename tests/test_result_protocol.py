@@ -49,7 +49,6 @@ from reliability.sampling.verification import verify
 from reliability.sampling.yield_sensitivity import yield_sensitivity
 
 HERE = Path(__file__).parent
-SPLIT = pytest.mark.xfail(strict=False, reason="protocol added by the split of its module")
 
 #: Classes with ``summary`` or ``to_frame`` that are not results, and why.
 NOT_RESULTS = {
@@ -254,7 +253,7 @@ ROUND_TRIPS = {
     "reliability.measured.identification.Identification": "summary.json:rank",
     "reliability.compensation.tables.CompensationTables": "X.csv",
     "reliability.measured.planning.MeasurementPlan": "budget",
-    "reliability.acceptance.acceptance_result.AcceptanceResult": "machines",
+    "reliability.acceptance.acceptance_result.AcceptanceResult": "k",
     "reliability.acceptance.suggested_limits.SuggestedLimits": "probability",
     "allocation.per_pose.solve.AllocationResult": "tolerances",
     "allocation.per_pose.continuous.ContinuousAllocation": "certified",
@@ -266,8 +265,6 @@ ROUND_TRIPS = {
     "allocation.cost.fuzzy_evaluation.FcemResult": "value",
     "allocation.solvers.convex.ConvexSolution": "u",
 }
-#: Results whose module is split elsewhere; their protocol arrives with that split.
-FROM_SPLIT = {"SuggestedLimits"}
 
 
 def test_every_result_class_found_has_a_round_trip():
@@ -290,8 +287,7 @@ def _short(path):
 
 def _cases():
     for path, field in ROUND_TRIPS.items():
-        marks = [SPLIT] if _short(path) in FROM_SPLIT else []
-        yield pytest.param(path, field, marks=marks, id=_short(path))
+        yield pytest.param(path, field, id=_short(path))
 
 
 @pytest.mark.parametrize(("path", "field"), list(_cases()))

@@ -152,27 +152,36 @@ class AcceptanceResult:
                     self.top_drivers(row.test, row.quantity) or "-"})
         return pd.DataFrame(rows)
 
+    def payload(self) -> dict:
+        """The JSON-ready fields :meth:`save` writes: the tests in the test file's layout,
+        every result of every machine, the drivers, the set-up and each test's count of
+        passing machines (also the payload of a result saved inside another)."""
+        return {"tests": [table_of_test(test) for test in self.tests],
+                "values": self.values.to_numpy(), "drivers": encode_frame(self.drivers),
+                "profile": self.profile, "distribution": self.distribution, "k": self.k,
+                "confidence": self.confidence, "passing": self._passing()}
+
     def save(self, path, overwrite: bool = False):
-        """Save as JSON with its metadata (:mod:`reliability.basics.saved_results`): the
-        tests in the test file's layout, every result of every machine, the drivers, the
-        set-up and each test's count of passing machines; an existing file is kept unless
-        ``overwrite``. Returns the path."""
-        payload = {"tests": [table_of_test(test) for test in self.tests],
-                   "values": self.values.to_numpy(), "drivers": encode_frame(self.drivers),
-                   "profile": self.profile, "distribution": self.distribution, "k": self.k,
-                   "confidence": self.confidence, "passing": self._passing()}
-        return save_payload(path, SAVED_FORMAT, payload, overwrite)
+        """Save as JSON with its metadata (:mod:`reliability.basics.saved_results`); an
+        existing file is kept unless ``overwrite``. Returns the path."""
+        return save_payload(path, SAVED_FORMAT, self.payload(), overwrite)
 
     @classmethod
     def load(cls, path) -> "AcceptanceResult":
-        """Reload a result written by :meth:`save`; a damaged or inconsistent field raises
-        :class:`~reliability.basics.errors.SavedResultError` naming the file and the field.
+        """Reload a result written by :meth:`save`, checked as :meth:`from_payload` says; a
+        damaged or inconsistent field raises
+        :class:`~reliability.basics.errors.SavedResultError` naming the file and the field."""
+        return cls.from_payload(load_payload(path, SAVED_FORMAT))
+
+    @classmethod
+    def from_payload(cls, data) -> "AcceptanceResult":
+        """The result written by :meth:`payload`, read through ``data`` (a
+        :class:`~reliability.basics.saved_results.PayloadReader`).
 
         The tests are read as a test file's tables; the verdicts are kept: each test's count
         of passing machines, decided again from the saved results and limits, must be the
         saved count.
         """
-        data = load_payload(path, SAVED_FORMAT)
         tests = _saved_tests(data)
         columns = result_columns(tests)
         values = data.array("values", (None, len(columns)), low=0.0)

@@ -6,8 +6,10 @@ allocation meet with a given probability ``P``, to write in the machine's specif
 
 **The suggested limit** of a result is its ``P``-quantile over the built machines: the
 order statistic ``x₍ₖ₎`` with ``k = ⌈n P⌉`` (the inverse of the empirical distribution
-function), so at least a share ``P`` of the simulated machines lie within it
-(``value <= limit``, as a test reads a limit).
+function), moved up to the next floating-point number, so that at least a share ``P`` of
+the simulated machines pass it by the toolkit's one rule ``value < limit``
+(:mod:`reliability.basics.pass_rule`; the machine at ``x₍ₖ₎`` itself passes). The ends of
+its interval are moved up alike, so they read as limits too.
 
 **Its interval** is distribution-free: with ``K`` the number of built machines whose result
 lies below the true ``P``-quantile, ``K`` is binomial ``(n, P)`` whatever the result's
@@ -34,10 +36,14 @@ import pandas as pd
 from scipy.stats import binom
 
 from ..basics.errors import InputError
+from ..basics.pass_rule import passes
+from ..basics.saved_fields import Frame, Nested, Number, load_fields, save_fields
 from ..basics.statistics import binomial_interval
+from .acceptance_result import AcceptanceResult
 
 #: Columns :meth:`SuggestedLimits.to_frame` adds to the ``acceptance.csv`` table (mm).
 COLUMNS = ("suggested_limit", "suggested_low", "suggested_high")
+SAVED_FORMAT = "precrel.suggested_limits"
 
 
 def _check_probability(name: str, value) -> float:
@@ -187,8 +193,8 @@ class SuggestedLimits:
         for test in self.result.tests:
             ok = np.ones(self.result.n_machines, dtype=bool)
             for quantity in test.limits:
-                ok &= values[(test.name, quantity)].to_numpy() <= \
-                    self._suggested(test.name, quantity)
+                ok &= passes(values[(test.name, quantity)].to_numpy(),
+                             self._suggested(test.name, quantity))
             out[test.name] = ok
         frame = pd.DataFrame(out)
         frame["all"] = frame.all(axis=1)
@@ -233,6 +239,34 @@ class SuggestedLimits:
                   for row in self.joint_pass().itertuples()]
         return "\n".join(lines)
 
+    def save(self, path, overwrite: bool = False):
+        """Save as JSON (:mod:`reliability.basics.saved_fields`): the acceptance result, the
+        probability, the confidence, the limits and their coverage; an existing file is kept
+        unless ``overwrite``. Returns the path."""
+        return save_fields(self, path, SAVED_FORMAT, SAVED_FIELDS, overwrite)
+
+    @classmethod
+    def load(cls, path) -> "SuggestedLimits":
+        """Reload limits written by :meth:`save`, the acceptance result checked as
+        :meth:`AcceptanceResult.from_payload` says. The verdicts are kept: the suggested
+        limits and their intervals must be the quantiles of the saved results, and the
+        coverage their ranks' coverage; anything else raises
+        :class:`~reliability.basics.errors.SavedResultError` naming the file and the field."""
+        data, values = load_fields(path, SAVED_FORMAT, SAVED_FIELDS)
+        for name in ("probability", "confidence"):
+            if not 0.0 < values[name] < 1.0:
+                raise data.error(name, f"expected a number in (0, 1), got {values[name]!r}")
+        again = suggest_limits(values["result"], values["probability"], values["confidence"])
+        saved = values["limits"]
+        if list(saved.columns) != list(again.limits.columns) or len(saved) != len(again.limits) \
+                or not np.array_equal(saved[list(COLUMNS)].to_numpy(float),
+                                      again.limits[list(COLUMNS)].to_numpy(float)):
+            raise data.error("limits", "are not the quantiles of the saved results")
+        if values["coverage"] != again.coverage:
+            raise data.error("coverage", f"is {values['coverage']!r}; the ranks give "
+                                         f"{again.coverage!r}")
+        return again
+
     def _printed_table(self) -> pd.DataFrame:
         """Limits, suggested limits and their intervals in µm, one row per result."""
         frame = self.to_frame().iloc[:-1]
@@ -274,7 +308,14 @@ def suggest_limits(result, probability: float,
                                else confidence)
     _, _, coverage = quantile_ranks(result.n_machines, p, level)
     limits = result.values.columns.to_frame(index=False)
-    for column, values in zip(COLUMNS, quantile_interval(result.values, p, level)):
-        limits[column] = values
+    estimate, low, high = quantile_interval(result.values, p, level)
+    for column, values in zip(COLUMNS, (estimate, low, high)):
+        limits[column] = np.nextafter(values, np.inf)  # passed by |v| < limit
     return SuggestedLimits(result=result, probability=p, confidence=level, limits=limits,
                            coverage=coverage)
+
+
+#: The fields :meth:`SuggestedLimits.save` writes.
+SAVED_FIELDS = (Nested("result", AcceptanceResult), Number("probability"),
+                Number("confidence"), Frame("limits", ("test", "quantity", *COLUMNS)),
+                Number("coverage", low=0.0, high=1.0))
