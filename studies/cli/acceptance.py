@@ -32,22 +32,17 @@ def add_parser(subparsers):
                     "result's mean and 95 % quantile, the pass probability with its Wilson "
                     "95 % interval and the error items that drive it.")
     options.add_machine(parser)
-    parser.add_argument("--tests", required=True, metavar="TESTS.toml",
-                        help="test definitions ([[tests]] tables, see docs/acceptance.md)")
+    options.add_input_file(parser, "--tests", "the tests to predict", required=True)
     options.add_tolerances(parser)
     options.add_machines(parser, default=2000)
     options.add_profile(parser)
     options.add_seed(parser)
-    parser.add_argument("--suggest", type=options.probability, metavar="P",
-                        help="add to each result the limit that a share P of the built "
-                             "machines meet (its P-quantile, with a distribution-free 95 %% "
-                             "interval), and the probability of passing each test with them")
-    parser.add_argument("--compensation", metavar="PLAN.toml",
-                        help="also each result after compensation, beside the result before: "
-                             "machines built to the allocation, measured under this plan and "
-                             "compensated (a measurement plan with a [compensation] table, "
-                             "docs/compensation.md), drawn from the residual model; adds "
-                             "columns ending in _compensated to the --out table")
+    options.add_suggest(parser)
+    options.add_input_file(parser, "--compensation",
+                           "also each result after compensation, beside the result before: "
+                           "machines built to the allocation, measured under this plan and "
+                           "compensated, drawn from the residual model; adds columns ending "
+                           "in _compensated to the --out table")
     options.add_out(parser, "file", "write the table of results as CSV", metavar="CSV")
     options.add_overwrite(parser)
     return parser

@@ -119,7 +119,7 @@ def add_parser(subparsers):
     options.add_executor(parser)
     add_yield_bracket(parser)
     options.add_deprecated(parser, "--catalogue", "precrel choose", dest="catalogue",
-                           metavar="CAT.toml")
+                           metavar=options.INPUT_FILES["--catalogue"][0])
     options.add_tolerances(parser)
     choose.add_tolerances_out(parser)
     parser.add_argument("--drawing", metavar="CSV",

@@ -27,8 +27,8 @@ def add_parser(subparsers):
                     "it (columns error, reference, allocated): choice.csv -> "
                     "choice.tolerances.csv.")
     options.add_machine(parser)
-    parser.add_argument("--catalogue", required=True, metavar="CAT.toml",
-                        help="the catalogue of classes to choose among")
+    options.add_input_file(parser, "--catalogue", "the classes to choose among",
+                           required=True)
     options.add_out(parser, "file", "choice CSV to write (columns component, class, price); "
                                     "the tolerances go beside it, STEM.tolerances.csv",
                     metavar="CSV", required=True)

@@ -113,13 +113,11 @@ def residual_text(identification, tables) -> str:
 
 def add_allocation_option(parser) -> None:
     """``precrel allocate --compensation PLAN.toml``."""
-    parser.add_argument("--compensation", metavar="PLAN.toml",
-                        help="allocate for machines measured under this plan and compensated "
-                             "(a measurement plan with a [compensation] table, "
-                             "docs/compensation.md), on the --points grid; prints the cost "
-                             "with and without compensation, its bracket and the items that "
-                             "stay tight (not with --yield, --method gwo or --workspace "
-                             "continuous)")
+    options.add_input_file(parser, "--compensation",
+                           "allocate for machines measured under this plan and compensated, "
+                           "on the --points grid; prints the cost with and without "
+                           "compensation, its bracket and the items that stay tight (not "
+                           "with --yield, --method gwo or --workspace continuous)")
 
 
 def run_allocation(args) -> int:
@@ -156,13 +154,12 @@ MODEL_MACHINES = 20_000
 
 def add_verification_option(parser) -> None:
     """``precrel verify --compensation PLAN.toml [--compensated-machines N]``."""
-    parser.add_argument("--compensation", metavar="PLAN.toml",
-                        help="also the results after compensation, for machines measured "
-                             "under this plan and compensated (docs/compensation.md): FOSM "
-                             "beside FOSM before, on the --points grid, and the yield "
-                             "predicted by the residual model beside the yield of "
-                             "--compensated-machines machines measured, identified and "
-                             "compensated on the exact chain")
+    options.add_input_file(parser, "--compensation",
+                           "also the results after compensation, for machines measured "
+                           "under this plan and compensated: FOSM beside FOSM before, on the "
+                           "--points grid, and the yield predicted by the residual model "
+                           "beside the yield of --compensated-machines machines measured, "
+                           "identified and compensated on the exact chain")
     parser.add_argument("--compensated-machines", type=options.positive_int, default=100,
                         metavar="N",
                         help="machines simulated end to end with --compensation (default 100)")
@@ -205,11 +202,10 @@ def _yield_line(what, passes) -> str:
 
 def add_report_option(parser) -> None:
     """``precrel report --compensation PLAN.toml``."""
-    parser.add_argument("--compensation", metavar="PLAN.toml",
-                        help="add an 'After compensation' section: the cheapest allocation "
-                             "for machines measured under this plan and compensated, beside "
-                             "the one without, what compensation relaxes and what it cannot "
-                             "(docs/compensation.md)")
+    options.add_input_file(parser, "--compensation",
+                           "add an 'After compensation' section: the cheapest allocation for "
+                           "machines measured under this plan and compensated, beside the "
+                           "one without, what compensation relaxes and what it cannot")
 
 
 def report_builder(args, machine):

@@ -28,8 +28,7 @@ def add_parser(subparsers):
                     "about the errors, the combinations the readings cannot tell apart and "
                     "a chi2 check of the readings against the model.")
     options.add_machine(parser)
-    parser.add_argument("--measurements", required=True, metavar="meas.csv",
-                        help="the measurement file")
+    options.add_measurements(parser, required=True)
     options.add_tolerances(parser)
     options.add_profile(parser)
     parser.add_argument("--iterate", action="store_true",

@@ -316,8 +316,36 @@ def add_monte_carlo(parser) -> None:
                         help="grid experiments per allocation (default 20, as the paper's "
                              "Table 9)")
     parser.add_argument("--samples", type=positive_int, default=20_000, metavar="N",
-                        help="random-pose samples and samples per worst pose (default 20000)")
+                        help="Monte-Carlo samples at random poses and at each worst pose "
+                             "(default 20000)")
     add_seed(parser)
+
+
+#: The input files several commands read: option -> (metavar, what the file is).
+INPUT_FILES = {
+    "--catalogue": ("CAT.toml", "a catalogue of classes per component (docs/catalogue.md)"),
+    "--tests": ("TESTS.toml", "ISO 230 acceptance tests ([[tests]] tables, "
+                              "docs/acceptance.md)"),
+    "--compensation": ("PLAN.toml", "a measurement plan with a [compensation] table "
+                                    "(docs/compensation.md)"),
+}
+
+
+def add_input_file(parser, option: str, use: str, *, required: bool = False):
+    """An input file of :data:`INPUT_FILES` (one metavar and kind everywhere); ``use``
+    says what this command does with it."""
+    metavar, kind = INPUT_FILES[option]
+    return _shared(parser.add_argument(option, required=required, metavar=metavar,
+                                       help=f"{kind}: {use}"), "add_input_file")
+
+
+def add_suggest(parser):
+    """``--suggest P``: suggested limits of acceptance-test results."""
+    return _shared(parser.add_argument(
+        "--suggest", type=probability, metavar="P",
+        help="add to each acceptance-test result the limit that a share P of the built "
+             "machines meet (its P-quantile, with a distribution-free 95 %% interval), and "
+             "the probability of passing each test with them"), "add_suggest")
 
 
 # ----- old spellings, kept for one release ----------------------------------------------
@@ -543,15 +571,20 @@ def add_as_measured(parser, *, required: bool = False) -> None:
     """``--identification DIR`` or ``--measurements CSV``: this machine as measured, for its
     reliability beside the design-time numbers (``verify``, ``report``) or, ``required``, as
     the command's input (``compensate``)."""
-    also = "" if required else "also this machine's reliability as measured: "
     group = parser.add_mutually_exclusive_group(required=required)
-    group.add_argument("--identification", metavar="DIR",
-                       help=f"{also}the folder 'precrel identify --out' wrote "
-                            f"(docs/measurements.md)")
-    group.add_argument("--measurements", metavar="CSV",
-                       help="this machine's measurement file instead, identified here under "
-                            "--profile (constant or gp:<length mm>) with the allocation in "
-                            "force as prior")
+    _shared(group.add_argument("--identification", metavar="DIR",
+                               help="this machine as measured: the folder 'precrel identify "
+                                    "--out' wrote (docs/measurements.md)"), "add_as_measured")
+    add_measurements(group)
+
+
+def add_measurements(parser, *, required: bool = False):
+    """``--measurements meas.csv``: this machine's readings."""
+    return _shared(parser.add_argument(
+        "--measurements", required=required, metavar="meas.csv",
+        help="this machine's measurement file (docs/measurements.md), identified under "
+             "--profile (constant or gp:<length mm>) with the allocation in force as prior"),
+        "add_measurements")
 
 
 def as_measured_identification(args, machine, tolerances=None):

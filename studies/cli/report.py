@@ -45,16 +45,14 @@ def add_parser(subparsers):
     parser.add_argument("--skip", nargs="+", default=(), choices=EXTRAS, metavar="SECTION",
                         help="leave out optional sections: " + ", ".join(EXTRAS)
                              + " (default: include all)")
-    parser.add_argument("--tests", metavar="TESTS.toml",
-                        help="add an 'Acceptance tests' section: these ISO 230 tests "
-                             "predicted for the initial and the optimal allocation (with "
-                             "--compensation, also after compensation)")
-    parser.add_argument("--suggest", type=options.probability, metavar="P",
-                        help="with --tests: add each result's suggested limit, the limit "
-                             "that a share P of the built machines meet")
-    parser.add_argument("--catalogue", metavar="CAT.toml",
-                        help="add a 'Component choice' section: the certified cheapest "
-                             "choice of one class per component of this catalogue")
+    options.add_input_file(parser, "--tests",
+                           "add an 'Acceptance tests' section: these tests predicted for "
+                           "the initial and the optimal allocation (with --compensation, "
+                           "also after compensation; --suggest with them)")
+    options.add_suggest(parser)
+    options.add_input_file(parser, "--catalogue",
+                           "add a 'Component choice' section: the certified cheapest choice "
+                           "of one class per component")
     options.add_tolerances(parser)
     parser.add_argument("--sensitivity", action="store_true",
                         help="add a 'What each tolerance buys' section: d yield / d ln t of "

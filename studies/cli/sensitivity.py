@@ -38,9 +38,11 @@ def add_parser(subparsers):
     options.add_deprecated(parser, "--yield", "--yield-gradient", dest="with_yield",
                            nargs=0, const=True)
     options.add_yield_model(parser)
-    parser.add_argument("--samples", type=options.positive_int, default=DEFAULT_SAMPLES,
-                        metavar="N", help=f"rows of each Sobol sample (default "
-                                          f"{DEFAULT_SAMPLES})")
+    parser.add_argument("--sobol-samples", dest="samples", type=options.positive_int,
+                        default=DEFAULT_SAMPLES, metavar="N",
+                        help=f"rows of each Sobol sample (default {DEFAULT_SAMPLES})")
+    options.add_deprecated(parser, "--samples", "--sobol-samples", dest="samples",
+                           type=options.positive_int, metavar="N")
     options.add_points(parser)
     options.add_seed(parser)
     options.add_out(parser, "folder", "write sobol.csv (and with --yield-gradient "

@@ -59,10 +59,10 @@ def add_parser(subparsers):
     options.add_deprecated(parser, "--certify", "--workspace continuous", dest="certify",
                            nargs=0, const=True, default=False)
     options.add_as_measured(parser)
-    parser.add_argument("--tests", metavar="TESTS.toml",
-                        help="with --identification or --measurements: each acceptance "
-                             "test's predicted result for this machine, beside machines "
-                             "built to the allocation")
+    options.add_input_file(parser, "--tests",
+                           "with --identification or --measurements: each test's predicted "
+                           "result for this machine, beside machines built to the "
+                           "allocation")
     compensate.add_verification_option(parser)
     options.add_out(parser, "folder", f"write {', '.join(TABLE_FILES)} into DIR")
     options.add_overwrite(parser)
