@@ -102,12 +102,13 @@ def test_docs_show_every_command_its_out_kind_and_every_option():
     assert rows == {c: kind or "none" for c, kind in OUT_KINDS.items()}
     for command, parser in commands().items():
         for name, action in options_of(parser).items():
-            assert f"`{name}" in text, (command, name)
+            assert re.search(rf"(?<![\w-]){re.escape(name)}(?![\w-])", text), \
+                (command, name)
     for argv, _, _, new in DEPRECATED:
         old = next(word for word in argv if word.startswith("--") and word in
                    options_of(commands()[argv[0]]) and
                    isinstance(options_of(commands()[argv[0]])[word], Deprecated))
-        assert re.search(rf"`{argv[0]} {old}[^`]*` \| `[^`]*{re.escape(new.split()[-1])}",
+        assert re.search(rf"`{argv[0]} {old}[^`]*`[^|]*\| `[^`]*{re.escape(new.split()[-1])}",
                          text), (argv[0], old)
 
 
