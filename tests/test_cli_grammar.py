@@ -173,3 +173,11 @@ def test_an_earlier_drawing_beside_a_new_out_is_refused_naming_both(tmp_path, ca
     err = capsys.readouterr().err
     assert "a.drawing.csv" in err and "--overwrite" in err
     assert not (tmp_path / "a.csv").exists()
+
+
+def test_allocate_yield_refuses_a_process_pool_naming_it(tmp_path, capsys):
+    """``--executor`` has one set of choices; ``allocate --yield`` cannot use processes."""
+    assert _allocate(tmp_path, "a.csv", "--yield", "0.9", "--executor", "processes") == 2
+    err = capsys.readouterr().err
+    assert "--executor processes: not available with --yield" in err
+    assert not any(tmp_path.iterdir())

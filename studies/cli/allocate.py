@@ -288,11 +288,8 @@ def add_yield_bracket(parser) -> None:
 
 def yield_executor(args):
     """The context of ``--yield``'s Dask client (None: here) and where it simulates, in
-    words (:func:`options.executor_kind`; a process pool is refused)."""
-    kind = options.executor_kind(args)
-    if kind == "processes":
-        raise InputError("--executor processes: not available with --yield; its built "
-                         "machines are simulated here (serial) or on Dask (dask)")
+    words (:func:`options.executor_kind`; no process pool)."""
+    kind = options.executor_kind(args, ("serial", "dask"), " with --yield")
     if kind == "serial":
         return contextlib.nullcontext(), "here"
     if args.scheduler is not None:

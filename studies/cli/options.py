@@ -287,17 +287,23 @@ def add_executor(parser) -> None:
              "dask implied)"), "add_executor")
 
 
-def executor_kind(args) -> str:
+def executor_kind(args, kinds=EXECUTORS, where: str = "") -> str:
     """``--executor``, with ``dask`` implied by ``--scheduler``, after checking that
-    ``--executor``, ``--workers`` and ``--scheduler`` go together."""
+    ``--executor``, ``--workers`` and ``--scheduler`` go together and that the executor is
+    one of ``kinds``, those the command can use (``where`` names the command's mode in the
+    refusal)."""
     kind = "dask" if args.executor is None and args.scheduler is not None else \
         args.executor or "serial"
+    if kind not in kinds:
+        raise InputError(f"--executor {kind}: not available{where}; use "
+                         f"{' or '.join(kinds)}")
     if args.scheduler is not None and kind != "dask":
         raise InputError(f"--scheduler needs --executor dask (or no --executor); got "
                          f"--executor {kind}")
     if args.workers is not None and kind == "serial":
-        raise InputError("--workers needs --executor processes or dask: it sizes the pool "
-                         "or the local Dask cluster")
+        pools = " or ".join(k for k in kinds if k != "serial")
+        raise InputError(f"--workers needs --executor {pools}: it sizes the pool or the "
+                         f"local Dask cluster")
     if args.workers is not None and args.scheduler is not None:
         raise InputError(f"--workers sizes a local Dask cluster; the scheduler at --scheduler "
                          f"{args.scheduler} has its own workers: give one of the two")
