@@ -10,6 +10,7 @@ import re
 from collections import defaultdict
 from pathlib import Path
 
+import pandas as pd
 import pytest
 
 from studies import cli
@@ -181,3 +182,54 @@ def test_allocate_yield_refuses_a_process_pool_naming_it(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "--executor processes: not available with --yield" in err
     assert not any(tmp_path.iterdir())
+
+
+PLAN = ('[[tests]]\nname = "ballbar"\nkind = "circular"\nplane = "xy"\n'
+        'centre = { Y = 200.0, X = 0.0, Z = -175.0 }\nradius = 100.0\nlimit = 1.0\n'
+        'u = 0.0005\n')
+
+
+def test_measure_writes_its_truth_beside_out_and_identify_reads_the_files_profile(
+        tmp_path, capsys):
+    """``measure --out m.csv`` writes ``m.truth.csv`` beside it; ``identify`` identifies
+    under the machine file's ``[requirements] profile`` when ``--profile`` is not given."""
+    plan = tmp_path / "plan.toml"
+    plan.write_text(PLAN)
+    assert cli.main(["measure", MILL, "--plan", str(plan), "--out",
+                     str(tmp_path / "m.csv")]) == 0
+    assert {"m.csv", "m.truth.csv"} <= {p.name for p in tmp_path.iterdir()}
+    machine = tmp_path / "gp.toml"
+    machine.write_text(Path(MILL).read_text().replace(
+        "[requirements]\n", '[requirements]\nprofile = "gp:300"\n', 1))
+    assert cli.main(["identify", str(machine), "--measurements", str(tmp_path / "m.csv"),
+                     "--out", str(tmp_path / "id")]) == 0
+    assert (tmp_path / "id" / "profiles.csv").exists()  # written under a gp profile only
+    capsys.readouterr()
+
+
+def test_predict_out_is_one_table_with_the_worst_pose(tmp_path, capsys):
+    out = tmp_path / "p.csv"
+    assert cli.main(["predict", MILL, "--points", "3", "--out", str(out)]) == 0
+    frame = pd.read_csv(out)
+    assert list(frame["output"]) == ["dx", "dy", "dz", "ex", "ey", "ez"]
+    assert {"Y", "X", "Z", "sigma", "beta", "worst_two_sided"} <= set(frame.columns)
+    assert (frame["sigma"] > 0).all()
+    assert cli.main(["predict", MILL, "--points", "3", "--out", str(out)]) == 2
+    assert "--overwrite" in capsys.readouterr().err
+
+
+def test_verify_out_is_a_folder_of_its_three_tables(tmp_path, capsys):
+    assert _allocate(tmp_path, "a.csv") == 0
+    argv = ["verify", MILL, "--tolerances", str(tmp_path / "a.csv"), "--points", "3",
+            "--repeats", "2", "--samples", "500", "--machines", "100", "--workspace", "grid",
+            "--out", str(tmp_path / "v")]
+    assert cli.main(argv) == 0
+    assert sorted(p.name for p in (tmp_path / "v").iterdir()) == \
+        ["grid_experiments.csv", "random_poses.csv", "worst_poses.csv"]
+    worst = pd.read_csv(tmp_path / "v" / "worst_poses.csv")
+    assert list(worst["output"]) == ["dx", "dy", "dz", "ex", "ey", "ez"]
+    assert ((worst["mc_lower"] <= worst["mc_estimate"])
+            & (worst["mc_estimate"] <= worst["mc_upper"])).all()
+    capsys.readouterr()
+    assert cli.main(argv) == 2
+    assert "--overwrite" in capsys.readouterr().err
