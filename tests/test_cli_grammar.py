@@ -99,10 +99,10 @@ def test_out_is_a_file_or_a_folder_as_declared():
 
 def test_docs_show_every_command_its_out_kind_and_every_option():
     text = DOCS.read_text(encoding="utf-8")
-    rows = dict(re.findall(r"^\| `(\w+)` \| (file|folder|none) \|", text, flags=re.M))
+    rows = dict(re.findall(r"^\| `(\w+)` \| (file|folder|none) \|", text, flags=re.MULTILINE))
     assert rows == {c: kind or "none" for c, kind in OUT_KINDS.items()}
     for command, parser in commands().items():
-        for name, action in options_of(parser).items():
+        for name in options_of(parser):
             assert re.search(rf"(?<![\w-]){re.escape(name)}(?![\w-])", text), \
                 (command, name)
     for argv, _, _, new in DEPRECATED:

@@ -330,10 +330,10 @@ def add_monte_carlo(parser) -> None:
 #: The input files several commands read: option -> (metavar, what the file is).
 INPUT_FILES = {
     "--catalogue": ("CAT.toml", "a catalogue of classes per component (docs/catalogue.md)"),
-    "--tests": ("TESTS.toml", "ISO 230 acceptance tests ([[tests]] tables, "
-                              "docs/acceptance.md)"),
-    "--compensation": ("PLAN.toml", "a measurement plan with a [compensation] table "
-                                    "(docs/compensation.md)"),
+    "--tests": ("TESTS.toml", ("ISO 230 acceptance tests ([[tests]] tables, "
+                               "docs/acceptance.md)")),
+    "--compensation": ("PLAN.toml", ("a measurement plan with a [compensation] table "
+                                     "(docs/compensation.md)")),
 }
 
 

@@ -20,6 +20,7 @@ from studies.workflows.sweep import RESULTS_FILE, SweepSpec, run_sweep
 
 from . import options
 
+
 def add_parser(subparsers) -> argparse.ArgumentParser:
     """Register ``sweep`` with its options."""
     parser = subparsers.add_parser(
