@@ -490,7 +490,8 @@ def test_command_csv_reads_back_as_the_results_table(tmp_path, capsys):
                      "3", "--out", str(tmp_path)]) == 0
     captured = capsys.readouterr()
     printed = captured.out
-    assert "precrel: warning: --out DIR is deprecated for acceptance" in captured.err
+    assert (f"precrel: warning: --out DIR (a folder) in acceptance is deprecated; use --out "
+            f"{tmp_path / 'acceptance.csv'}") in captured.err
     loaded = load_machine(machine)
     result = acceptance(loaded, read_tests(tests, loaded), machines=40, profile=loaded.profile,
                         rng=3)

@@ -4,7 +4,6 @@ still gets its ``acceptance.csv`` for one release)."""
 
 from __future__ import annotations
 
-import sys
 from pathlib import Path
 
 from reliability.acceptance.prediction import acceptance, path_profile, profile_note
@@ -112,8 +111,7 @@ def out_file(args):
     if not Path(args.out).is_dir():
         return options.destination(args.out, args.overwrite)
     path = Path(args.out) / RESULT_FILE
-    print(f"precrel: warning: --out DIR is deprecated for acceptance; use --out {path}",
-          file=sys.stderr, flush=True)
+    options.warn_deprecated("--out DIR (a folder) in acceptance", f"--out {path}")
     return options.destination(path, args.overwrite)
 
 

@@ -366,9 +366,13 @@ class Deprecated(argparse.Action):
         self.replacement = replacement
 
     def __call__(self, parser, namespace, values, option_string=None):
-        print(f"precrel: warning: {option_string} is deprecated; use {self.replacement}",
-              file=sys.stderr, flush=True)
+        warn_deprecated(option_string, self.replacement)
         setattr(namespace, self.dest, self.const if self.nargs == 0 else values)
+
+
+def warn_deprecated(old: str, new: str) -> None:
+    """The one line an old spelling prints on stderr, naming the new one."""
+    print(f"precrel: warning: {old} is deprecated; use {new}", file=sys.stderr, flush=True)
 
 
 def add_deprecated(parser, old: str, replacement: str, dest: str, **kwargs):
