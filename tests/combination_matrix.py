@@ -49,7 +49,7 @@ FRAMES = ("tool", "workpiece")
 BOXES = ("factors", "table")
 READINGS = ("normal", "truncated")
 PROFILES = ("constant", "gp:300")
-COMMANDS = ("check", "predict", "allocate", "allocate --yield", "allocate --catalogue",
+COMMANDS = ("check", "predict", "allocate", "allocate --yield", "choose",
             "verify", "report", "front", "sweep", "acceptance")
 #: Small sizes: the matrix checks that combinations join, not the numbers (the paper's
 #: six-axis machine on a 2-point grid, the others on 3 points).
@@ -142,16 +142,16 @@ def arguments(cell: Cell, folder: Path) -> list[str]:
         "allocate": ["allocate", m, *small, *box, "--out", str(folder / "a.csv")],
         "allocate --yield": ["allocate", m, *small, *box, "--yield", "0.9", "--machines",
                              MACHINE_COUNT, "--out", str(folder / "y.csv")],
-        "allocate --catalogue": ["allocate", m, *small, "--catalogue", str(catalogue),
-                                 "--out", str(folder / "c.csv")],
+        "choose": ["choose", m, *small, "--catalogue", str(catalogue),
+                   "--out", str(folder / "c.csv")],
         "verify": ["verify", m, *small, *verification, "--tolerances",
                    str(initial_csv(machine, folder))],
         "report": ["report", m, *small, *box, *verification, "--tests", str(tests),
                    "--catalogue", str(catalogue), "--skip", "front", "system", "rare",
                    "profiles", "--out", str(folder / "report")],
-        "front": ["front", m, *small, *box, "--targets", "2", "--out",
+        "front": ["front", m, *small, *box, "--count", "2", "--out",
                   str(folder / "f.csv")],
-        "sweep": ["sweep", str(sweep_spec(cell, machine, folder)), "--store",
+        "sweep": ["sweep", str(sweep_spec(cell, machine, folder)), "--out",
                   str(folder / "store")],
         "acceptance": ["acceptance", m, "--tests", str(tests), "--machines", MACHINE_COUNT],
     }[cell.command]

@@ -153,7 +153,7 @@ def test_bad_catalogues_are_refused_in_one_line(tmp_path, case, change, words):
 def test_bad_catalogues_exit_2_before_any_work(tmp_path, capsys, case, change, words):
     path = write(tmp_path, changed(change))
     out = tmp_path / "choice.csv"
-    code = cli.main(["allocate", MILL, "--catalogue", str(path), "--out", str(out)])
+    code = cli.main(["choose", MILL, "--catalogue", str(path), "--out", str(out)])
     err = capsys.readouterr().err.strip().splitlines()
     assert code == 2
     assert len(err) == 1 and err[0].startswith("precrel: error: "), err  # no progress line
@@ -191,11 +191,10 @@ def test_paper_catalogue_loads_on_the_paper_machine():
 
 
 # ----- the command line -----------------------------------------------------------------
-def test_allocate_with_a_catalogue(tmp_path, capsys):
-    out, tolerances = tmp_path / "choice.csv", tmp_path / "tolerances.csv"
-    code = cli.main(["allocate", MILL, "--catalogue", MILL_CATALOGUE, "--out", str(out),
-                     "--tolerances-out", str(tolerances), "--points", "4",
-                     "--target", "0.95"])
+def test_choose_from_a_catalogue(tmp_path, capsys):
+    out, tolerances = tmp_path / "choice.csv", tmp_path / "choice.tolerances.csv"
+    code = cli.main(["choose", MILL, "--catalogue", MILL_CATALOGUE, "--out", str(out),
+                     "--points", "4", "--target", "0.95"])
     printed = capsys.readouterr().out
     assert code == 0
     machine = load_machine(MILL)
@@ -231,7 +230,9 @@ def cheapest_by_enumeration(machine, catalogue, points, target):
 
 
 def test_allocate_catalogue_against_python(tmp_path, capsys):
-    """The command line's choice is solve_catalogue's on the same problem."""
+    """The command line's choice is solve_catalogue's on the same problem; ``allocate
+    --catalogue``, the old spelling of ``choose``, still works with a warning, and the
+    tolerances go to ``--tolerances-out``."""
     machine = load_machine(MILL)
     start = machine.initial_allocation * np.linspace(0.8, 1.2, machine.n_errors)
     frame = pd.DataFrame({"error": machine.error_names, "allocated": start})
@@ -239,13 +240,17 @@ def test_allocate_catalogue_against_python(tmp_path, capsys):
     out = tmp_path / "choice.csv"
     assert cli.main(["allocate", MILL, "--catalogue", MILL_CATALOGUE, "--out", str(out),
                      "--points", "3", "--tolerances", str(tmp_path / "start.csv"),
-                     "--side", "one_sided"]) == 0
+                     "--side", "one_sided", "--tolerances-out",
+                     str(tmp_path / "t.csv")]) == 0
+    assert (tmp_path / "t.csv").exists() and not (tmp_path / "choice.tolerances.csv").exists()
     problem = AllocationProblem.build(machine, workspace_grid(machine, 3), side="one_sided",
                                       reference=start)
     result = solve_catalogue(problem, load_catalogue(MILL_CATALOGUE, machine))
     choice = pd.read_csv(out)
     assert dict(zip(choice["component"], choice["class"])) == result.choice
-    assert f"total price {result.price:.6g}" in capsys.readouterr().out
+    captured = capsys.readouterr()
+    assert f"total price {result.price:.6g}" in captured.out
+    assert "precrel: warning: --catalogue is deprecated; use precrel choose" in captured.err
 
 
 @pytest.mark.parametrize("extra, words", [
@@ -256,9 +261,25 @@ def test_allocate_catalogue_against_python(tmp_path, capsys):
 def test_allocate_catalogue_refuses_options_that_do_not_apply(tmp_path, capsys, extra, words):
     code = cli.main(["allocate", MILL, "--catalogue", MILL_CATALOGUE,
                      "--out", str(tmp_path / "c.csv"), *extra])
-    err = capsys.readouterr().err.strip()
-    assert code == 2 and err.startswith("precrel: error: ")
-    assert all(word in err for word in words)
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and err[-1].startswith("precrel: error: ")
+    assert all(word in err[-1] for word in words)
+
+
+@pytest.mark.parametrize("extra", [["--bounds", "0.5", "1.5"], ["--lock", "X.dx"],
+                                   ["--method", "gwo"]])
+def test_choose_has_no_options_of_continuous_tolerances(tmp_path, capsys, extra):
+    assert cli.main(["choose", MILL, "--catalogue", MILL_CATALOGUE,
+                     "--out", str(tmp_path / "c.csv"), *extra]) == 2
+    assert "unrecognized arguments" in capsys.readouterr().err
+
+
+def test_two_choices_into_one_folder_never_collide(tmp_path, capsys):
+    for name in ("a.csv", "b.csv"):
+        assert cli.main(["choose", MILL, "--catalogue", MILL_CATALOGUE, "--points", "3",
+                         "--out", str(tmp_path / name)]) == 0
+    assert sorted(p.name for p in tmp_path.iterdir()) == \
+        ["a.csv", "a.tolerances.csv", "b.csv", "b.tolerances.csv"]
 
 
 def test_catalogue_options_need_a_catalogue(tmp_path, capsys):
@@ -271,7 +292,7 @@ def test_catalogue_options_need_a_catalogue(tmp_path, capsys):
 def test_unreachable_catalogue_exits_2(tmp_path, capsys):
     data = changed(lambda d: screw(d)["classes"][1]["tolerances"].update({"X.dx": 0.05})
                    or screw(d)["classes"][0]["tolerances"].update({"X.dx": 0.06}))
-    code = cli.main(["allocate", MILL, "--catalogue", str(write(tmp_path, data)),
+    code = cli.main(["choose", MILL, "--catalogue", str(write(tmp_path, data)),
                      "--out", str(tmp_path / "c.csv"), "--points", "3"])
     err = capsys.readouterr().err.strip().splitlines()
     assert code == 2 and err[-1].startswith("precrel: error: no choice of classes meets dx")

@@ -129,13 +129,13 @@ def test_acceptance_command_prints_and_writes_results_after_compensation(tmp_pat
     plan.write_text('[[tests]]\nname = "ballbar"\nkind = "circular"\nplane = "xy"\n'
                     'centre = { Y = 200.0, X = 0.0, Z = -175.0 }\nradius = 100.0\n'
                     'limit = 1.0\nu = 0.0005\n\n[compensation]\nspacing_mm = 100.0\n')
-    out = tmp_path / "out"
+    out = tmp_path / "acc.csv"
     cli.main(["acceptance", str(ROOT / "tests" / "machines" / "mill3.toml"), "--tests",
               str(ROOT / "tests" / "acceptance_tests" / "mill3.toml"), "--machines", "60",
               "--compensation", str(plan), "--out", str(out)])
     text = capsys.readouterr().out
     assert f"after compensation ({plan}: 1 runs" in text and "after: pass" in text
-    frame = pd.read_csv(out / "acceptance.csv")
+    frame = pd.read_csv(out)
     before = ["test", "quantity", "limit", "mean", "q95", "pass_probability", "pass_low",
               "pass_high"]
     assert list(frame.columns[:len(before)]) == before

@@ -309,12 +309,14 @@ def test_allocate_names_the_workspace(tmp_path, capsys):
                          str(tmp_path / "b_drawing.csv"), *extra])
         assert code == 2 and words in capsys.readouterr().err
     assert not (tmp_path / "b.csv").exists()
+    # another --out in the same folder: its own drawing file, no collision with a.csv's
     assert cli.main(["allocate", MILL, "--out", str(tmp_path / "c.csv"), "--points", "3",
-                     "--workspace", "grid", "--frame", "workpiece"]) == 2
-    assert "or name this one with --drawing CSV" in capsys.readouterr().err
-    assert cli.main(["allocate", MILL, "--out", str(tmp_path / "c.csv"), "--points", "3",
+                     "--workspace", "grid", "--frame", "workpiece"]) == 0
+    assert (tmp_path / "c.drawing.csv").exists() and (tmp_path / "a.drawing.csv").exists()
+    assert cli.main(["allocate", MILL, "--out", str(tmp_path / "d.csv"), "--points", "3",
                      "--workspace", "grid", "--frame", "workpiece", "--drawing",
-                     str(tmp_path / "c_drawing.csv")]) == 0
+                     str(tmp_path / "d_drawing.csv")]) == 0
+    assert (tmp_path / "d_drawing.csv").exists() and not (tmp_path / "d.drawing.csv").exists()
 
 
 @pytest.mark.xdist_group("lean_mill_report")

@@ -86,13 +86,15 @@ def test_allocate_writes_the_drawing_beside_out_and_predict_reads_it(tmp_path, c
     assert cli.main(["allocate", machine, "--out", str(out), "--workspace", "grid",
                      "--points", "3", "--drawing-resolution", "0.5", "1"]) == 0
     printed = capsys.readouterr().out
-    assert f"drawing tolerances written to {tmp_path / DRAWING_FILE}" in printed
+    drawing = tmp_path / "alloc.drawing.csv"
+    assert f"drawing tolerances written to {drawing}" in printed
+    assert not (tmp_path / DRAWING_FILE).exists()  # named from --out, never a fixed name
     assert "rounded down to 0.5 µm and 1 arcsec" in printed
     assert "meets the targets at the 27 poses of the problem: yes" in printed
-    drawn = pd.read_csv(tmp_path / DRAWING_FILE)
+    drawn = pd.read_csv(drawing)
     assert np.allclose(drawn["tolerance"] % np.where(drawn["unit"] == "um", 0.5, 1.0), 0)
     assert cli.main(["predict", machine, "--points", "3", "--tolerances",
-                     str(tmp_path / DRAWING_FILE)]) == 0
+                     str(drawing)]) == 0
     assert "every output meets its target" in capsys.readouterr().out
     assert cli.main(["allocate", machine, "--out", str(out), "--drawing", str(out),
                      "--overwrite"]) == 2

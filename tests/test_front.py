@@ -138,14 +138,22 @@ def test_command_prints_and_writes_the_front(tmp_path, capsys):
 
 
 def test_command_refuses_too_few_targets():
-    command, args = _parse([MILL, "--points", "2", "--targets", "1"])
-    with pytest.raises(InputError, match="--targets"):
+    command, args = _parse([MILL, "--points", "2", "--count", "1"])
+    with pytest.raises(InputError, match="--count"):
         command.run(args)
+
+
+def test_command_still_reads_the_old_targets_spelling(capsys):
+    """``--targets N``, the old spelling of ``--count N``, works with a warning."""
+    _, args = _parse([MILL, "--targets", "3"])
+    assert args.count == 3
+    assert "precrel: warning: --targets is deprecated; use --count" in capsys.readouterr().err
 
 
 @pytest.mark.parametrize("argv, words", [
     (["--points", "1"], ["--points", "'1'"]),
     (["--target", "1.5"], ["--target", "'1.5'"]),
+    (["--count", "0.5"], ["--count", "'0.5'"]),
     (["--targets", "0.5"], ["--targets", "'0.5'"]),
     (["--bounds", "1.5", "0.5"], ["--bounds", "LO"]),
 ])

@@ -75,8 +75,9 @@ def test_the_score_function_refuses_the_truncated_reading(mill3):
 
 def test_precrel_sensitivity_writes_both_files(tmp_path, capsys):
     out = tmp_path / "sens"
-    code = main(["sensitivity", MILL, "--pose", "Y=200,X=0,Z=-100", "--yield",
-                 "--machines", "200", "--points", "2", "--samples", "100", "--out", str(out)])
+    code = main(["sensitivity", MILL, "--pose", "Y=200,X=0,Z=-100", "--yield-gradient",
+                 "--machines", "200", "--points", "2", "--sobol-samples", "100",
+                 "--out", str(out)])
     assert code == 0
     sobol = pd.read_csv(out / "sobol.csv")
     assert list(sobol.columns) == ["output", "error", "S1", "S1_conf", "ST", "ST_conf"]
@@ -89,5 +90,5 @@ def test_precrel_sensitivity_writes_both_files(tmp_path, capsys):
                                            ("Y=200,X=0,Z=a", "needs a number"),
                                            ("Y=1,X=0,Z=0,W=1", "not an axis")])
 def test_precrel_sensitivity_names_a_bad_pose(pose, message, capsys):
-    assert main(["sensitivity", MILL, "--pose", pose, "--samples", "10"]) == 2
+    assert main(["sensitivity", MILL, "--pose", pose, "--sobol-samples", "10"]) == 2
     assert message in capsys.readouterr().err

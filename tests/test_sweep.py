@@ -224,21 +224,35 @@ def test_command_writes_results_and_reports_resumed_tasks(mill, tmp_path, capsys
     spec.write_text(f'machines = ["{mill}"]\nsides = ["two_sided"]\ntargets = [0.99]\n'
                     'seeds = [0, 1]\nrepeats = [2]\npoints_per_axis = 3\n')
     store = tmp_path / "out"
-    assert command.run(parse(["sweep", str(spec), "--store", str(store)])) == 0
+    assert command.run(parse(["sweep", str(spec), "--out", str(store)])) == 0
     first = capsys.readouterr()
     assert "2 task(s) computed" in first.out and "resumed" not in first.out
     assert "sweep" in first.err  # the progress bar
     lines = (store / "results.csv").read_text().splitlines()
     assert len(lines) == 3 and lines[0].startswith("machine,side,target,profile,seed")
-    assert command.run(parse(["sweep", str(spec), "--store", str(store), "--executor",
+    assert command.run(parse(["sweep", str(spec), "--out", str(store), "--executor",
                               "processes", "--workers", "2"])) == 0
     assert "resumed: 2 of 2 tasks already done" in capsys.readouterr().out
     with pytest.raises(InputError, match="--scheduler needs --executor dask"):
-        command.run(parse(["sweep", str(spec), "--store", str(store), "--scheduler",
-                           "tcp://localhost:8786"]))
-    with pytest.raises(InputError, match="--workers must be a positive"):
-        command.run(parse(["sweep", str(spec), "--store", str(store), "--executor",
-                           "processes", "--workers", "0"]))
+        command.run(parse(["sweep", str(spec), "--out", str(store), "--executor",
+                           "processes", "--scheduler", "tcp://localhost:8786"]))
+    with pytest.raises(InputError, match="--workers needs --executor processes or dask"):
+        command.run(parse(["sweep", str(spec), "--out", str(store), "--workers", "2"]))
+    with pytest.raises(SystemExit):
+        parse(["sweep", str(spec), "--out", str(store), "--executor", "processes",
+               "--workers", "0"])
+    assert "--workers: expected an integer >= 1" in capsys.readouterr().err
+
+
+def test_command_still_reads_the_old_store_spelling(mill, tmp_path, capsys):
+    """``--store DIR``, the old spelling of ``--out DIR``, works with a warning."""
+    spec = tmp_path / "spec.toml"
+    spec.write_text(f'machines = ["{mill}"]\nsides = ["two_sided"]\ntargets = [0.99]\n'
+                    'seeds = [0]\nrepeats = [2]\npoints_per_axis = 3\n')
+    assert command.run(parse(["sweep", str(spec), "--store", str(tmp_path / "s")])) == 0
+    err = capsys.readouterr().err
+    assert "precrel: warning: --store is deprecated; use --out" in err
+    assert (tmp_path / "s" / "results.csv").exists()
 
 
 def test_unreachable_target_is_recorded_not_raised(mill, tmp_path):

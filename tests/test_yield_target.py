@@ -313,7 +313,7 @@ def test_cli_allocates_for_yield(result, tmp_path, capsys):
     (["--yield", "0.9", "--target", "0.99"], "--target does not apply with --yield"),
     (["--yield", "0.9", "--method", "gwo"], "--method gwo does not apply with --yield"),
     (["--yield", "0.9", "--side", "one_sided"], "--side one_sided"),
-    (["--yield", "0.9", "--catalogue", "x.toml"], "--catalogue does not apply"),
+    (["--yield", "0.9", "--tolerances-out", "x.csv"], "--tolerances-out does not apply"),
     (["--profile", "constant"], "--profile is used with --yield only"),
 ])
 def test_cli_bad_yield_input_is_one_line_exit_2(tmp_path, capsys, extra, words):

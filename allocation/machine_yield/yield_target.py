@@ -469,7 +469,7 @@ class SavedProportion:
 
 
 class SavedChainBound:
-    """The payload writer and reader of a :class:`~allocation.yield_bound.ChainBound`."""
+    """The payload writer and reader of a :class:`~allocation.machine_yield.yield_bound.ChainBound`."""
 
     FIELDS = (Number("bound", positive=True), Array("tolerances", (None,), positive=True),
               Array("poses", (None,), dtype=int, low=0), Integer("rows", low=0))

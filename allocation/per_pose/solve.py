@@ -223,7 +223,7 @@ class AllocationResult:
 
     def payload(self) -> dict:
         """The JSON-ready fields :meth:`save` writes, for saving inside another result
-        (:func:`allocation.result_files.allocation_payload`)."""
+        (:func:`allocation.per_pose.result_files.allocation_payload`)."""
         return allocation_payload(self)
 
     @classmethod

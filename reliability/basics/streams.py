@@ -163,8 +163,8 @@ def _seed(seed) -> int:
 
 def sensitivity_stream(seed) -> np.random.Generator:
     """The yield-sensitivity stream of seed ``seed`` (extra stream 4): the built machines of
-    ``precrel sensitivity --yield --seed S`` and of the report's "What each tolerance buys"
-    section (``report --sensitivity --seed S``)."""
+    ``precrel sensitivity --yield-gradient --seed S`` and of the report's "What each
+    tolerance buys" section (``report --sensitivity --seed S``)."""
     return extra_stream(seed, 4)
 
 

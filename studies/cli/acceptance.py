@@ -1,7 +1,10 @@
 """``precrel acceptance MACHINE.toml --tests TESTS.toml``: will built machines pass their
-ISO 230 acceptance tests?"""
+ISO 230 acceptance tests? ``--out FILE`` writes the table (a folder, the old spelling,
+still gets its ``acceptance.csv`` for one release)."""
 
 from __future__ import annotations
+
+from pathlib import Path
 
 from reliability.acceptance.acceptance_result import profile_note
 from reliability.acceptance.prediction import acceptance, path_profile
@@ -15,7 +18,7 @@ from studies.workflows.compensated_acceptance import (compensated_acceptance,
 
 from . import options
 
-#: The result file written into ``--out DIR``.
+#: The result file written into a folder given as ``--out`` (deprecated).
 RESULT_FILE = "acceptance.csv"
 
 
@@ -29,39 +32,24 @@ def add_parser(subparsers):
                     "result's mean and 95 % quantile, the pass probability with its Wilson "
                     "95 % interval and the error items that drive it.")
     options.add_machine(parser)
-    parser.add_argument("--tests", required=True, metavar="TESTS.toml",
-                        help="test definitions ([[tests]] tables, see docs/acceptance.md)")
-    parser.add_argument("--tolerances", metavar="CSV",
-                        help="allocation to assess (columns error, allocated); default the "
-                             "machine file's initial allocation")
-    parser.add_argument("--machines", type=options.positive_int, default=2000, metavar="N",
-                        help="built machines drawn (default 2000)")
-    parser.add_argument("--profile", default=None, metavar="P",
-                        help="error profile along travel: gp:<length mm> or constant "
-                             "(default: the machine file's [requirements] profile, else "
-                             "constant, as precrel report)")
-    parser.add_argument("--seed", type=options.seed, default=0, metavar="S",
-                        help="random seed (default 0; the stream of precrel report --seed "
-                             "S --tests)")
-    parser.add_argument("--suggest", type=options.probability, metavar="P",
-                        help="add to each result the limit that a share P of the built "
-                             "machines meet (its P-quantile, with a distribution-free 95 %% "
-                             "interval), and the probability of passing each test with them")
-    parser.add_argument("--compensation", metavar="PLAN.toml",
-                        help="also each result after compensation, beside the result before: "
-                             "machines built to the allocation, measured under this plan and "
-                             "compensated (a measurement plan with a [compensation] table, "
-                             "docs/compensation.md), drawn from the residual model; adds "
-                             "columns ending in _compensated to acceptance.csv")
-    parser.add_argument("--out", metavar="DIR", help=f"write {RESULT_FILE} into DIR")
-    parser.add_argument("--overwrite", action="store_true",
-                        help=f"replace an earlier {RESULT_FILE} in DIR")
+    options.add_input_file(parser, "--tests", "the tests to predict", required=True)
+    options.add_tolerances(parser)
+    options.add_machines(parser, default=2000)
+    options.add_profile(parser)
+    options.add_seed(parser)
+    options.add_suggest(parser)
+    options.add_input_file(parser, "--compensation",
+                           "also each result after compensation, beside the result before: "
+                           "machines built to the allocation, measured under this plan and "
+                           "compensated, drawn from the residual model; adds columns ending "
+                           "in _compensated to the --out table")
+    options.add_out(parser, "file", "write the table of results as CSV", metavar="CSV")
+    options.add_overwrite(parser)
     return parser
 
 
 def run(args) -> int:
-    out = None if args.out is None else options.destination(
-        args.out, args.overwrite, folder=True, markers=(RESULT_FILE,))
+    out = None if args.out is None else out_file(args)
     machine = options.machine(args)
     tests = options.read_tests(args.tests, machine)
     tolerances = None if args.tolerances is None else \
@@ -93,8 +81,7 @@ def run(args) -> int:
     if plan is not None:
         table = _compensated(args, plan, tests, tolerances, result)
     if out is not None:
-        out.mkdir(exist_ok=True)
-        path = write_csv(table, out / RESULT_FILE, overwrite=args.overwrite,
+        path = write_csv(table, out, overwrite=args.overwrite,
                          index=False, float_format=f"%.{SIGNIFICANT}g")
         print(f"\nwritten {path}")
     return 0
@@ -117,6 +104,16 @@ def _compensated(args, plan, tests, tolerances, before):
              f", suggested limit (the {args.suggest:g}-quantile)") + "\n")
     print(comparison_text(frame))
     return frame
+
+
+def out_file(args):
+    """``--out``: the table's file, checked before any work; a folder (the old meaning)
+    still gets its ``acceptance.csv``, with a warning."""
+    if not Path(args.out).is_dir():
+        return options.destination(args.out, args.overwrite)
+    path = Path(args.out) / RESULT_FILE
+    options.warn_deprecated("--out DIR (a folder) in acceptance", f"--out {path}")
+    return options.destination(path, args.overwrite)
 
 
 def profile_source(args) -> str:

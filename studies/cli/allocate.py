@@ -1,8 +1,8 @@
-"""``precrel allocate MACHINE.toml --out CSV``: the cheapest allocation meeting the targets,
-and beside it the tolerances to write on drawings (``--drawing``, default
-``drawing_tolerances.csv`` in the folder of ``--out``); with ``--catalogue CAT.toml`` the
-cheapest choice of catalogue classes; with ``--yield Y`` the cheapest allocation found
-whose machine yield reaches Y, with its cost bracket."""
+"""``precrel allocate MACHINE.toml --out a.csv``: the cheapest allocation meeting the targets,
+and beside it the tolerances to write on drawings (``a.drawing.csv``, or ``--drawing``);
+with ``--yield Y`` the cheapest allocation found whose machine yield reaches Y, with its
+cost bracket; with ``--compensation PLAN.toml`` the cheapest after compensation. Which
+options go with which of these modes is declared once, :data:`MODE_OPTIONS`."""
 
 from __future__ import annotations
 
@@ -13,10 +13,10 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from allocation import AllocationProblem, allocate_for_yield, solve_catalogue
+from allocation import AllocationProblem, allocate_for_yield
 from allocation.per_pose.continuous import check_continuous, solve_continuous
 from allocation.per_pose.elasticity import requirement_table
-from allocation.per_pose.result_files import (DRAWING_FILE, DRAWING_RESOLUTION, allocation_to_csv,
+from allocation.per_pose.result_files import (DRAWING_RESOLUTION, allocation_to_csv,
                                      cost_shares_text, cost_units_text, drawing_check_text,
                                      drawing_to_csv, gap_text, nearly_free_text,
                                      written_cost_text)
@@ -27,13 +27,55 @@ from reliability.model.poses import workspace_grid
 from studies.report.machine_sections import tolerance_table
 from studies.report.writer import SIGNIFICANT
 
-from . import compensate, options
+from . import choose, compensate, options
 
-#: Where ``--yield`` simulates its built machines.
-YIELD_EXECUTORS = ("serial", "dask")
-YIELD_EXECUTOR_OPTIONS = ("--executor", "--workers", "--scheduler")
-#: Options of --yield only, beside the executor's.
-YIELD_ONLY_OPTIONS = ("--convex-steps", "--convex-machines", "--bound-machines")
+#: The modes of ``allocate``: per-pose targets (the default), ``--yield``,
+#: ``--compensation`` and the deprecated ``--catalogue`` (now ``precrel choose``).
+TARGETS, YIELD, COMPENSATION, CATALOGUE = ("per-pose targets", "--yield", "--compensation",
+                                           "--catalogue")
+
+
+def _given(dest: str):
+    return lambda args: getattr(args, dest) is not None
+
+
+#: Which options go with which mode: (the option as its refusal names it, whether it is
+#: given, the modes it goes with). Options not listed go with every mode.
+MODE_OPTIONS = (
+    ("--yield", _given("yield_target"), (YIELD,)),
+    ("--catalogue", _given("catalogue"), (CATALOGUE,)),
+    ("--target", _given("target"), (TARGETS, COMPENSATION, CATALOGUE)),
+    ("--side one_sided", lambda args: args.side == "one_sided",
+     (TARGETS, COMPENSATION, CATALOGUE)),
+    ("--lock", lambda args: bool(args.lock), (TARGETS, COMPENSATION)),
+    ("--method gwo", lambda args: args.method == "gwo", (TARGETS,)),
+    ("--workspace continuous", lambda args: args.workspace == "continuous", (TARGETS,)),
+    ("--bounds", _given("bounds"), (TARGETS, YIELD, COMPENSATION)),
+    ("--profile", _given("profile"), (YIELD,)),
+    ("--executor", _given("executor"), (YIELD,)),
+    ("--workers", _given("workers"), (YIELD,)),
+    ("--scheduler", _given("scheduler"), (YIELD,)),
+    ("--convex-steps", _given("convex_steps"), (YIELD,)),
+    ("--convex-machines", _given("convex_machines"), (YIELD,)),
+    ("--bound-machines", _given("bound_machines"), (YIELD,)),
+    ("--drawing", _given("drawing"), (TARGETS, YIELD)),
+    ("--tolerances", _given("tolerances"), (CATALOGUE,)),
+    ("--tolerances-out", _given("tolerances_out"), (CATALOGUE,)),
+)
+#: Why the options of other modes do not apply in a mode, said in the refusal.
+MODE_REASONS = {
+    YIELD: "the machine yield is the share of built machines with every output inside its "
+           "limit (two-sided) at every pose of the --points grid, and the per-output "
+           "targets are chosen by the search",
+    COMPENSATION: "the allocation after compensation meets the per-pose targets (the "
+                  "machine file's, or --target) at the --points grid poses",
+    CATALOGUE: "classes are used as given, items in no component keep their starting "
+               "tolerances and the choice holds on the grid poses",
+}
+#: Where to go instead, for an option refused in a mode.
+MODE_INSTEAD = {("--yield", COMPENSATION): "; an allocation's machine yield after "
+                "compensation is printed by verify MACHINE.toml --tolerances CSV "
+                "--compensation PLAN.toml"}
 
 
 def add_parser(subparsers):
@@ -44,24 +86,22 @@ def add_parser(subparsers):
                     "poses added until every output is certified, docs/continuous-"
                     "allocation.md) or at every pose of the grid (--workspace grid): "
                     "the certified optimum (exact) or, on the grid, the Grey Wolf Optimiser "
-                    "(gwo). Prints "
-                    "the cost relative to the initial allocation, what binds and the "
-                    "elasticity of each requirement; writes CSV columns error, reference, "
-                    "allocated. With --catalogue: the certified cheapest choice of one class "
-                    "per component of a catalogue (docs/catalogue.md), written as CSV "
-                    "columns component, class, price. With --yield Y: the cheapest allocation "
-                    "found whose machine yield (share of built machines within every limit at "
-                    "every grid pose, under --profile) reaches Y, verified on fresh machines, "
-                    "between a certified lower bound on the cost and the naive method "
-                    "(docs/yield-allocation.md); --scheduler ADDRESS simulates the built "
-                    "machines on a running Dask cluster, with the same result.")
+                    "(gwo). Prints the cost relative to the initial allocation, what binds "
+                    "and the elasticity of each requirement; writes the allocation CSV "
+                    "(columns error, reference, allocated) and beside it the drawing file "
+                    "(a.csv -> a.drawing.csv). With --yield Y: the cheapest allocation "
+                    "found whose machine yield (share of built machines within every limit "
+                    "at every grid pose, under --profile) reaches Y, verified on fresh "
+                    "machines, between a certified lower bound on the cost and the naive "
+                    "method (docs/yield-allocation.md); --scheduler ADDRESS simulates the "
+                    "built machines on a running Dask cluster, with the same result. The "
+                    "cheapest choice of catalogue classes is 'precrel choose'.")
     options.add_machine(parser)
-    parser.add_argument("--out", required=True, metavar="CSV",
-                        help="allocation file to write (columns error, reference, allocated);"
-                             " with --catalogue the choice (columns component, class, price)")
+    options.add_out(parser, "file", "allocation CSV to write (columns error, reference, "
+                                    "allocated); the drawing file goes beside it, "
+                                    "STEM.drawing.csv", metavar="CSV", required=True)
     options.add_side(parser)
-    parser.add_argument("--target", type=options.probability, metavar="R",
-                        help="one reliability target for every output (default: the file's)")
+    options.add_target(parser)
     options.add_points(parser)
     options.add_study_model(parser)
     options.add_bounds(parser)
@@ -70,67 +110,68 @@ def add_parser(subparsers):
                         help="errors held at their initial tolerance (e.g. X.dx)")
     parser.add_argument("--method", choices=("exact", "gwo"), default="exact",
                         help="certified convex optimum (default) or the paper's GWO")
-    parser.add_argument("--seed", type=options.seed, default=0,
-                        help="random seed of GWO, or of the built machines with --yield "
-                             "(default 0)")
+    options.add_seed(parser)
     parser.add_argument("--yield", dest="yield_target", type=options.probability,
                         metavar="Y",
                         help="allocate for a machine yield Y in (0, 1) instead of per-pose "
-                             "targets (with --profile, --machines, --scheduler; not with "
-                             "--target, --side one_sided, --lock, --method gwo or "
-                             "--catalogue)")
+                             "targets (with --profile, --machines, --executor)")
     options.add_yield_model(parser)
-    add_yield_executor(parser)
+    options.add_executor(parser)
     add_yield_bracket(parser)
-    parser.add_argument("--catalogue", metavar="CAT.toml",
-                        help="choose one class per component of this catalogue instead of "
-                             "continuous tolerances, on the grid poses (no --bounds, --lock, "
-                             "--method gwo or --workspace continuous)")
-    parser.add_argument("--tolerances", metavar="CSV",
-                        help="with --catalogue: tolerances of the items in no component "
-                             "(default the initial allocation)")
-    parser.add_argument("--tolerances-out", metavar="CSV",
-                        help="with --catalogue: write the tolerances that follow from the "
-                             "choice (columns error, reference, allocated)")
+    options.add_deprecated(parser, "--catalogue", "precrel choose", dest="catalogue",
+                           metavar=options.INPUT_FILES["--catalogue"][0])
+    options.add_tolerances(parser)
+    choose.add_tolerances_out(parser)
     parser.add_argument("--drawing", metavar="CSV",
-                        help=f"tolerances to write on drawings (columns error, iso, name, "
-                             f"tolerance, unit; µm and arcsec, rounded down to the "
-                             f"resolution; --tolerances reads it as it is); default "
-                             f"{DRAWING_FILE} in the folder of --out; not with --catalogue")
+                        help="tolerances to write on drawings (columns error, iso, name, "
+                             "tolerance, unit; µm and arcsec, rounded down to the "
+                             "resolution; --tolerances reads it as it is) instead of "
+                             "STEM.drawing.csv beside --out")
     parser.add_argument("--drawing-resolution", nargs=2, type=float, metavar=("UM", "ARCSEC"),
                         default=DRAWING_RESOLUTION,
                         help="resolution of the drawing tolerances in µm and arcsec "
                              "(default 0.1 0.1)")
-    parser.add_argument("--overwrite", action="store_true",
-                        help="replace existing --out / --drawing / --tolerances-out files")
+    options.add_overwrite(parser)
     compensate.add_allocation_option(parser)
     return parser
 
 
-def run(args) -> int:
-    if args.yield_target is None:
-        for option in YIELD_EXECUTOR_OPTIONS:
-            if getattr(args, option[2:]) is not None:
-                raise InputError(f"{option} is used with --yield only: it says where the "
-                                 f"built machines of the machine yield are simulated")
-        for option in YIELD_ONLY_OPTIONS:
-            if getattr(args, option[2:].replace("-", "_")) is not None:
-                raise InputError(f"{option} is used with --yield only")
+def mode(args) -> str:
+    """The mode the options ask for (``--compensation`` before ``--yield`` before the
+    deprecated ``--catalogue``)."""
     if args.compensation is not None:
-        return compensate.run_allocation(args)
+        return COMPENSATION
     if args.yield_target is not None:
+        return YIELD
+    return CATALOGUE if args.catalogue is not None else TARGETS
+
+
+def check_mode(args) -> str:
+    """The mode, after refusing (before any work) every option of :data:`MODE_OPTIONS`
+    given that does not go with it; the refusal names the option and the mode."""
+    chosen = mode(args)
+    for option, given, modes in MODE_OPTIONS:
+        if chosen in modes or not given(args):
+            continue
+        if chosen == TARGETS:
+            raise InputError(f"{option} is used with {' or '.join(modes)} only")
+        raise InputError(f"{option} does not apply with {chosen}: {MODE_REASONS[chosen]}"
+                         f"{MODE_INSTEAD.get((option, chosen), '')}")
+    return chosen
+
+
+def run(args) -> int:
+    chosen = check_mode(args)
+    if chosen == COMPENSATION:
+        return compensate.run_allocation(args)
+    if chosen == YIELD:
         return run_yield(args)
-    if args.profile is not None:
-        raise InputError("--profile is used with --yield only")
-    if args.catalogue is not None:
-        return run_catalogue(args)
-    for option, value in (("--tolerances", args.tolerances),
-                          ("--tolerances-out", args.tolerances_out)):
-        if value is not None:
-            raise InputError(f"{option} is used with --catalogue only")
+    if chosen == CATALOGUE:
+        return choose.run(args)
     bounds = options.check_bounds(args.bounds)
     out = options.destination(args.out, args.overwrite)
-    drawing = drawing_destination(args, out)
+    drawing = options.beside_destination(out, "drawing", args.overwrite,
+                                         override=args.drawing, option="--drawing")
     machine = options.machine(args)
     for name in args.lock:
         if name not in machine.error_names:
@@ -164,23 +205,6 @@ def run(args) -> int:
     return 0
 
 
-def drawing_destination(args, out: Path) -> Path:
-    """Where the drawing file goes (``--drawing``, else beside ``--out``), checked before
-    any work: it must differ from ``--out``."""
-    path = Path(args.drawing) if args.drawing is not None else out.parent / DRAWING_FILE
-    try:
-        drawing = options.destination(path, args.overwrite, "--drawing")
-    except InputError as error:
-        if args.drawing is not None:
-            raise
-        raise InputError(f"{error} (the drawing file of an earlier allocation in this "
-                         f"folder?), or name this one with --drawing CSV") from None
-    if drawing.resolve() == out.resolve():
-        raise InputError(f"--drawing {drawing} is also --out; give the drawing file another "
-                         f"name")
-    return drawing
-
-
 def write_files(args, result, out: Path, drawing: Path, *, targets: bool = True) -> None:
     """The allocation CSV and the drawing file, each with a line on what it holds (with
     ``targets``, whether the drawing meets the per-pose targets of the result's problem)."""
@@ -205,63 +229,12 @@ def changes_text(result, top: int = 10) -> str:
             f"tolerances in the machine file's units):\n{shown.to_string(index=False)}")
 
 
-def run_catalogue(args) -> int:
-    """``--catalogue``: everything checked first, then the certified cheapest choice."""
-    for option, given in (("--bounds", args.bounds is not None), ("--lock", bool(args.lock)),
-                          ("--method gwo", args.method != "exact"),
-                          ("--workspace continuous", args.workspace == "continuous"),
-                          ("--drawing", args.drawing is not None)):
-        if given:
-            raise InputError(f"{option} does not apply with --catalogue: classes are used "
-                             f"as given, items in no component keep their starting "
-                             f"tolerances and the choice holds on the grid poses")
-    out = options.destination(args.out, args.overwrite)
-    tolerances_out = None if args.tolerances_out is None else \
-        options.destination(args.tolerances_out, args.overwrite, "--tolerances-out")
-    if tolerances_out is not None and tolerances_out.resolve() == out.resolve():
-        raise InputError("--tolerances-out must differ from --out")
-    machine = options.machine(args)
-    catalogue = options.read_catalogue(args.catalogue, machine)
-    start = None if args.tolerances is None else \
-        options.read_tolerances(args.tolerances, machine)
-    if args.target is not None:
-        machine = dataclasses.replace(machine, targets=np.full(6, args.target))
-    options.say(f"building the problem on the {args.points}-point grid")
-    problem = AllocationProblem.build(machine, workspace_grid(machine, args.points),
-                                      side=args.side, reference=start)
-    options.say(f"choosing among {catalogue.n_choices:,} combinations of classes (HiGHS)")
-    result = solve_catalogue(problem, catalogue)
-    print(result.summary())
-    print(f"workspace: grid — the choice meets the targets at the {len(problem.poses)} poses "
-          f"of the {args.points}-point grid (a catalogue choice is made on the grid only)")
-    result.to_csv(out, args.overwrite, significant=SIGNIFICANT)
-    print(f"\nchoice written to {out}")
-    if tolerances_out is not None:
-        allocation_to_csv(result, tolerances_out, args.overwrite)  # all digits
-        print(f"tolerances written to {tolerances_out}")
-    return 0
-
-
 def run_yield(args) -> int:
     """``--yield Y``: everything checked first, then :func:`allocation.allocate_for_yield`."""
-    for option, given in (("--target", args.target is not None),
-                          ("--side one_sided", args.side != "two_sided"),
-                          ("--lock", bool(args.lock)), ("--method gwo", args.method != "exact"),
-                          ("--catalogue", args.catalogue is not None),
-                          ("--tolerances", args.tolerances is not None),
-                          ("--tolerances-out", args.tolerances_out is not None)):
-        if given:
-            raise InputError(f"{option} does not apply with --yield: the machine yield is "
-                             f"the share of built machines with every output inside its "
-                             f"limit (two-sided) at every pose, and the per-output targets "
-                             f"are chosen by the search")
-    if args.workspace == "continuous":
-        raise InputError("--workspace continuous does not apply with --yield: the machine "
-                         "yield is simulated on the --points grid (--workspace grid, the "
-                         "default with --yield)")
     bounds = options.check_bounds(args.bounds)
     out = options.destination(args.out, args.overwrite)
-    drawing = drawing_destination(args, out)
+    drawing = options.beside_destination(out, "drawing", args.overwrite,
+                                         override=args.drawing, option="--drawing")
     executor, where = yield_executor(args)
     machine = options.machine(args)
     why = not_log_concave(machine, machine.profile, machine.distribution)
@@ -313,37 +286,11 @@ def add_yield_bracket(parser) -> None:
                              "conditions as --convex-steps)")
 
 
-def add_yield_executor(parser) -> None:
-    """``--executor``, ``--workers`` and ``--scheduler``: where ``--yield`` simulates its
-    built machines (as ``precrel sweep`` runs its tasks)."""
-    parser.add_argument("--executor", choices=YIELD_EXECUTORS, default=None,
-                        help="with --yield: simulate the built machines here (serial, the "
-                             "default) or on Dask (dask: a local cluster of --workers "
-                             "workers, or the scheduler at --scheduler); the result printed "
-                             "and written is the same")
-    parser.add_argument("--workers", type=options.positive_int, default=None, metavar="N",
-                        help="with --executor dask: workers of the local Dask cluster "
-                             "(default 2)")
-    parser.add_argument("--scheduler", default=None, metavar="ADDRESS",
-                        help="with --yield: simulate the built machines on the running Dask "
-                             "scheduler at ADDRESS, e.g. tcp://10.0.0.5:8786 (--executor "
-                             "dask implied)")
-
-
 def yield_executor(args):
     """The context of ``--yield``'s Dask client (None: here) and where it simulates, in
-    words, after checking that ``--executor``, ``--workers`` and ``--scheduler`` go
-    together."""
-    dask = args.executor == "dask" or (args.executor is None and args.scheduler is not None)
-    if args.scheduler is not None and not dask:
-        raise InputError(f"--scheduler needs --executor dask (or no --executor); got "
-                         f"--executor {args.executor}")
-    if args.workers is not None and not dask:
-        raise InputError("--workers needs --executor dask: it sizes the local Dask cluster")
-    if args.workers is not None and args.scheduler is not None:
-        raise InputError(f"--workers sizes a local Dask cluster; the scheduler at --scheduler "
-                         f"{args.scheduler} has its own workers: give one of the two")
-    if not dask:
+    words (:func:`options.executor_kind`; no process pool)."""
+    kind = options.executor_kind(args, ("serial", "dask"), " with --yield")
+    if kind == "serial":
         return contextlib.nullcontext(), "here"
     if args.scheduler is not None:
         return (options.dask_client(args.scheduler, option="--scheduler"),

@@ -44,14 +44,10 @@ def add_parser(subparsers):
                     "prints this machine's outputs before and after compensation.")
     options.add_machine(parser)
     options.add_as_measured(parser, required=True)
-    parser.add_argument("--tolerances", metavar="CSV",
-                        help="with --measurements: allocation in force (default the "
-                             "initial allocation)")
-    parser.add_argument("--profile", default=None, metavar="P",
-                        help="with --measurements: motion errors along travel, constant or "
-                             "gp:<length mm> (default: the machine file's [requirements] "
-                             "profile, else constant)")
-    parser.add_argument("--out", required=True, metavar="DIR", help="folder of the tables")
+    options.add_tolerances(parser)
+    options.add_profile(parser)
+    options.add_out(parser, "folder", "folder of the tables (one CSV per axis and "
+                                      "assembly.csv)", required=True)
     parser.add_argument("--spacing-mm", type=float, default=DEFAULT_SPACING_MM, metavar="H",
                         help=f"spacing along linear axes (default {DEFAULT_SPACING_MM:g} mm)")
     parser.add_argument("--spacing-deg", type=float, default=DEFAULT_SPACING_DEG,
@@ -64,8 +60,7 @@ def add_parser(subparsers):
                         help="the table's range for translations (mm)")
     parser.add_argument("--max-correction-rad", type=float, metavar="X",
                         help="the table's range for rotations (rad)")
-    parser.add_argument("--overwrite", action="store_true",
-                        help="replace earlier tables in DIR")
+    options.add_overwrite(parser)
     return parser
 
 
@@ -116,34 +111,17 @@ def residual_text(identification, tables) -> str:
 
 def add_allocation_option(parser) -> None:
     """``precrel allocate --compensation PLAN.toml``."""
-    parser.add_argument("--compensation", metavar="PLAN.toml",
-                        help="allocate for machines measured under this plan and compensated "
-                             "(a measurement plan with a [compensation] table, "
-                             "docs/compensation.md), on the --points grid; prints the cost "
-                             "with and without compensation, its bracket and the items that "
-                             "stay tight (not with --yield, --catalogue, --method gwo or "
-                             "--workspace continuous)")
-
-
-#: Where the machine yield after compensation is found instead of ``allocate --yield``.
-_YIELD_AFTER_COMPENSATION = ("; an allocation's machine yield after compensation is printed "
-                             "by verify MACHINE.toml --tolerances CSV --compensation PLAN.toml")
+    options.add_input_file(parser, "--compensation",
+                           "allocate for machines measured under this plan and compensated, "
+                           "on the --points grid; prints the cost with and without "
+                           "compensation, its bracket and the items that stay tight (not "
+                           "with --yield, --method gwo or --workspace continuous)")
 
 
 def run_allocation(args) -> int:
     """``allocate --compensation``: the cheapest allocation found after compensation, with
-    its certified bracket, written as the allocation CSV."""
-    for option, given in (("--yield", args.yield_target is not None),
-                          ("--catalogue", args.catalogue is not None),
-                          ("--method gwo", args.method != "exact"),
-                          ("--workspace continuous", args.workspace == "continuous"),
-                          ("--profile", args.profile is not None),
-                          ("--drawing", args.drawing is not None)):
-        if given:
-            instead = _YIELD_AFTER_COMPENSATION if option == "--yield" else ""
-            raise InputError(f"{option} does not apply with --compensation: the allocation "
-                             f"after compensation meets the per-pose targets (the machine "
-                             f"file's, or --target) at the --points grid poses{instead}")
+    its certified bracket, written as the allocation CSV (the options checked by
+    :func:`studies.cli.allocate.check_mode`)."""
     bounds = options.check_bounds(args.bounds)
     out = options.destination(args.out, args.overwrite)
     machine = options.machine(args)
@@ -174,13 +152,12 @@ MODEL_MACHINES = 20_000
 
 def add_verification_option(parser) -> None:
     """``precrel verify --compensation PLAN.toml [--compensated-machines N]``."""
-    parser.add_argument("--compensation", metavar="PLAN.toml",
-                        help="also the results after compensation, for machines measured "
-                             "under this plan and compensated (docs/compensation.md): FOSM "
-                             "beside FOSM before, on the --points grid, and the yield "
-                             "predicted by the residual model beside the yield of "
-                             "--compensated-machines machines measured, identified and "
-                             "compensated on the exact chain")
+    options.add_input_file(parser, "--compensation",
+                           "also the results after compensation, for machines measured "
+                           "under this plan and compensated: FOSM beside FOSM before, on the "
+                           "--points grid, and the yield predicted by the residual model "
+                           "beside the yield of --compensated-machines machines measured, "
+                           "identified and compensated on the exact chain")
     parser.add_argument("--compensated-machines", type=options.positive_int, default=100,
                         metavar="N",
                         help="machines simulated end to end with --compensation (default 100)")
@@ -215,11 +192,10 @@ def _yield_line(what, passes) -> str:
 
 def add_report_option(parser) -> None:
     """``precrel report --compensation PLAN.toml``."""
-    parser.add_argument("--compensation", metavar="PLAN.toml",
-                        help="add an 'After compensation' section: the cheapest allocation "
-                             "for machines measured under this plan and compensated, beside "
-                             "the one without, what compensation relaxes and what it cannot "
-                             "(docs/compensation.md)")
+    options.add_input_file(parser, "--compensation",
+                           "add an 'After compensation' section: the cheapest allocation for "
+                           "machines measured under this plan and compensated, beside the "
+                           "one without, what compensation relaxes and what it cannot")
 
 
 def report_builder(args, machine):

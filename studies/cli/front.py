@@ -8,12 +8,11 @@ solved beside it. Prints one row per target and the stack; ``--out`` writes the 
 from __future__ import annotations
 
 import argparse
-from pathlib import Path
 
 import numpy as np
 
 from allocation import AllocationProblem
-from allocation.per_pose.front import FRONT_SIDES, cost_reliability_front, front_to_csv
+from allocation.per_pose.front import cost_reliability_front, front_to_csv
 from allocation.per_pose.result_files import gap_bound, gap_text
 from reliability.basics.display import target_text
 from reliability.basics.errors import InputError
@@ -31,21 +30,19 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     parser = subparsers.add_parser(
         "front", help="certified cost against reliability target, and the worst-case stack",
         description=__doc__.splitlines()[0].split(": ", 1)[1])
-    parser.add_argument("machine", type=Path, help="machine description (TOML)")
-    parser.add_argument("--side", choices=FRONT_SIDES, default="two_sided",
-                        help="reading of the reliability requirement (default: two_sided)")
-    parser.add_argument("--target", type=options.probability, nargs="+", default=None,
-                        metavar="R", help="reliability targets in (0, 1) (default: --targets "
-                                          "targets with 1 − R log-spaced from 1e-1 to 1e-9)")
-    parser.add_argument("--targets", type=options.positive_int, default=20, metavar="N",
-                        help="number of log-spaced targets when --target is not given "
-                             "(default: 20)")
+    options.add_machine(parser)
+    options.add_side(parser)
+    options.add_target(parser, many=True)
+    parser.add_argument("--count", type=options.positive_int, default=20, metavar="N",
+                        help="number of targets, 1 − R log-spaced from 1e-1 to 1e-9, when "
+                             "--target is not given (default: 20)")
+    options.add_deprecated(parser, "--targets", "--count", dest="count",
+                           type=options.positive_int, metavar="N")
     options.add_bounds(parser)
     options.add_points(parser)
     options.add_study_model(parser)
-    parser.add_argument("--out", type=Path, default=None, help="write the table as CSV")
-    parser.add_argument("--overwrite", action="store_true",
-                        help="replace an existing --out file")
+    options.add_out(parser, "file", "write the table as CSV", metavar="CSV")
+    options.add_overwrite(parser)
     return parser
 
 
@@ -102,11 +99,11 @@ def _refuse_unreachable(machine, target: float, side: str, poses, bounds) -> Non
 def _targets(args) -> np.ndarray:
     if args.target is not None:
         return np.asarray(args.target, dtype=float)
-    if args.targets < 2:
-        raise InputError(f"--targets must be an integer >= 2 (the number of log-spaced "
-                         f"targets); got {args.targets}")
+    if args.count < 2:
+        raise InputError(f"--count must be an integer >= 2 (the number of log-spaced "
+                         f"targets); got {args.count}")
     return 1.0 - np.logspace(np.log10(FAILURE_SPAN[0]), np.log10(FAILURE_SPAN[1]),
-                             args.targets)
+                             args.count)
 
 
 def _stack_line(stack) -> str:

@@ -23,23 +23,15 @@ def add_parser(subparsers):
                     "about the errors, the combinations the readings cannot tell apart and "
                     "a chi2 check of the readings against the model.")
     options.add_machine(parser)
-    parser.add_argument("--measurements", required=True, metavar="meas.csv",
-                        help="the measurement file")
-    parser.add_argument("--tolerances", metavar="CSV",
-                        help="allocation in force (columns error, allocated); default the "
-                             "machine file's initial allocation")
-    parser.add_argument("--profile", default="constant", metavar="P",
-                        help="motion errors along travel: constant (one value per machine, "
-                             "the default) or gp:<length mm> (a Gaussian process along "
-                             "travel, docs/profiles.md; writes profiles.csv and "
-                             "coefficients.npz)")
+    options.add_measurements(parser, required=True)
+    options.add_tolerances(parser)
+    options.add_profile(parser)
     parser.add_argument("--iterate", action="store_true",
                         help="re-linearise at the posterior mean on the exact chain "
                              "(Gauss-Newton) and say how much that changed")
-    parser.add_argument("--out", metavar="DIR",
-                        help=f"write {', '.join(RESULT_FILES)} into DIR")
-    parser.add_argument("--overwrite", action="store_true",
-                        help="replace earlier results in DIR")
+    options.add_out(parser, "folder", f"write {', '.join(RESULT_FILES)} into DIR (profiles.csv "
+                                      f"and coefficients.npz under a gp profile)")
+    options.add_overwrite(parser)
     return parser
 
 
@@ -50,8 +42,8 @@ def run(args) -> int:
     measurements = read_measurements(args.measurements, machine)
     tolerances = None if args.tolerances is None else \
         options.read_tolerances(args.tolerances, machine)
-    result = identify(machine, measurements, tolerances=tolerances, profile=args.profile,
-                      iterate=args.iterate)
+    result = identify(machine, measurements, tolerances=tolerances,
+                      profile=options.identified_profile(machine), iterate=args.iterate)
     source = "initial allocation" if args.tolerances is None else args.tolerances
     model = "on the exact chain at the posterior mean" if args.iterate else \
         "first order at zero errors"

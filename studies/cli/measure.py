@@ -1,5 +1,6 @@
-"""``precrel measure MACHINE.toml --plan PLAN.toml --out meas.csv --truth truth.csv``: what a
-plan's runs would read on one machine drawn to an allocation."""
+"""``precrel measure MACHINE.toml --plan PLAN.toml --out meas.csv``: what a plan's runs would
+read on one machine drawn to an allocation; the drawn truth goes beside it,
+``meas.truth.csv`` (or ``--truth``)."""
 
 from __future__ import annotations
 
@@ -19,30 +20,28 @@ def add_parser(subparsers):
                     "profile, tolerances read as the machine file says) and write what the "
                     "runs of PLAN.toml would read on its exact chain, each with its own "
                     "set-up and noise of standard deviation u, as a measurement file "
-                    "(docs/measurements.md); the drawn errors and set-ups go to --truth.")
+                    "(docs/measurements.md); the drawn errors and set-ups go beside it: "
+                    "meas.csv -> meas.truth.csv.")
     options.add_machine(parser)
     parser.add_argument("--plan", required=True, metavar="PLAN.toml",
                         help="a test file whose tests carry u and u_angle, plus line runs")
-    parser.add_argument("--out", required=True, metavar="meas.csv",
-                        help="the measurement file to write")
-    parser.add_argument("--truth", required=True, metavar="truth.csv",
-                        help="the drawn errors and set-ups (item, position, value)")
-    parser.add_argument("--tolerances", metavar="CSV",
-                        help="allocation the machine is built to (columns error, allocated); "
-                             "default the machine file's initial allocation")
-    parser.add_argument("--profile", default=None, metavar="P",
-                        help="error profile along travel: constant or gp:<length mm> "
-                             "(default the machine file's profile)")
-    parser.add_argument("--seed", type=options.seed, default=0, metavar="S",
-                        help="random seed (default 0)")
-    parser.add_argument("--overwrite", action="store_true",
-                        help="replace earlier --out and --truth files")
+    options.add_out(parser, "file", "the measurement file to write; the drawn truth goes "
+                                    "beside it, STEM.truth.csv", metavar="meas.csv",
+                    required=True)
+    parser.add_argument("--truth", metavar="truth.csv",
+                        help="the drawn errors and set-ups (item, position, value) instead "
+                             "of STEM.truth.csv beside --out")
+    options.add_tolerances(parser)
+    options.add_profile(parser)
+    options.add_seed(parser)
+    options.add_overwrite(parser)
     return parser
 
 
 def run(args) -> int:
     out = options.destination(args.out, args.overwrite)
-    truth = options.destination(args.truth, args.overwrite, option="--truth")
+    truth = options.beside_destination(out, "truth", args.overwrite, override=args.truth,
+                                       option="--truth")
     machine = options.machine(args)
     plan = read_plan(args.plan, machine)
     tolerances = None if args.tolerances is None else \

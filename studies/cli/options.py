@@ -100,69 +100,168 @@ def _float(text: str) -> float:
     return value
 
 
+# ----- the shared options: one add_* each, one name, type, meaning and help ------------
+#: Where a command's independent tasks run (``sweep``'s tasks, ``allocate --yield``'s
+#: built machines).
+EXECUTORS = ("serial", "processes", "dask")
+#: The kinds of ``--out``: one table is a FILE (the files written beside it are named
+#: from its stem), several files a FOLDER.
+OUT_KINDS = ("file", "folder")
+
+
+def _shared(action, origin: str):
+    """Tag ``action`` with the ``add_*`` function that declared it (read by the grammar's
+    test: one option, one declaration)."""
+    action.origin = origin
+    return action
+
+
 def add_machine(parser) -> None:
+    """The positional ``MACHINE.toml``."""
     parser.add_argument("machine", metavar="MACHINE.toml", help="machine description file")
 
 
-def add_side(parser) -> None:
-    parser.add_argument("--side", choices=SIDE_CHOICES, default="two_sided",
-                        help="probability reading: exact two-sided P(|y| < I) (default) or "
-                             "the paper's one-sided Phi(beta)")
+def add_out(parser, kind: str, writes: str, *, metavar: str | None = None,
+            required: bool = False):
+    """``--out``: a FILE (``kind='file'``, the one table the command writes; the files
+    written beside it are named from its stem, :func:`beside`) or a FOLDER
+    (``kind='folder'``, for a command that writes several files); ``writes`` says what."""
+    if kind not in OUT_KINDS:
+        raise ValueError(f"kind: expected one of {OUT_KINDS}, got {kind!r}")
+    metavar = metavar or ("FILE" if kind == "file" else "DIR")
+    action = parser.add_argument("--out", required=required, metavar=metavar, help=writes)
+    action.out_kind = kind
+    return _shared(action, "add_out")
 
 
-def add_distribution(parser) -> None:
+def beside(out: Path, name: str) -> Path:
+    """The file named ``name`` written beside the ``--out`` file ``out``, named from its
+    stem: ``a.csv`` -> ``a.drawing.csv``; so runs with different ``--out`` never collide."""
+    return out.with_name(f"{out.stem}.{name}.csv")
+
+
+def add_overwrite(parser):
+    """``--overwrite``."""
+    return _shared(parser.add_argument(
+        "--overwrite", action="store_true",
+        help="replace the files an earlier run with the same --out wrote (files of other "
+             "--out names are left alone)"), "add_overwrite")
+
+
+def add_side(parser):
+    """``--side``: the reading of a probability."""
+    return _shared(parser.add_argument(
+        "--side", choices=SIDE_CHOICES, default="two_sided",
+        help="probability reading: exact two-sided P(|y| < I) (default) or the paper's "
+             "one-sided Phi(beta)"), "add_side")
+
+
+def add_distribution(parser):
     """``--distribution``: the reading of a tolerance for every computation of the
     command; the machine file's ``[requirements] distribution`` by default."""
-    parser.add_argument("--distribution", choices=DISTRIBUTION_CHOICES, default=None,
-                        help="reading of a tolerance t: normal with sigma = t/3, or that "
-                             "normal truncated at +-t (default: the machine file's "
-                             "[requirements] distribution, else normal)")
+    return _shared(parser.add_argument(
+        "--distribution", choices=DISTRIBUTION_CHOICES, default=None,
+        help="reading of a tolerance t: normal with sigma = t/3, or that normal truncated "
+             "at +-t (default: the machine file's [requirements] distribution, else "
+             "normal)"), "add_distribution")
+
+
+def add_frame(parser):
+    """``--frame``: the frame of the outputs; the machine file's by default."""
+    return _shared(parser.add_argument(
+        "--frame", choices=FRAMES, default=None,
+        help="frame of the six outputs: tool (Eq. 18, turns with the rotary axes) or "
+             "workpiece (default: the machine file's [requirements] frame, else tool)"),
+        "add_frame")
 
 
 def add_study_model(parser) -> None:
     """``--frame`` and ``--distribution``: how the command reads the outputs and the
     tolerances, overriding the machine file's ``[requirements]`` (see :func:`machine`)."""
-    parser.add_argument("--frame", choices=FRAMES, default=None,
-                        help="frame of the six outputs: tool (Eq. 18, turns with the rotary "
-                             "axes) or workpiece (default: the machine file's [requirements] "
-                             "frame, else tool)")
+    add_frame(parser)
     add_distribution(parser)
+
+
+def add_profile(parser):
+    """``--profile``: the error profile along travel; the machine file's by default."""
+    return _shared(parser.add_argument(
+        "--profile", default=None, metavar="P",
+        help="error profile along travel of a built machine: constant, independent (the "
+             "paper's grid experiment) or gp:<length mm> (default: the machine file's "
+             "[requirements] profile, else constant)"), "add_profile")
+
+
+def add_machines(parser, default: int = DEFAULT_MACHINES):
+    """``--machines``: how many built machines are simulated."""
+    return _shared(parser.add_argument(
+        "--machines", type=positive_int, default=default, metavar="N",
+        help="built machines simulated (default %(default)s)"), "add_machines")
 
 
 def add_yield_model(parser) -> None:
     """``--profile`` and ``--machines``: how built machines are simulated for the machine
     yield (the machine file's ``[requirements] profile`` by default, see :func:`machine`)."""
-    parser.add_argument("--profile", default=None, metavar="P",
-                        help="error profile along travel of a built machine: constant, "
-                             "independent (the paper's grid experiment) or gp:<length mm> "
-                             "(default: the machine file's [requirements] profile, else "
-                             "constant)")
-    parser.add_argument("--machines", type=positive_int, default=DEFAULT_MACHINES,
-                        metavar="N",
-                        help=f"built machines simulated for the yield (default "
-                             f"{DEFAULT_MACHINES}; at most this many when few would fail "
-                             f"and importance sampling is used)")
+    add_profile(parser)
+    add_machines(parser)
 
 
-def add_certify(parser, what: str) -> None:
-    """``--certify`` (doing ``what``) and its ``--rtol``."""
-    parser.add_argument("--certify", action="store_true", help=what)
-    parser.add_argument("--rtol", type=probability, default=1e-3, metavar="R",
-                        help="relative gap between the certified bound of sigma and sigma "
-                             "at which --certify stops (default 0.001)")
+def add_seed(parser):
+    """``--seed``."""
+    return _shared(parser.add_argument(
+        "--seed", type=seed, default=0, metavar="S",
+        help="random seed (default %(default)s); the same seed gives the same result"),
+        "add_seed")
+
+
+def add_points(parser, default: int = 5):
+    """``--points``: the grid over the strokes."""
+    return _shared(parser.add_argument(
+        "--points", type=grid_points, default=default, metavar="P",
+        help="grid points per axis over each stroke (default %(default)s)"), "add_points")
+
+
+def add_bounds(parser):
+    """``--bounds LO HI``."""
+    return _shared(parser.add_argument(
+        "--bounds", type=positive_float, nargs=2, default=None, metavar=("LO", "HI"),
+        help="tolerance box as factors of the initial allocation (default: the machine "
+             "file's [bounds] table, else 0.5 1.5)"), "add_bounds")
+
+
+def add_tolerances(parser, *, required: bool = False):
+    """``--tolerances CSV``: the allocation in force."""
+    return _shared(parser.add_argument(
+        "--tolerances", required=required, metavar="CSV",
+        help="allocation CSV (columns error, allocated, as 'allocate' writes it; a drawing "
+             "file is read as it is); when optional, the machine file's initial allocation "
+             "by default"), "add_tolerances")
+
+
+def add_target(parser, *, many: bool = False):
+    """``--target R`` (with ``many``, ``--target R ...``): reliability targets."""
+    return _shared(parser.add_argument(
+        "--target", type=probability, nargs="+" if many else None, metavar="R",
+        help="reliability target in (0, 1), the same for every output (default: the "
+             "machine file's targets)"), "add_target")
+
+
+def add_rtol(parser):
+    """``--rtol``: the gap of the continuous workspace's certificate."""
+    return _shared(parser.add_argument(
+        "--rtol", type=probability, default=DEFAULT_RTOL, metavar="R",
+        help="relative gap in sigma at which the certificate over the continuous "
+             "workspace stops (--workspace continuous, --certify; default %(default)g)"),
+        "add_rtol")
 
 
 def add_workspace(parser) -> None:
-    """``--workspace`` (where the allocation's targets hold) and its ``--rtol``."""
-    parser.add_argument("--workspace", choices=WORKSPACE_CHOICES, default=None,
-                        help="where the targets hold: continuous = over the whole strokes, "
-                             "certified to --rtol in sigma by adding the certificate's worst "
-                             "poses to the grid (default; not for correlated errors); "
-                             "grid = at the --points grid poses only "
-                             "(docs/continuous-allocation.md)")
-    parser.add_argument("--rtol", type=probability, default=DEFAULT_RTOL, metavar="R",
-                        help=f"relative tolerance in sigma of --workspace continuous "
-                             f"(default {DEFAULT_RTOL:g})")
+    """``--workspace`` (where the command's poses are) and its ``--rtol``."""
+    _shared(parser.add_argument(
+        "--workspace", choices=WORKSPACE_CHOICES, default=None,
+        help="continuous = every pose of the strokes, certified to --rtol in sigma "
+             "(default; not for correlated errors); grid = the --points grid poses only "
+             "(docs/continuous-allocation.md)"), "add_workspace")
+    add_rtol(parser)
 
 
 def workspace(args) -> str:
@@ -170,16 +269,51 @@ def workspace(args) -> str:
     return "continuous" if args.workspace is None else args.workspace
 
 
-def add_points(parser, default: int = 5) -> None:
-    parser.add_argument("--points", type=grid_points, default=default, metavar="P",
-                        help=f"grid points per axis over each stroke (default {default})")
+def add_executor(parser) -> None:
+    """``--executor``, ``--workers`` and ``--scheduler``: where independent tasks run
+    (see :func:`executor_kind`)."""
+    _shared(parser.add_argument(
+        "--executor", choices=EXECUTORS, default=None,
+        help="where the tasks run: serial (the default), processes (a local process pool) "
+             "or dask (a local cluster of --workers workers, or the scheduler at "
+             "--scheduler); the result is the same"), "add_executor")
+    _shared(parser.add_argument(
+        "--workers", type=positive_int, default=None, metavar="N",
+        help=f"processes or local Dask workers (default: the number of CPUs for "
+             f"processes, {DASK_WORKERS} for dask)"), "add_executor")
+    _shared(parser.add_argument(
+        "--scheduler", default=None, metavar="ADDRESS",
+        help="address of a running Dask scheduler, e.g. tcp://10.0.0.5:8786 (--executor "
+             "dask implied)"), "add_executor")
 
 
-def add_bounds(parser) -> None:
-    parser.add_argument("--bounds", type=positive_float, nargs=2, default=None,
-                        metavar=("LO", "HI"),
-                        help="tolerance box as factors of the initial allocation (default: "
-                             "the machine file's [bounds] table, else 0.5 1.5)")
+def executor_kind(args, kinds=EXECUTORS, where: str = "") -> str:
+    """``--executor``, with ``dask`` implied by ``--scheduler``, after checking that
+    ``--executor``, ``--workers`` and ``--scheduler`` go together and that the executor is
+    one of ``kinds``, those the command can use (``where`` names the command's mode in the
+    refusal)."""
+    kind = "dask" if args.executor is None and args.scheduler is not None else \
+        args.executor or "serial"
+    if kind not in kinds:
+        raise InputError(f"--executor {kind}: not available{where}; use "
+                         f"{' or '.join(kinds)}")
+    if args.scheduler is not None and kind != "dask":
+        raise InputError(f"--scheduler needs --executor dask (or no --executor); got "
+                         f"--executor {kind}")
+    if args.workers is not None and kind == "serial":
+        pools = " or ".join(k for k in kinds if k != "serial")
+        raise InputError(f"--workers needs --executor {pools}: it sizes the pool or the "
+                         f"local Dask cluster")
+    if args.workers is not None and args.scheduler is not None:
+        raise InputError(f"--workers sizes a local Dask cluster; the scheduler at --scheduler "
+                         f"{args.scheduler} has its own workers: give one of the two")
+    return kind
+
+
+def add_certify(parser, what: str) -> None:
+    """``--certify`` (doing ``what``) and its ``--rtol``."""
+    parser.add_argument("--certify", action="store_true", help=what)
+    add_rtol(parser)
 
 
 def add_monte_carlo(parser) -> None:
@@ -188,9 +322,64 @@ def add_monte_carlo(parser) -> None:
                         help="grid experiments per allocation (default 20, as the paper's "
                              "Table 9)")
     parser.add_argument("--samples", type=positive_int, default=20_000, metavar="N",
-                        help="random-pose samples and samples per worst pose (default 20000)")
-    parser.add_argument("--seed", type=seed, default=0, metavar="S",
-                        help="random seed (default 0)")
+                        help="Monte-Carlo samples at random poses and at each worst pose "
+                             "(default 20000)")
+    add_seed(parser)
+
+
+#: The input files several commands read: option -> (metavar, what the file is).
+INPUT_FILES = {
+    "--catalogue": ("CAT.toml", "a catalogue of classes per component (docs/catalogue.md)"),
+    "--tests": ("TESTS.toml", ("ISO 230 acceptance tests ([[tests]] tables, "
+                               "docs/acceptance.md)")),
+    "--compensation": ("PLAN.toml", ("a measurement plan with a [compensation] table "
+                                     "(docs/compensation.md)")),
+}
+
+
+def add_input_file(parser, option: str, use: str, *, required: bool = False):
+    """An input file of :data:`INPUT_FILES` (one metavar and kind everywhere); ``use``
+    says what this command does with it."""
+    metavar, kind = INPUT_FILES[option]
+    return _shared(parser.add_argument(option, required=required, metavar=metavar,
+                                       help=f"{kind}: {use}"), "add_input_file")
+
+
+def add_suggest(parser):
+    """``--suggest P``: suggested limits of acceptance-test results."""
+    return _shared(parser.add_argument(
+        "--suggest", type=probability, metavar="P",
+        help="add to each acceptance-test result the limit that a share P of the built "
+             "machines meet (its P-quantile, with a distribution-free 95 %% interval), and "
+             "the probability of passing each test with them"), "add_suggest")
+
+
+# ----- old spellings, kept for one release ----------------------------------------------
+class Deprecated(argparse.Action):
+    """An old spelling of an option: it still works, storing into the new option's
+    ``dest`` (``const`` when it takes no value), and prints one line
+    ``precrel: warning: OLD is deprecated; use NEW`` on stderr."""
+
+    def __init__(self, option_strings, dest, *, replacement: str, nargs=None, const=None,
+                 **kwargs):
+        super().__init__(option_strings, dest, nargs=nargs, const=const, **kwargs)
+        self.replacement = replacement
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        warn_deprecated(option_string, self.replacement)
+        setattr(namespace, self.dest, self.const if self.nargs == 0 else values)
+
+
+def warn_deprecated(old: str, new: str) -> None:
+    """The one line an old spelling prints on stderr, naming the new one."""
+    print(f"precrel: warning: {old} is deprecated; use {new}", file=sys.stderr, flush=True)
+
+
+def add_deprecated(parser, old: str, replacement: str, dest: str, **kwargs):
+    """Declare ``old`` as a deprecated spelling of ``replacement`` (its value goes to
+    ``dest``; ``nargs=0, const=...`` for a flag)."""
+    return parser.add_argument(old, dest=dest, action=Deprecated, replacement=replacement,
+                               help=f"deprecated; use {replacement}", **kwargs)
 
 
 def box_words(machine, bounds) -> str:
@@ -254,6 +443,26 @@ def destination(path, overwrite: bool, option: str = "--out", *, folder: bool = 
     except FileNotFoundError:
         raise InputError(f"{option} {path}: folder {Path(path).parent} does not "
                          f"exist") from None
+
+
+def beside_destination(out: Path, name: str, overwrite: bool, *, override=None,
+                       option: str | None = None) -> Path:
+    """Where the file ``name`` written beside the ``--out`` file ``out`` goes, checked
+    before any work: ``override`` (given by ``option``, e.g. ``--drawing``) else
+    :func:`beside`; it must differ from ``out``."""
+    if override is None:
+        path = beside(out, name)
+        try:
+            return destination(path, overwrite)
+        except InputError:
+            if not path.is_file():
+                raise
+            raise InputError(f"--out {out}: its {name} file {path} exists (an earlier run "
+                             f"with the same --out); pass --overwrite to replace both") from None
+    path = destination(override, overwrite, option)
+    if path.resolve() == out.resolve():
+        raise InputError(f"{option} {path} is also --out; give it another name")
+    return path
 
 
 def machine(args, *, warn: bool = True):
@@ -372,15 +581,20 @@ def add_as_measured(parser, *, required: bool = False) -> None:
     """``--identification DIR`` or ``--measurements CSV``: this machine as measured, for its
     reliability beside the design-time numbers (``verify``, ``report``) or, ``required``, as
     the command's input (``compensate``)."""
-    also = "" if required else "also this machine's reliability as measured: "
     group = parser.add_mutually_exclusive_group(required=required)
-    group.add_argument("--identification", metavar="DIR",
-                       help=f"{also}the folder 'precrel identify --out' wrote "
-                            f"(docs/measurements.md)")
-    group.add_argument("--measurements", metavar="CSV",
-                       help="this machine's measurement file instead, identified here under "
-                            "--profile (constant or gp:<length mm>) with the allocation in "
-                            "force as prior")
+    _shared(group.add_argument("--identification", metavar="DIR",
+                               help="this machine as measured: the folder 'precrel identify "
+                                    "--out' wrote (docs/measurements.md)"), "add_as_measured")
+    add_measurements(group)
+
+
+def add_measurements(parser, *, required: bool = False):
+    """``--measurements meas.csv``: this machine's readings."""
+    return _shared(parser.add_argument(
+        "--measurements", required=required, metavar="meas.csv",
+        help="this machine's measurement file (docs/measurements.md), identified under "
+             "--profile (constant or gp:<length mm>) with the allocation in force as prior"),
+        "add_measurements")
 
 
 def as_measured_identification(args, machine, tolerances=None):

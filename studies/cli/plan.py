@@ -28,14 +28,11 @@ def add_parser(subparsers):
                         help="the candidate runs: a plan file whose tests may carry cost")
     parser.add_argument("--budget", required=True, type=options.positive_float, metavar="B",
                         help="total cost the chosen runs may take")
-    parser.add_argument("--tolerances", metavar="CSV",
-                        help="allocation in force (prior sigma = t/3); default the machine "
-                             "file's initial allocation")
+    options.add_tolerances(parser)
     options.add_points(parser)
-    parser.add_argument("--out", metavar="CHOSEN.toml",
-                        help="write the chosen runs as a plan file")
-    parser.add_argument("--overwrite", action="store_true",
-                        help="replace an earlier --out file")
+    options.add_out(parser, "file", "write the chosen runs as a plan file",
+                    metavar="CHOSEN.toml")
+    options.add_overwrite(parser)
     return parser
 
 

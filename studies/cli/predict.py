@@ -1,5 +1,6 @@
 """``precrel predict MACHINE.toml``: FOSM reliability of an allocation over the grid; limits
-and σ in the machine file's units (mm and rad when it states none)."""
+and σ in the machine file's units (mm and rad when it states none); ``--out`` writes the
+table in mm and rad."""
 
 from __future__ import annotations
 
@@ -8,6 +9,7 @@ import pandas as pd
 
 from reliability.basics.display import (output_people_units, quantity_text, target_text,
                                         top_contributors)
+from reliability.basics.files import SIGNIFICANT, write_csv
 from reliability.first_order.fosm import fosm, two_sided_probability
 from reliability.first_order.workspace_search import certified_worst
 from reliability.model.machine import OUTPUTS
@@ -24,19 +26,22 @@ def add_parser(subparsers):
                     "positions, the reliability index beta, the one- and two-sided "
                     "probabilities and the errors contributing most there.")
     options.add_machine(parser)
-    parser.add_argument("--tolerances", metavar="CSV",
-                        help="allocation to assess (columns error, allocated, as written by "
-                             "'allocate'); default the file's initial allocation")
+    options.add_tolerances(parser)
     options.add_points(parser)
     options.add_study_model(parser)
     options.add_side(parser)
     options.add_certify(parser, "also bound sigma over the whole stroke box (branch and "
                                 "bound with a rigorous bound, docs/certified-workspace.md) "
                                 "and print each output's certified worst pose")
+    options.add_out(parser, "file", "write the table as CSV, one row per output (mm and "
+                                    "rad; the worst grid pose's axis positions, sigma, "
+                                    "beta, probabilities)", metavar="CSV")
+    options.add_overwrite(parser)
     return parser
 
 
 def run(args) -> int:
+    out = None if args.out is None else options.destination(args.out, args.overwrite)
     machine = options.machine(args)
     if args.certify:
         options.check_certifiable(machine, "--certify", "leave out --certify")
@@ -61,7 +66,20 @@ def run(args) -> int:
         print(f"\nWorst pose over the continuous workspace ({zone_text(machine)}), "
               f"certified to {args.rtol:g} in sigma; {options.reading_text(machine)}:")
         print(certificate_table(machine, table, result).to_string())
+    if out is not None:
+        write_csv(prediction_frame(machine, result), out, args.overwrite,
+                  float_format=f"%.{SIGNIFICANT}g")
+        print(f"\nwritten {out}")
     return 0
+
+
+def prediction_frame(machine, result):
+    """The FOSM table of ``--out``: one row per output, the worst grid pose's axis
+    positions (mm, rad) before the columns of :meth:`FosmResult.to_frame`."""
+    frame = result.to_frame().drop(columns="worst_pose")
+    pose = pd.DataFrame(result.poses[result.worst_pose], columns=list(machine.axes),
+                        index=frame.index)
+    return pd.concat([pose, frame], axis=1)
 
 
 def certificate_table(machine, table, grid_result) -> pd.DataFrame:

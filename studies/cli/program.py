@@ -15,7 +15,7 @@ import sys
 from studies.workflows.timing import limit_blas_threads
 
 #: Subcommand modules under ``studies.cli``, in the order ``--help`` lists them.
-COMMANDS = ("check", "predict", "allocate", "verify", "report", "front", "sweep",
+COMMANDS = ("check", "predict", "allocate", "choose", "verify", "report", "front", "sweep",
             "acceptance")
 COMMANDS += ("sensitivity",)
 COMMANDS += ("measure",)

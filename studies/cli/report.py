@@ -31,7 +31,10 @@ def add_parser(subparsers):
                     "(e.g. a catalogue that cannot meet the targets) says why in its place; "
                     "the report is still written and the command exits 0.")
     options.add_machine(parser)
-    parser.add_argument("--out", required=True, metavar="DIR", help="output folder")
+    options.add_out(parser, "folder", "folder of the report (report.md, report.html, "
+                                      "summary.json, allocation.csv, "
+                                      "drawing_tolerances.csv, tables and figures)",
+                    required=True)
     options.add_monte_carlo(parser)
     options.add_points(parser)
     options.add_study_model(parser)
@@ -42,25 +45,20 @@ def add_parser(subparsers):
     parser.add_argument("--skip", nargs="+", default=(), choices=EXTRAS, metavar="SECTION",
                         help="leave out optional sections: " + ", ".join(EXTRAS)
                              + " (default: include all)")
-    parser.add_argument("--tests", metavar="TESTS.toml",
-                        help="add an 'Acceptance tests' section: these ISO 230 tests "
-                             "predicted for the initial and the optimal allocation (with "
-                             "--compensation, also after compensation)")
-    parser.add_argument("--suggest", type=options.probability, metavar="P",
-                        help="with --tests: add each result's suggested limit, the limit "
-                             "that a share P of the built machines meet")
-    parser.add_argument("--catalogue", metavar="CAT.toml",
-                        help="add a 'Component choice' section: the certified cheapest "
-                             "choice of one class per component of this catalogue")
-    parser.add_argument("--tolerances", metavar="CSV",
-                        help="with --catalogue: tolerances of the items in no component "
-                             "(default the initial allocation)")
+    options.add_input_file(parser, "--tests",
+                           "add an 'Acceptance tests' section: these tests predicted for "
+                           "the initial and the optimal allocation (with --compensation, "
+                           "also after compensation; --suggest with them)")
+    options.add_suggest(parser)
+    options.add_input_file(parser, "--catalogue",
+                           "add a 'Component choice' section: the certified cheapest choice "
+                           "of one class per component")
+    options.add_tolerances(parser)
     parser.add_argument("--sensitivity", action="store_true",
                         help="add a 'What each tolerance buys' section: d yield / d ln t of "
                              "every item at the optimal (else the initial) allocation")
     options.add_as_measured(parser)
-    parser.add_argument("--overwrite", action="store_true",
-                        help="replace an earlier report in DIR (other files are left alone)")
+    options.add_overwrite(parser)
     compensate.add_report_option(parser)
     return parser
 

@@ -1,5 +1,5 @@
 """``precrel sensitivity MACHINE.toml``: Sobol indices of each output at a pose and, with
-``--yield``, what each tolerance buys in machine yield (docs/sensitivity.md)."""
+``--yield-gradient``, what each tolerance buys in machine yield (docs/sensitivity.md)."""
 
 from __future__ import annotations
 
@@ -23,31 +23,31 @@ def add_parser(subparsers):
         "sensitivity", help="Sobol indices at a pose, and d yield / d ln t of every item",
         description="Sobol first-order and total indices of each output on the exact chain "
                     "(at --pose, else at each output's worst grid pose) beside the FOSM "
-                    "variance shares; with --yield, the change of the machine yield per "
+                    "variance shares; with --yield-gradient, the change of the machine yield per "
                     "unit of ln t of every item and group of indistinguishable items.")
     options.add_machine(parser)
-    parser.add_argument("--tolerances", metavar="CSV",
-                        help="allocation (columns error, allocated, as written by "
-                             "'allocate'); default the file's initial allocation")
+    options.add_tolerances(parser)
     parser.add_argument("--pose", metavar="AXIS=V,...", default=None,
                         help="one pose for every output, each axis as NAME=VALUE in mm or "
                              "degrees, e.g. C=0,X=400,Z=-100 (default: each output's worst "
                              "pose of the --points grid)")
-    parser.add_argument("--yield", dest="with_yield", action="store_true",
+    parser.add_argument("--yield-gradient", dest="with_yield", action="store_true",
                         help="also d yield / d ln t of every item (score function on the "
                              "yield's draws; central differences under the truncated "
                              "reading)")
+    options.add_deprecated(parser, "--yield", "--yield-gradient", dest="with_yield",
+                           nargs=0, const=True)
     options.add_yield_model(parser)
-    parser.add_argument("--samples", type=options.positive_int, default=DEFAULT_SAMPLES,
-                        metavar="N", help=f"rows of each Sobol sample (default "
-                                          f"{DEFAULT_SAMPLES})")
+    parser.add_argument("--sobol-samples", dest="samples", type=options.positive_int,
+                        default=DEFAULT_SAMPLES, metavar="N",
+                        help=f"rows of each Sobol sample (default {DEFAULT_SAMPLES})")
+    options.add_deprecated(parser, "--samples", "--sobol-samples", dest="samples",
+                           type=options.positive_int, metavar="N")
     options.add_points(parser)
-    parser.add_argument("--seed", type=options.seed, default=0, metavar="S",
-                        help="random seed (default 0)")
-    parser.add_argument("--out", metavar="DIR", default=None,
-                        help="write sobol.csv (and yield_sensitivity.csv) into DIR")
-    parser.add_argument("--overwrite", action="store_true",
-                        help="replace earlier files in DIR")
+    options.add_seed(parser)
+    options.add_out(parser, "folder", "write sobol.csv (and with --yield-gradient "
+                                      "yield_sensitivity.csv) into DIR")
+    options.add_overwrite(parser)
     return parser
 
 

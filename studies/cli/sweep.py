@@ -1,4 +1,4 @@
-"""``precrel sweep SPEC.toml --store DIR``: run a sweep of allocate-and-verify tasks.
+"""``precrel sweep SPEC.toml --out DIR``: run a sweep of allocate-and-verify tasks.
 
 Tasks run serially, on a local process pool or on a Dask cluster; finished tasks are
 stored in DIR as they finish, so an interrupted sweep resumes where it stopped. The
@@ -16,12 +16,9 @@ from pathlib import Path
 
 from tqdm import tqdm
 
-from reliability.basics.errors import InputError
 from studies.workflows.sweep import RESULTS_FILE, SweepSpec, run_sweep
 
 from . import options
-
-EXECUTORS = ("serial", "processes", "dask")
 
 
 def add_parser(subparsers) -> argparse.ArgumentParser:
@@ -30,53 +27,39 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
         "sweep", help="run a sweep of allocate-and-verify tasks (resumable)",
         description=__doc__.splitlines()[0].split(": ", 1)[1])
     parser.add_argument("spec", type=Path, help="sweep spec (TOML; see docs/sweeps.md)")
-    parser.add_argument("--store", type=Path, required=True,
-                        help=f"folder of finished tasks and of {RESULTS_FILE}")
-    parser.add_argument("--executor", choices=EXECUTORS, default="serial",
-                        help="where tasks run (default: serial)")
-    parser.add_argument("--workers", type=int, default=None,
-                        help="processes or Dask workers (default: 2 for dask, the number "
-                             "of CPUs for processes)")
-    parser.add_argument("--scheduler", default=None,
-                        help="address of a running Dask scheduler (with --executor dask)")
+    where = parser.add_mutually_exclusive_group(required=True)
+    options.add_out(where, "folder", f"folder of finished tasks and of {RESULTS_FILE}")
+    options.add_deprecated(where, "--store", "--out", dest="out", metavar="DIR")
+    options.add_executor(parser)
     options.add_distribution(parser)
     return parser
 
 
 def run(args) -> int:
     """Run the sweep; prints the resumed count and where the results are."""
-    _check(args)
+    kind = options.executor_kind(args)
     spec = SweepSpec.from_toml(args.spec)
     if args.distribution is not None:  # the command line overrides the spec's reading
         spec = dataclasses.replace(spec, distribution=args.distribution)
     total = len(spec.tasks())
-    with _executor(args) as executor, tqdm(total=total, file=sys.stderr, unit="task",
+    with _executor(kind, args) as executor, tqdm(total=total, file=sys.stderr, unit="task",
                                           desc="sweep") as bar:
         def progress(done, _total):
             bar.update(done - bar.n)
 
-        result = run_sweep(spec, args.store, executor=executor, progress=progress,
+        result = run_sweep(spec, Path(args.out), executor=executor, progress=progress,
                            log=print)
     print(f"{result.computed} task(s) computed, {result.resumed} already done; "
           f"results: {result.path}")
     return 0
 
 
-def _check(args) -> None:
-    if args.workers is not None and args.workers < 1:
-        raise InputError(f"--workers must be a positive integer; got {args.workers}")
-    if args.scheduler is not None and args.executor != "dask":
-        raise InputError("--scheduler needs --executor dask")
-    if args.executor == "serial" and args.workers is not None:
-        raise InputError("--workers needs --executor processes or dask")
-
-
 @contextlib.contextmanager
-def _executor(args):
-    """The executor named on the command line, shut down afterwards."""
-    if args.executor == "serial":
+def _executor(kind: str, args):
+    """The executor of ``kind`` (:func:`options.executor_kind`), shut down afterwards."""
+    if kind == "serial":
         yield None
-    elif args.executor == "processes":
+    elif kind == "processes":
         pool = ProcessPoolExecutor(max_workers=args.workers)
         try:
             yield pool

@@ -1,18 +1,23 @@
-"""``precrel verify MACHINE.toml --tolerances CSV``: Monte-Carlo beside FOSM."""
+"""``precrel verify MACHINE.toml --tolerances CSV``: Monte-Carlo beside FOSM; ``--out DIR``
+writes its three tables (:data:`TABLE_FILES`)."""
 
 from __future__ import annotations
 
 import numpy as np
 import pandas as pd
 
-from allocation.per_pose.continuous import DEFAULT_RTOL, WORKSPACE_CHOICES
 from reliability.basics.errors import InputError
+from reliability.basics.files import SIGNIFICANT, write_csv
 from reliability.basics.streams import extra_stream
 from reliability.sampling.pose_sampling import EVENTS, sample_at_poses
 from reliability.sampling.verification import rare_event_table, reachable_events, verify
 from studies.workflows.as_measured import AS_MEASURED_STREAM, as_measured
 
 from . import compensate, options
+
+#: The tables ``--out DIR`` holds: the verification's attribute of each.
+TABLE_FILES = {"grid_experiments.csv": "grid_comparison", "random_poses.csv": "random_poses",
+               "worst_poses.csv": "worst_poses"}
 
 
 def add_parser(subparsers):
@@ -28,8 +33,7 @@ def add_parser(subparsers):
                     "prediction. Errors are drawn under the study's reading of a tolerance "
                     "(--distribution).")
     options.add_machine(parser)
-    parser.add_argument("--tolerances", required=True, metavar="CSV",
-                        help="allocation (columns error, allocated), e.g. from 'allocate'")
+    options.add_tolerances(parser, required=True)
     options.add_monte_carlo(parser)
     parser.add_argument("--precision", type=options.probability, metavar="P",
                         help="also sample each output's worst pose adaptively until the "
@@ -51,23 +55,17 @@ def add_parser(subparsers):
     options.add_points(parser)
     options.add_study_model(parser)
     options.add_yield_model(parser)
-    parser.add_argument("--workspace", choices=WORKSPACE_CHOICES, default=None,
-                        help="where each output's worst pose is sought before sampling it: "
-                             "continuous = certified over the whole strokes to --rtol in "
-                             "sigma (default, as 'report' and 'allocate'; "
-                             "docs/certified-workspace.md); grid = the worst --points grid "
-                             "pose")
-    parser.add_argument("--certify", action="store_true",
-                        help="the same as --workspace continuous (the default)")
-    parser.add_argument("--rtol", type=options.probability, default=DEFAULT_RTOL,
-                        metavar="R", help=f"relative tolerance in sigma of the continuous "
-                                          f"workspace's certificate (default {DEFAULT_RTOL:g})")
+    options.add_workspace(parser)
+    options.add_deprecated(parser, "--certify", "--workspace continuous", dest="certify",
+                           nargs=0, const=True, default=False)
     options.add_as_measured(parser)
-    parser.add_argument("--tests", metavar="TESTS.toml",
-                        help="with --identification or --measurements: each acceptance "
-                             "test's predicted result for this machine, beside machines "
-                             "built to the allocation")
+    options.add_input_file(parser, "--tests",
+                           "with --identification or --measurements: each test's predicted "
+                           "result for this machine, beside machines built to the "
+                           "allocation")
     compensate.add_verification_option(parser)
+    options.add_out(parser, "folder", f"write {', '.join(TABLE_FILES)} into DIR")
+    options.add_overwrite(parser)
     return parser
 
 
@@ -81,6 +79,8 @@ def workspace(args) -> str:
 
 
 def run(args) -> int:
+    out = None if args.out is None else options.destination(
+        args.out, args.overwrite, folder=True, markers=tuple(TABLE_FILES))
     machine = options.machine(args)
     continuous = workspace(args) == "continuous"
     if continuous:
@@ -118,7 +118,18 @@ def run(args) -> int:
         print("\n" + as_measured_text(machine, measured, t, result, tests, args, where))
     if args.compensation is not None:
         print("\n" + compensate.verification_text(machine, t, args))
+    if out is not None:
+        write_tables(result, out, args.overwrite)
     return 0
+
+
+def write_tables(result, out, overwrite: bool) -> None:
+    """The verification's tables into the folder ``out`` (:data:`TABLE_FILES`)."""
+    out.mkdir(exist_ok=True)
+    for name, attribute in TABLE_FILES.items():
+        write_csv(getattr(result, attribute), out / name, overwrite=overwrite, index=False,
+                  float_format=f"%.{SIGNIFICANT}g")
+    print(f"\nwritten {', '.join(TABLE_FILES)} into {out}")
 
 
 def as_measured_tests(args, machine, measured):

@@ -1,0 +1,78 @@
+"""``precrel choose MACHINE.toml --catalogue CAT.toml --out choice.csv``: the certified
+cheapest choice of one catalogue class per component, and beside it the tolerances that
+follow from it (``choice.tolerances.csv``, or ``--tolerances-out``)."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from allocation import AllocationProblem, solve_catalogue
+from allocation.per_pose.result_files import allocation_to_csv
+from reliability.model.poses import workspace_grid
+from studies.report.writer import SIGNIFICANT
+
+from . import options
+
+
+def add_parser(subparsers):
+    parser = subparsers.add_parser(
+        "choose", help="cheapest choice of catalogue classes meeting the targets",
+        description="The certified cheapest choice of one class per component of a "
+                    "catalogue (docs/catalogue.md) meeting the targets at the --points grid "
+                    "poses; items in no component keep their starting tolerances "
+                    "(--tolerances, else the initial allocation). Writes the choice (columns "
+                    "component, class, price) and beside it the tolerances that follow from "
+                    "it (columns error, reference, allocated): choice.csv -> "
+                    "choice.tolerances.csv.")
+    options.add_machine(parser)
+    options.add_input_file(parser, "--catalogue", "the classes to choose among",
+                           required=True)
+    options.add_out(parser, "file", "choice CSV to write (columns component, class, price); "
+                                    "the tolerances go beside it, STEM.tolerances.csv",
+                    metavar="CSV", required=True)
+    options.add_tolerances(parser)
+    add_tolerances_out(parser)
+    options.add_side(parser)
+    options.add_target(parser)
+    options.add_points(parser)
+    options.add_study_model(parser)
+    options.add_overwrite(parser)
+    return parser
+
+
+def add_tolerances_out(parser) -> None:
+    """``--tolerances-out CSV``: where the tolerances of the choice go instead of beside
+    ``--out``."""
+    parser.add_argument("--tolerances-out", metavar="CSV",
+                        help="the tolerances that follow from the choice (columns error, "
+                             "reference, allocated) instead of STEM.tolerances.csv beside "
+                             "--out")
+
+
+def run(args) -> int:
+    """Everything checked first, then the certified cheapest choice."""
+    out = options.destination(args.out, args.overwrite)
+    tolerances_out = options.beside_destination(out, "tolerances", args.overwrite,
+                                                override=args.tolerances_out,
+                                                option="--tolerances-out")
+    machine = options.machine(args)
+    catalogue = options.read_catalogue(args.catalogue, machine)
+    start = None if args.tolerances is None else \
+        options.read_tolerances(args.tolerances, machine)
+    if args.target is not None:
+        machine = dataclasses.replace(machine, targets=np.full(6, args.target))
+    options.say(f"building the problem on the {args.points}-point grid")
+    problem = AllocationProblem.build(machine, workspace_grid(machine, args.points),
+                                      side=args.side, reference=start)
+    options.say(f"choosing among {catalogue.n_choices:,} combinations of classes (HiGHS)")
+    result = solve_catalogue(problem, catalogue)
+    print(result.summary())
+    print(f"workspace: grid — the choice meets the targets at the {len(problem.poses)} poses "
+          f"of the {args.points}-point grid (a catalogue choice is made on the grid only)")
+    result.to_csv(out, args.overwrite, significant=SIGNIFICANT)
+    print(f"\nchoice written to {out}")
+    allocation_to_csv(result, tolerances_out, args.overwrite)  # all digits
+    print(f"tolerances written to {tolerances_out}")
+    return 0
