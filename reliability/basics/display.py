@@ -14,15 +14,30 @@ Every number is printed only to the digits the computation fixes: a position in 
 text to :data:`POSITION_RESOLUTION` (a search over the continuous workspace fixes no
 finer), a probability near 1 by its failure probability to two significant digits, a gap
 or a bound to three (:func:`percent_text`, :func:`significant_percent`), and numbers in
-messages as plain numbers (:func:`number_text`), never as a numpy repr.
+messages as plain numbers (:func:`number_text`), never as a numpy repr. The rules of the
+printed numbers:
+
+- a tolerance (or limit, σ, correction) in the units the machine file states, to at most
+  0.001 µm or 0.001 arcsec (:func:`tolerance_text`, :func:`tolerance_number`), rounded
+  down: a printed tolerance is one to meet, so it never reads looser than the computed one;
+- a percentage to 0.01 % (:func:`percentage_text`);
+- an elasticity, a multiplier or a ratio to :data:`RATIO_DIGITS` significant digits
+  (:func:`significant_text`);
+- an exact zero as ``0``, and a value zero to the rounding of its computation (below
+  :data:`ZERO_RESOLUTION` of its scale) as ``0`` too (:func:`resolved_text`);
+- a certified bound to its safe side: an upper bound rounded up, a lower bound down
+  (:func:`upper_bound_text`, :func:`lower_bound_text`, :func:`probability_bound_text`).
 """
 
 from __future__ import annotations
 
 import math
+from decimal import ROUND_CEILING, ROUND_FLOOR, Decimal
 
 import numpy as np
 import pandas as pd
+
+from .files import SIGNIFICANT, rounded_down, rounded_up
 
 #: Unit of each comprehensive error: translations in mm, rotations in rad.
 OUTPUT_UNITS = ("mm", "mm", "mm", "rad", "rad", "rad")
@@ -37,6 +52,15 @@ UNIT_SCALES = {"mm": 1.0, "um": 1e3, "rad": 1.0, "urad": 1e6,
                "arcsec": 180.0 * 3600.0 / math.pi}
 #: How a unit is written for people, where it differs from its ASCII name.
 UNIT_SYMBOLS = {"um": "µm", "urad": "µrad"}
+#: Finest step of a tolerance shown to people: 0.001 µm for lengths (in mm) and 0.001
+#: arcsec for angles (in rad).
+TOLERANCE_STEPS = {"length": 1e-6, "angle": 1e-3 / UNIT_SCALES["arcsec"]}
+#: Decimals of a percentage: 0.01 %.
+PERCENT_DECIMALS = 2
+#: Significant digits of an elasticity, a Lagrange multiplier or a ratio.
+RATIO_DIGITS = 3
+#: A computed value smaller than this fraction of its scale is zero to rounding.
+ZERO_RESOLUTION = 1e-12
 
 
 def axis_units(machine) -> tuple[str, ...]:
@@ -185,3 +209,127 @@ def top_contributors(contributions: pd.DataFrame, output: str, n: int = 3) -> st
     """
     column = contributions[output].sort_values(ascending=False, kind="stable").head(n)
     return ", ".join(f"{name} {share:.0f}%" for name, share in column.items())
+
+
+def tolerance_decimals(unit: str) -> int:
+    """Decimals of a tolerance shown in ``unit`` (ASCII name): as many as
+    :data:`TOLERANCE_STEPS` allows and no more (µm and arcsec 3, mm 6, rad 8, µrad 2)."""
+    kind = "length" if unit in ("mm", "um") else "angle"
+    step = TOLERANCE_STEPS[kind] * UNIT_SCALES[unit]
+    return max(0, math.floor(-math.log10(step) + 1e-9))
+
+
+def tolerance_number(value: float, unit: str) -> str:
+    """A tolerance held in mm or rad as a number in ``unit`` (ASCII name), rounded DOWN to
+    :func:`tolerance_decimals` decimals, trailing zeros dropped: ``6.8178364e-3`` mm in
+    ``"um"`` is ``"6.817"``.
+
+    The value is read as the shortest decimal that gives its float (``0.0029`` mm, not the
+    binary 0.00289999…) and converted in decimal arithmetic, so a tolerance a file states
+    exactly prints exactly; any other is cut, never raised: the tolerance printed is never
+    looser than the one computed.
+    """
+    value = float(value)
+    if not math.isfinite(value):
+        return repr(value)
+    shown = Decimal(repr(value)) * Decimal(repr(UNIT_SCALES[unit]))
+    step = Decimal(1).scaleb(-tolerance_decimals(unit))
+    return _plain(shown.quantize(step, rounding=ROUND_FLOOR))
+
+
+def tolerance_text(value: float, unit: str) -> str:
+    """:func:`tolerance_number` followed by the unit's symbol: ``"6.817 µm"``."""
+    return f"{tolerance_number(value, unit)} {unit_symbol(unit)}"
+
+
+def percentage_text(fraction: float) -> str:
+    """A fraction in per cent to 0.01 % (:data:`PERCENT_DECIMALS`): ``2.2438941`` is
+    ``"224.39 %"``; an exact 0 is ``"0 %"``, and a non-zero value that would show as
+    ``0.00 %`` is ``"< 0.01 %"`` (``"> -0.01 %"`` below 0)."""
+    percent = 100.0 * float(fraction)
+    if percent == 0.0:
+        return "0 %"
+    smallest = 10.0 ** -PERCENT_DECIMALS
+    if abs(percent) < smallest / 2:
+        return f"< {smallest:g} %" if percent > 0 else f"> -{smallest:g} %"
+    return f"{percent:.{PERCENT_DECIMALS}f} %"
+
+
+def significant_text(value: float, digits: int = RATIO_DIGITS) -> str:
+    """``value`` to ``digits`` significant digits, positional between 1e-4 and 1e6
+    (``12.935616`` is ``"12.9"``, ``1293.4`` is ``"1290"``, ``-1.204667`` is ``"-1.20"``),
+    in exponent form outside; an exact zero is ``"0"``."""
+    value = float(value)
+    if value == 0.0 or not math.isfinite(value):
+        return "0" if value == 0.0 else repr(value)
+    rounded = float(f"{value:.{digits}g}")
+    exponent = math.floor(math.log10(abs(rounded)))
+    if -4 <= exponent < 6:
+        return f"{rounded:.{max(0, digits - 1 - exponent)}f}"
+    return f"{rounded:.{digits - 1}e}"
+
+
+def resolved_text(value: float, scale: float, digits: int = SIGNIFICANT,
+                  resolution: float = ZERO_RESOLUTION) -> str:
+    """``value`` to ``digits`` significant digits (:func:`significant_text`), or ``"0"``
+    when it is zero to the rounding of its computation: ``|value| <= resolution × scale``.
+
+    ``scale`` is the size the computation works at (an identified mean's prior σ, say);
+    double precision fixes a result only to about 1e-16 of it, and a chain of solves and
+    products to about :data:`ZERO_RESOLUTION` (1e-12) of it, so ``-1.50314e-15`` mm
+    identified with a prior σ of 1e-3 mm prints as ``"0"``.
+    """
+    if abs(float(value)) <= resolution * abs(float(scale)):
+        return "0"
+    return significant_text(value, digits)
+
+
+def upper_bound_text(value: float, digits: int = SIGNIFICANT) -> str:
+    """A certified upper bound to ``digits`` significant digits, rounded UP (toward +∞),
+    so the printed bound still bounds: ``2.04831e-05`` at 5 digits is ``"2.0484e-05"``."""
+    return _bound_text(float(value), digits, upward=True)
+
+
+def lower_bound_text(value: float, digits: int = SIGNIFICANT) -> str:
+    """A certified lower bound to ``digits`` significant digits, rounded DOWN (toward
+    −∞), so the printed bound still bounds: ``2.04831e-05`` at 5 digits is
+    ``"2.0483e-05"``."""
+    return _bound_text(float(value), digits, upward=False)
+
+
+def percent_bound_text(fraction: float, upper: bool, digits: int = RATIO_DIGITS) -> str:
+    """A bound on a fraction in per cent to ``digits`` significant digits, rounded to its
+    safe side (up for an upper bound, down for a lower one): ``0.0123456`` as an upper
+    bound is ``"1.24 %"``."""
+    shown = _bound_text(100.0 * float(fraction), digits, upward=upper)
+    return f"{shown} %"
+
+
+def probability_bound_text(value: float, upper: bool, digits: int = SIGNIFICANT) -> str:
+    """An end of an interval on a probability (a yield), rounded to its safe side: a lower
+    end down, an upper end up, to ``digits`` significant digits of the smaller of ``value``
+    and ``1 − value`` (``0.99987654`` as a lower end at 2 digits is ``"0.99987"``: the
+    failure probability 1.2e-4 to 2 digits, rounded up); 0 and 1 as ``0`` and ``1``."""
+    value = float(value)
+    if not 0.0 < value < 1.0:
+        return f"{value:g}"
+    smallest = min(value, 1.0 - value)
+    decimals = digits - 1 - math.floor(math.log10(smallest))
+    step = Decimal(1).scaleb(-decimals)
+    shown = Decimal(value).quantize(step, rounding=ROUND_CEILING if upper else ROUND_FLOOR)
+    return _plain(shown)
+
+
+def _bound_text(value: float, digits: int, upward: bool) -> str:
+    if value == 0.0 or not math.isfinite(value):
+        return "0" if value == 0.0 else repr(value)
+    away = upward == (value > 0)
+    size = (rounded_up if away else rounded_down)(abs(value), digits)
+    return f"{math.copysign(float(size), value):.{digits}g}"
+
+
+def _plain(number: Decimal) -> str:
+    """A decimal without trailing zeros or exponent (``-0`` as ``0``)."""
+    text = f"{number:f}"
+    text = text.rstrip("0").rstrip(".") if "." in text else text
+    return "0" if text in ("-0", "") else text

@@ -1,0 +1,114 @@
+"""Every printed number to the digits its computation fixes: the formatting helpers of
+``reliability.basics.display`` by hand-computed cases, and the numbers ``precrel allocate``
+prints."""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from reliability.basics import display
+from reliability.basics.errors import InputError
+from reliability.basics.files import rounded_down, rounded_up
+from studies import cli
+
+MILL = str(Path(__file__).parent / "machines" / "mill3.toml")
+
+
+@pytest.mark.parametrize(("value", "unit", "text"), [
+    (6.8178364e-3, "um", "6.817 µm"),      # rounded down, not to the nearest 6.818
+    (0.0029, "um", "2.9 µm"),             # the file's 0.0029 mm, not 2.8999…
+    (0.002, "mm", "0.002 mm"),
+    (1.23456789e-3, "mm", "0.001234 mm"),  # 0.001 µm = 1e-6 mm
+    (1e-5, "arcsec", "2.062 arcsec"),      # 1e-5 rad = 2.0626480… arcsec
+    (1e-5, "rad", "0.00001 rad"),          # 8 decimals: 1e-8 rad = 0.0021 arcsec
+    (0.0, "um", "0 µm"),
+])
+def test_a_tolerance_is_cut_to_a_thousandth_of_a_micrometre_or_arcsecond(value, unit, text):
+    assert display.tolerance_text(value, unit) == text
+
+
+@pytest.mark.parametrize(("fraction", "text"), [
+    (2.2438941, "224.39 %"), (-0.5, "-50.00 %"), (0.0, "0 %"), (1e-6, "< 0.01 %"),
+    (-1e-6, "> -0.01 %"), (0.000051, "0.01 %")])
+def test_a_percentage_is_shown_to_a_hundredth_of_a_percent(fraction, text):
+    assert display.percentage_text(fraction) == text
+
+
+@pytest.mark.parametrize(("value", "text"), [
+    (12.935616, "12.9"), (-1.204667, "-1.20"), (16.010119, "16.0"), (0.0, "0"),
+    (1293.4, "1290"), (0.000123456, "0.000123"), (2.17304e11, "2.17e+11")])
+def test_an_elasticity_has_three_significant_digits(value, text):
+    assert display.significant_text(value) == text
+
+
+def test_a_value_zero_to_rounding_is_shown_as_zero():
+    assert display.resolved_text(-1.50314e-15, 1.0) == "0"          # 1e-12 of a σ of 1
+    assert display.resolved_text(-1.50314e-15, 1.0, resolution=1e-16) == "-1.50314e-15"
+    assert display.resolved_text(-1.50314e-9, 1e-3, digits=3) == "-1.50e-09"
+    assert display.resolved_text(0.0, 0.0) == "0"
+
+
+def test_a_bound_is_rounded_to_its_safe_side():
+    assert display.upper_bound_text(2.04831e-05, 5) == "2.0484e-05"
+    assert display.lower_bound_text(2.04831e-05, 5) == "2.0483e-05"
+    assert display.upper_bound_text(-2.04831e-05, 5) == "-2.0483e-05"
+    assert display.lower_bound_text(-2.04831e-05, 5) == "-2.0484e-05"
+    assert display.upper_bound_text(0.0015, 2) == "0.0015"           # exact stays exact
+    assert display.upper_bound_text(0.0, 3) == "0"
+    assert display.percent_bound_text(0.0123456, upper=True) == "1.24 %"
+    assert display.percent_bound_text(0.0123456, upper=False) == "1.23 %"
+
+
+def test_the_ends_of_a_yield_interval_are_rounded_outward():
+    # 1 - 0.99987654 = 1.2346e-4: two significant digits of it are five decimals
+    assert display.probability_bound_text(0.99987654, upper=False, digits=2) == "0.99987"
+    assert display.probability_bound_text(0.99987654, upper=True, digits=2) == "0.99988"
+    assert display.probability_bound_text(0.25, upper=True, digits=2) == "0.25"
+    assert display.probability_bound_text(1.0, upper=True) == "1"
+
+
+def test_rounded_up_mirrors_rounded_down():
+    np.testing.assert_array_equal(rounded_up([2.04831e-05, 0.0015, 9.9999], 3),
+                                  [2.05e-05, 0.0015, 10.0])
+    np.testing.assert_array_equal(rounded_down([2.04831e-05, 0.0015, 9.9999], 3),
+                                  [2.04e-05, 0.0015, 9.99])
+    with pytest.raises(InputError, match="values: entry 1"):
+        rounded_up([1.0, -2.0])
+
+
+#: A number in printed text: optional sign, digits, optional decimals and exponent.
+NUMBER = re.compile(r"(?<![\w.])[-+]?\d+(?:\.(\d+))?(?:e[-+]?\d+)?")
+
+
+def decimals_by_unit(text: str, unit: str) -> list[int]:
+    """Decimals of every number printed just before ``unit``."""
+    return [len(m.group(1) or "") for m in
+            re.finditer(rf"[-+]?\d+(?:\.(\d+))?\s*{re.escape(unit)}(?!\w)", text)]
+
+
+@pytest.fixture(scope="module")
+def allocate_output(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("digits")
+    import contextlib
+    import io
+    stdout = io.StringIO()
+    with contextlib.redirect_stdout(stdout):
+        assert cli.main(["allocate", MILL, "--points", "3", "--workspace", "grid", "--out",
+                         str(folder / "a.csv")]) == 0
+    return stdout.getvalue()
+
+
+def test_allocate_prints_no_digit_past_its_rule(allocate_output):
+    out = allocate_output
+    assert max(decimals_by_unit(out, "%")) <= 2                       # 0.01 %
+    assert max(decimals_by_unit(out, "µm"), default=0) <= 3             # 0.001 µm
+    assert max(decimals_by_unit(out, "mm"), default=0) <= 6             # 0.001 µm in mm
+    table = out.split("requirements (elasticities")[1].split("\n\n")[0]
+    for line in table.splitlines()[3:]:
+        for number in NUMBER.finditer(line.split("no")[-1].split("yes")[-1]):
+            digits = number.group(0).lstrip("-+").replace(".", "").lstrip("0")
+            assert len(digits) <= 3, line                                  # 3 significant
