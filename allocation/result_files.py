@@ -29,7 +29,7 @@ import numpy as np
 import pandas as pd
 
 from reliability.basics.display import (UNIT_SCALES, axis_units, error_units, number_text,
-                                        pose_columns, unit_symbol)
+                                        percentage_text, pose_columns, unit_symbol)
 from reliability.basics.errors import InputError, InputTypeError
 from reliability.basics.files import SIGNIFICANT, as_written, rounded_down, write_csv
 from reliability.basics.saved_results import check_count, encode_frame, load_payload, save_payload
@@ -73,10 +73,12 @@ def cost_units_text(cost) -> str:
 
 def cost_shares_text(cost, t) -> str:
     """Each cost group's share at ``t``, translational and angular items apart, e.g.
-    ``linear: translational 0.001 %, angular 55.0 %; …``."""
+    ``linear: translational < 0.01 %, angular 55.02 %; …``
+    (:func:`~reliability.basics.display.percentage_text`)."""
     shares = cost.shares(t)
-    return "; ".join(f"{group}: translational {100 * row.translational:.3g} %, angular "
-                     f"{100 * row.angular:.3g} %" for group, row in shares.iterrows())
+    return "; ".join(f"{group}: translational {percentage_text(row.translational)}, "
+                     f"angular {percentage_text(row.angular)}"
+                     for group, row in shares.iterrows())
 
 
 def nearly_free_text(result) -> str:

@@ -38,6 +38,13 @@ def test_a_percentage_is_shown_to_a_hundredth_of_a_percent(fraction, text):
     assert display.percentage_text(fraction) == text
 
 
+def test_a_percentage_that_bounds_is_rounded_to_its_safe_side():
+    assert display.percentage_text(0.0012345, bound="upper") == "0.13 %"
+    assert display.percentage_text(0.0012345, bound="lower") == "0.12 %"
+    assert display.percentage_text(0.875, bound="lower") == "87.50 %"
+    assert display.percentage_text(1e-9, bound="upper") == "0.01 %"     # never "0 %"
+
+
 @pytest.mark.parametrize(("value", "text"), [
     (12.935616, "12.9"), (-1.204667, "-1.20"), (16.010119, "16.0"), (0.0, "0"),
     (1293.4, "1290"), (0.000123456, "0.000123"), (2.17304e11, "2.17e+11")])
@@ -59,15 +66,14 @@ def test_a_bound_is_rounded_to_its_safe_side():
     assert display.lower_bound_text(-2.04831e-05, 5) == "-2.0484e-05"
     assert display.upper_bound_text(0.0015, 2) == "0.0015"           # exact stays exact
     assert display.upper_bound_text(0.0, 3) == "0"
-    assert display.percent_bound_text(0.0123456, upper=True) == "1.24 %"
-    assert display.percent_bound_text(0.0123456, upper=False) == "1.23 %"
 
 
 def test_the_ends_of_a_yield_interval_are_rounded_outward():
     # 1 - 0.99987654 = 1.2346e-4: two significant digits of it are five decimals
     assert display.probability_bound_text(0.99987654, upper=False, digits=2) == "0.99987"
     assert display.probability_bound_text(0.99987654, upper=True, digits=2) == "0.99988"
-    assert display.probability_bound_text(0.25, upper=True, digits=2) == "0.25"
+    assert display.probability_bound_text(0.25, upper=True) == "0.2500"
+    assert display.probability_bound_text(0.83456, upper=False) == "0.8345"
     assert display.probability_bound_text(1.0, upper=True) == "1"
 
 

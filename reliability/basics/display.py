@@ -26,7 +26,8 @@ printed numbers:
 - an exact zero as ``0``, and a value zero to the rounding of its computation (below
   :data:`ZERO_RESOLUTION` of its scale) as ``0`` too (:func:`resolved_text`);
 - a certified bound to its safe side: an upper bound rounded up, a lower bound down
-  (:func:`upper_bound_text`, :func:`lower_bound_text`, :func:`probability_bound_text`).
+  (:func:`upper_bound_text`, :func:`lower_bound_text`, :func:`probability_bound_text`,
+  ``percentage_text(…, bound=…)``: a gap is an upper bound).
 """
 
 from __future__ import annotations
@@ -242,16 +243,36 @@ def tolerance_text(value: float, unit: str) -> str:
     return f"{tolerance_number(value, unit)} {unit_symbol(unit)}"
 
 
-def percentage_text(fraction: float) -> str:
+def tolerance_numbers(values, units) -> list[str]:
+    """Each tolerance of ``values`` (held in mm or rad) by :func:`tolerance_number` in its
+    unit of ``units`` (ASCII names, one per value)."""
+    return [tolerance_number(value, unit) for value, unit in zip(values, units)]
+
+
+def ratio_columns(frame: pd.DataFrame, digits: int = RATIO_DIGITS) -> pd.DataFrame:
+    """``frame`` with every float column (elasticities, multipliers, ratios) shown by
+    :func:`significant_text`."""
+    shown = frame.copy()
+    for column in frame.columns[[kind == "f" for kind in frame.dtypes.map(lambda d: d.kind)]]:
+        shown[column] = [significant_text(value, digits) for value in frame[column]]
+    return shown
+
+
+def percentage_text(fraction: float, bound: str | None = None) -> str:
     """A fraction in per cent to 0.01 % (:data:`PERCENT_DECIMALS`): ``2.2438941`` is
-    ``"224.39 %"``; an exact 0 is ``"0 %"``, and a non-zero value that would show as
-    ``0.00 %`` is ``"< 0.01 %"`` (``"> -0.01 %"`` below 0)."""
+    ``"224.39 %"``; an exact 0 is ``"0 %"``. A bound is rounded to its safe side
+    (``bound="upper"`` up, ``"lower"`` down: ``0.0012345`` is ``"0.13 %"`` as an upper
+    bound); any other value to the nearest, and a non-zero one that would show as
+    ``0.00 %`` as ``"< 0.01 %"`` (``"> -0.01 %"`` below 0)."""
     percent = 100.0 * float(fraction)
-    if percent == 0.0:
-        return "0 %"
-    smallest = 10.0 ** -PERCENT_DECIMALS
-    if abs(percent) < smallest / 2:
-        return f"< {smallest:g} %" if percent > 0 else f"> -{smallest:g} %"
+    if percent == 0.0 or not math.isfinite(percent):
+        return f"{percent:g} %"
+    step = Decimal(1).scaleb(-PERCENT_DECIMALS)
+    if bound is not None:
+        rounding = {"upper": ROUND_CEILING, "lower": ROUND_FLOOR}[bound]
+        return f"{Decimal(percent).quantize(step, rounding=rounding) + 0:f} %"
+    if abs(percent) < float(step) / 2:
+        return f"< {step} %" if percent > 0 else f"> -{step} %"
     return f"{percent:.{PERCENT_DECIMALS}f} %"
 
 
@@ -297,27 +318,28 @@ def lower_bound_text(value: float, digits: int = SIGNIFICANT) -> str:
     return _bound_text(float(value), digits, upward=False)
 
 
-def percent_bound_text(fraction: float, upper: bool, digits: int = RATIO_DIGITS) -> str:
-    """A bound on a fraction in per cent to ``digits`` significant digits, rounded to its
-    safe side (up for an upper bound, down for a lower one): ``0.0123456`` as an upper
-    bound is ``"1.24 %"``."""
-    shown = _bound_text(100.0 * float(fraction), digits, upward=upper)
-    return f"{shown} %"
-
-
-def probability_bound_text(value: float, upper: bool, digits: int = SIGNIFICANT) -> str:
+def probability_bound_text(value: float, upper: bool, digits: int = 2) -> str:
     """An end of an interval on a probability (a yield), rounded to its safe side: a lower
-    end down, an upper end up, to ``digits`` significant digits of the smaller of ``value``
-    and ``1 − value`` (``0.99987654`` as a lower end at 2 digits is ``"0.99987"``: the
-    failure probability 1.2e-4 to 2 digits, rounded up); 0 and 1 as ``0`` and ``1``."""
+    end down, an upper end up, to at least four decimals and ``digits`` significant digits
+    of the smaller of ``value`` and ``1 − value``, as yields are shown
+    (``0.99987654`` as a lower end is ``"0.99987"``: the failure probability 1.2e-4 to two
+    digits; ``0.25`` is ``"0.2500"``); 0 and 1 as ``0`` and ``1``."""
     value = float(value)
     if not 0.0 < value < 1.0:
         return f"{value:g}"
     smallest = min(value, 1.0 - value)
-    decimals = digits - 1 - math.floor(math.log10(smallest))
+    decimals = max(4, digits - 1 - math.floor(math.log10(smallest)))
     step = Decimal(1).scaleb(-decimals)
     shown = Decimal(value).quantize(step, rounding=ROUND_CEILING if upper else ROUND_FLOOR)
-    return _plain(shown)
+    return f"{shown:f}"
+
+
+def interval_text(interval, digits: int = 2) -> str:
+    """A confidence interval on a probability as ``"[0.9812, 0.9950]"``, its ends
+    rounded outward (:func:`probability_bound_text`); ``interval`` has ``lower`` and
+    ``upper``."""
+    return (f"[{probability_bound_text(interval.lower, upper=False, digits=digits)}, "
+            f"{probability_bound_text(interval.upper, upper=True, digits=digits)}]")
 
 
 def _bound_text(value: float, digits: int, upward: bool) -> str:
