@@ -24,7 +24,7 @@ from allocation.yield_dual import log_concave_bound, not_log_concave
 from reliability.basics import display
 from reliability.basics.errors import InputError
 from reliability.model.poses import workspace_grid
-from studies.report.machine_sections import tolerance_table
+from studies.report.machine_sections import shown_tolerance_table, tolerance_table
 from studies.report.writer import SIGNIFICANT
 
 from . import compensate, options
@@ -199,11 +199,8 @@ def changes_text(result, top: int = 10) -> str:
     problem = result.problem
     table = tolerance_table(problem.machine, problem.reference, result.tolerances)
     order = table["change"].abs().sort_values(ascending=False, kind="stable").index[:top]
-    units = display.error_units(problem.names, problem.machine.cost_coefficients.units)
-    shown = table.assign(initial=display.tolerance_numbers(problem.reference, units),
-                         allocated=display.tolerance_numbers(result.tolerances, units),
-                         change=[display.percentage_text(v) for v in table["change"]])
-    shown = shown.loc[order]
+    shown = shown_tolerance_table(problem.machine, problem.reference,
+                                  result.tolerances).loc[order]
     return (f"\nlargest changes from the initial allocation ({top} of {len(table)}; "
             f"tolerances in the machine file's units):\n{shown.to_string(index=False)}")
 

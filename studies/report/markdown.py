@@ -13,6 +13,8 @@ import re
 import numpy as np
 import pandas as pd
 
+from reliability.basics.display import upper_bound_text
+
 
 def markdown_table(frame: pd.DataFrame, formats: dict | None = None,
                    index: bool = True) -> str:
@@ -26,6 +28,16 @@ def markdown_table(frame: pd.DataFrame, formats: dict | None = None,
         cells = [formats.get(c, format_cell)(row[c]) for c in frame.columns]
         rows.append("| " + " | ".join(cells) + " |")
     return "\n".join([header, rule, *rows])
+
+
+def bound_formats(columns, digits: int = 5) -> dict:
+    """Formats for :func:`markdown_table` showing each of ``columns`` (certified upper
+    bounds) to ``digits`` significant digits rounded up
+    (:func:`~reliability.basics.display.upper_bound_text`), so a bound printed still
+    bounds; NaN as ``–``."""
+    def shown(value) -> str:
+        return "–" if np.isnan(value) else upper_bound_text(value, digits)
+    return {column: shown for column in columns}
 
 
 def format_cell(value) -> str:
