@@ -66,6 +66,8 @@ def test_a_bound_is_rounded_to_its_safe_side():
     assert display.lower_bound_text(-2.04831e-05, 5) == "-2.0484e-05"
     assert display.upper_bound_text(0.0015, 2) == "0.0015"           # exact stays exact
     assert display.upper_bound_text(0.0, 3) == "0"
+    assert display.quantity_bound_text(2.04831e-5, "mm", 5) == "2.0484e-05 mm"
+    assert display.quantity_bound_text(2.04831e-5, "um", 5) == "0.020484 µm"
 
 
 def test_the_ends_of_a_yield_interval_are_rounded_outward():

@@ -124,6 +124,14 @@ def quantity_text(value: float, unit: str, digits: int = 4) -> str:
     return with_unit(float(value) * UNIT_SCALES[unit], unit_symbol(unit), digits)
 
 
+def quantity_bound_text(value: float, unit: str, digits: int = SIGNIFICANT) -> str:
+    """A certified upper bound on a length or an angle held in mm or rad, shown in ``unit``
+    with its symbol to ``digits`` significant digits rounded up
+    (:func:`upper_bound_text`): ``quantity_bound_text(2.04831e-5, "mm", 5)`` is
+    ``"2.0484e-05 mm"``."""
+    return f"{upper_bound_text(float(value) * UNIT_SCALES[unit], digits)} {unit_symbol(unit)}"
+
+
 def target_text(target: float) -> str:
     """A probability readable near 1: ``0.99``, ``0.999999999`` (never a rounded ``1``):
     enough decimals to show the failure probability ``1 − target`` to three digits."""
@@ -259,21 +267,27 @@ def ratio_columns(frame: pd.DataFrame, digits: int = RATIO_DIGITS) -> pd.DataFra
 
 
 def percentage_text(fraction: float, bound: str | None = None) -> str:
-    """A fraction in per cent to 0.01 % (:data:`PERCENT_DECIMALS`): ``2.2438941`` is
-    ``"224.39 %"``; an exact 0 is ``"0 %"``. A bound is rounded to its safe side
-    (``bound="upper"`` up, ``"lower"`` down: ``0.0012345`` is ``"0.13 %"`` as an upper
-    bound); any other value to the nearest, and a non-zero one that would show as
-    ``0.00 %`` as ``"< 0.01 %"`` (``"> -0.01 %"`` below 0)."""
+    """A fraction in per cent to 0.01 % (:data:`PERCENT_DECIMALS`), followed by ``%``:
+    ``2.2438941`` is ``"224.39 %"`` (:func:`percent_number`)."""
+    return f"{percent_number(fraction, bound)} %"
+
+
+def percent_number(fraction: float, bound: str | None = None) -> str:
+    """A fraction in per cent to 0.01 % (:data:`PERCENT_DECIMALS`), as a number: an exact
+    0 is ``"0"``. A bound is rounded to its safe side (``bound="upper"`` up, ``"lower"``
+    down: ``0.0012345`` is ``"0.13"`` as an upper bound); any other value to the nearest,
+    and a non-zero one that would show as ``0.00`` as ``"< 0.01"`` (``"> -0.01"`` below
+    0)."""
     percent = 100.0 * float(fraction)
     if percent == 0.0 or not math.isfinite(percent):
-        return f"{percent:g} %"
+        return f"{percent:g}"
     step = Decimal(1).scaleb(-PERCENT_DECIMALS)
     if bound is not None:
         rounding = {"upper": ROUND_CEILING, "lower": ROUND_FLOOR}[bound]
-        return f"{Decimal(percent).quantize(step, rounding=rounding) + 0:f} %"
+        return f"{Decimal(percent).quantize(step, rounding=rounding) + 0:f}"
     if abs(percent) < float(step) / 2:
-        return f"< {step} %" if percent > 0 else f"> -{step} %"
-    return f"{percent:.{PERCENT_DECIMALS}f} %"
+        return f"< {step}" if percent > 0 else f"> -{step}"
+    return f"{percent:.{PERCENT_DECIMALS}f}"
 
 
 def significant_text(value: float, digits: int = RATIO_DIGITS) -> str:

@@ -6,8 +6,8 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from reliability.basics.display import (output_people_units, quantity_text, target_text,
-                                        top_contributors)
+from reliability.basics.display import (output_people_units, quantity_bound_text,
+                                        quantity_text, target_text, top_contributors)
 from reliability.first_order.fosm import fosm, two_sided_probability
 from reliability.first_order.workspace_search import certified_worst
 from reliability.model.machine import OUTPUTS
@@ -78,7 +78,7 @@ def certificate_table(machine, table, grid_result) -> pd.DataFrame:
             "output": output,
             "worst pose": options.pose_text(machine, pose),
             "sigma": quantity_text(row["sigma"], units[i], 6),
-            "sigma bound": quantity_text(row["sigma_bound"], units[i], 6),
+            "sigma bound": quantity_bound_text(row["sigma_bound"], units[i], 6),
             "grid sigma": quantity_text(grid_sigma[i], units[i], 6),
             "P two-sided at bound": options.percent(
                 two_sided_probability(machine.limits[i], row["sigma_bound"])),
