@@ -369,13 +369,14 @@ class YieldAllocation:
             f"({percentage_text(self.relative_gap, bound='upper')} of the cost)",
             self.calibration_text(),
             self.convex_step_line(),
-            f"verified yield {v.estimate:.4f}, 95% Clopper-Pearson {interval_text(v)} from "
-            f"{v.n:,} fresh built machines: {verdict}",
+            f"verified yield {v.estimate:.4f}, 95% Clopper-Pearson "
+            f"{interval_text(v.lower, v.upper)} from {v.n:,} fresh built machines: {verdict}",
             f"found by the {self.method} stage{self.narrower_box_text()}; per-output "
             f"per-pose targets of the first stage: {targets}",
             f"naive method ({self.naive.text()}, calibrated the same way): cost "
             f"{percentage_text(self.naive.cost / initial)} of the initial allocation, "
-            f"verified yield {n.estimate:.4f} {interval_text(n)} from {n.n:,} machines"]
+            f"verified yield {n.estimate:.4f} {interval_text(n.lower, n.upper)} from "
+            f"{n.n:,} machines"]
 
     def calibration_text(self) -> str:
         """How the search's allocation (or the naive start's) became the result, in
@@ -387,12 +388,14 @@ class YieldAllocation:
                   f"{self.design_yield.n:,} design machines)")
         if self.method == "convex step":
             return (f"{search}; the convex steps from it ended at "
-                    f"{percentage_text(self.convex_step_cost / initial)}, scaled to the design yield "
-                    f"{self.design_yield_target:.4f} on {c.n:,} fresh calibration machines: "
+                    f"{percentage_text(self.convex_step_cost / initial)}, scaled to the "
+                    f"design yield {self.design_yield_target:.4f} on {c.n:,} fresh "
+                    f"calibration machines: "
                     f"the result (yield {c.estimate:.4f} there)")
         if self.method == "naive start":
-            return (f"{search}, {percentage_text(self.search_calibrated_cost / initial)} once scaled to "
-                    f"the design yield {self.design_yield_target:.4f} on {c.n:,} fresh "
+            scaled = percentage_text(self.search_calibrated_cost / initial)
+            return (f"{search}, {scaled} once scaled to the design yield "
+                    f"{self.design_yield_target:.4f} on {c.n:,} fresh "
                     f"calibration machines: dearer than the naive start scaled the same "
                     f"way, which is the result (yield {c.estimate:.4f} there)")
         if not self.calibrated:
@@ -409,8 +412,8 @@ class YieldAllocation:
         initial = self.initial_cost
         return (f"convex steps: {self.convex_step_text}; they ended at "
                 f"{percentage_text(self.convex_step_cost / initial)}, "
-                f"{percentage_text(self.convex_step_calibrated_cost / initial)} calibrated: not the "
-                f"cheapest")
+                f"{percentage_text(self.convex_step_calibrated_cost / initial)} calibrated: "
+                f"not the cheapest")
 
     def bound_text(self) -> str:
         """What the lower bound rests on, in words."""

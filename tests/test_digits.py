@@ -77,6 +77,7 @@ def test_the_ends_of_a_yield_interval_are_rounded_outward():
     assert display.probability_bound_text(0.25, upper=True) == "0.2500"
     assert display.probability_bound_text(0.83456, upper=False) == "0.8345"
     assert display.probability_bound_text(1.0, upper=True) == "1"
+    assert display.interval_text(0.98123, 0.99501) == "[0.9812, 0.9951]"
 
 
 def test_rounded_up_mirrors_rounded_down():

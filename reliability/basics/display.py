@@ -348,12 +348,11 @@ def probability_bound_text(value: float, upper: bool, digits: int = 2) -> str:
     return f"{shown:f}"
 
 
-def interval_text(interval, digits: int = 2) -> str:
+def interval_text(lower: float, upper: float, digits: int = 2) -> str:
     """A confidence interval on a probability as ``"[0.9812, 0.9950]"``, its ends
-    rounded outward (:func:`probability_bound_text`); ``interval`` has ``lower`` and
-    ``upper``."""
-    return (f"[{probability_bound_text(interval.lower, upper=False, digits=digits)}, "
-            f"{probability_bound_text(interval.upper, upper=True, digits=digits)}]")
+    rounded outward (:func:`probability_bound_text`)."""
+    return (f"[{probability_bound_text(lower, upper=False, digits=digits)}, "
+            f"{probability_bound_text(upper, upper=True, digits=digits)}]")
 
 
 def _bound_text(value: float, digits: int, upward: bool) -> str:

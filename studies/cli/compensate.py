@@ -111,10 +111,10 @@ def residual_text(identification, tables) -> str:
     mean, sigma = measured_residual(identification, tables, poses)
     units = display.output_people_units(machine.cost_coefficients.units)
     scale = display.in_units(before_sd.max(axis=0), units)
-    columns = {"limit": machine.limits, "|mean| before": np.abs(before).max(axis=0),
-               "sd before": before_sd.max(axis=0), "|mean| after": np.abs(mean).max(axis=0),
-               "sd after": sigma.max(axis=0)}
-    frame = pd.DataFrame({"unit": [display.unit_symbol(u) for u in units]} | {
+    columns = {"|mean| before": np.abs(before).max(axis=0), "sd before": before_sd.max(axis=0),
+               "|mean| after": np.abs(mean).max(axis=0), "sd after": sigma.max(axis=0)}
+    frame = pd.DataFrame({"unit": [display.unit_symbol(u) for u in units],
+                          "limit": display.tolerance_numbers(machine.limits, units)} | {
         name: [display.resolved_text(v, s, digits=3) for v, s in
                zip(display.in_units(values, units), scale)]
         for name, values in columns.items()}, index=pd.Index(machine.outputs, name="output"))
