@@ -33,7 +33,7 @@ printed numbers:
 from __future__ import annotations
 
 import math
-from decimal import ROUND_CEILING, ROUND_FLOOR, Decimal
+from decimal import ROUND_CEILING, ROUND_FLOOR, ROUND_HALF_EVEN, Decimal
 
 import numpy as np
 import pandas as pd
@@ -141,10 +141,11 @@ def target_text(target: float) -> str:
 
 
 def bound_text(value: float, digits: int = 6) -> str:
-    """A probability bound, clipped to [0, 1]; a bound at 0 or 1 says nothing and is marked
-    ``(trivial)``."""
+    """A lower bound on a probability (Bonferroni's), clipped to [0, 1] and rounded down to
+    ``digits`` decimals, so the printed bound still bounds; a bound at 0 or 1 says nothing
+    and is marked ``(trivial)``."""
     value = min(max(float(value), 0.0), 1.0)
-    text = f"{value:.{digits}f}"
+    text = decimals_text(value, digits, "lower")
     return f"{text} (trivial)" if value in (0.0, 1.0) else text
 
 
@@ -272,22 +273,33 @@ def percentage_text(fraction: float, bound: str | None = None) -> str:
     return f"{percent_number(fraction, bound)} %"
 
 
-def percent_number(fraction: float, bound: str | None = None) -> str:
-    """A fraction in per cent to 0.01 % (:data:`PERCENT_DECIMALS`), as a number: an exact
-    0 is ``"0"``. A bound is rounded to its safe side (``bound="upper"`` up, ``"lower"``
-    down: ``0.0012345`` is ``"0.13"`` as an upper bound); any other value to the nearest,
-    and a non-zero one that would show as ``0.00`` as ``"< 0.01"`` (``"> -0.01"`` below
-    0)."""
+def percent_number(fraction: float, bound: str | None = None,
+                   decimals: int = PERCENT_DECIMALS) -> str:
+    """A fraction in per cent to ``decimals`` decimals (0.01 %: :data:`PERCENT_DECIMALS`),
+    as a number: an exact 0 is ``"0"``. A bound is rounded to its safe side
+    (``bound="upper"`` up, ``"lower"`` down: ``0.0012345`` is ``"0.13"`` as an upper bound;
+    :func:`decimals_text`); any other value to the nearest, and a non-zero one that would
+    show as ``0.00`` as ``"< 0.01"`` (``"> -0.01"`` below 0)."""
     percent = 100.0 * float(fraction)
     if percent == 0.0 or not math.isfinite(percent):
         return f"{percent:g}"
-    step = Decimal(1).scaleb(-PERCENT_DECIMALS)
     if bound is not None:
-        rounding = {"upper": ROUND_CEILING, "lower": ROUND_FLOOR}[bound]
-        return f"{Decimal(percent).quantize(step, rounding=rounding) + 0:f}"
-    if abs(percent) < float(step) / 2:
-        return f"< {step}" if percent > 0 else f"> -{step}"
-    return f"{percent:.{PERCENT_DECIMALS}f}"
+        return decimals_text(fraction, decimals, bound, scale=100)
+    step = 10.0 ** -decimals
+    if abs(percent) < step / 2:
+        return f"< {step:.{decimals}f}" if percent > 0 else f"> -{step:.{decimals}f}"
+    return f"{percent:.{decimals}f}"
+
+
+def decimals_text(value: float, decimals: int, bound: str | None = None,
+                  scale: int = 1) -> str:
+    """``scale × value`` to ``decimals`` decimals, computed in exact decimal arithmetic and
+    rounded to the nearest, or for a bound to its safe side (``bound="upper"`` up,
+    ``"lower"`` down): ``decimals_text(0.98765, 3, "lower", scale=100)`` is ``"98.765"``,
+    never 98.766."""
+    exact = Decimal(float(value)) * scale
+    rounding = {None: ROUND_HALF_EVEN, "upper": ROUND_CEILING, "lower": ROUND_FLOOR}[bound]
+    return f"{exact.quantize(Decimal(1).scaleb(-decimals), rounding=rounding) + 0:f}"
 
 
 def significant_text(value: float, digits: int = RATIO_DIGITS) -> str:

@@ -45,7 +45,7 @@ from scipy.special import logsumexp
 from scipy.stats import norm
 
 from ..basics import checks, streams
-from ..basics.display import pose_text, shown_positions
+from ..basics.display import lower_bound_text, pose_text, shown_positions, upper_bound_text
 from ..basics.errors import InputError, InputTypeError
 from ..basics.ties import worst_rows
 from ..first_order.fosm import two_sided_failure, two_sided_probability
@@ -141,7 +141,8 @@ class RareEventResult:
             body = f"failure probability exactly 0 ({self.note})"
         else:
             body = (f"failure probability {self.probability:.3e} (CoV {self.cov:.3f}, "
-                    f"{level} interval [{self.interval[0]:.3e}, {self.interval[1]:.3e}]), "
+                    f"{level} interval [{lower_bound_text(self.interval[0], 4)}, "
+                    f"{upper_bound_text(self.interval[1], 4)}]), "
                     f"{self.n_evaluations} exact-model evaluations, target CoV "
                     f"{self.target_cov:g} {'reached' if self.reached else 'NOT reached'}")
         return (f"{self.event} at pose ({pose}), {self.distribution} inputs, {self.method}: "
