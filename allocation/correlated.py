@@ -48,7 +48,8 @@ from scipy import sparse
 from scipy.optimize import minimize, nnls
 from threadpoolctl import threadpool_limits
 
-from reliability.basics.display import axis_units, pose_text
+from reliability.basics.display import (axis_units, lower_bound_text, pose_text,
+                                        upper_bound_text)
 from reliability.basics.errors import InputError
 from reliability.model.correlation import check_correlation_matrix
 from reliability.model.iso_names import iso_names
@@ -117,8 +118,9 @@ class CorrelatedAllocation:
 
     def summary(self) -> str:
         verdict = "certified" if self.certified else "NOT certified"
-        return (f"cost {self.cost:.6e} (dual bound {self.dual_bound:.6e}, relative gap "
-                f"{self.relative_gap:.2e}, {verdict}); {len(self.active)} binding row(s)")
+        return (f"cost {self.cost:.6e} (dual bound {lower_bound_text(self.dual_bound, 7)}, "
+                f"relative gap {upper_bound_text(self.relative_gap, 3)}, {verdict}); "
+                f"{len(self.active)} binding row(s)")
 
 
 def solve_correlated(machine, poses=None, *, correlation=None, side: str = "two_sided",
