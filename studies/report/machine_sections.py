@@ -31,7 +31,8 @@ from reliability.model.machine import OUTPUTS
 from studies.workflows.machine_study import UNCHANGED, MachineStudy, summary
 
 from . import plots
-from .markdown import bound_formats, markdown_table
+from .markdown import (interval_formats, markdown_table, percent_bound,
+                       significant_bound)
 from .section import Section
 from .yield_section import yield_section, yield_sentence
 
@@ -321,8 +322,8 @@ def workspace_section(study: MachineStudy) -> Section:
         tables["workspace_certificate.csv"] = shown
         text += ("\n\nThe certificate at the optimum (`allowed`: the σ the target allows; "
                  "`excess`: bound / allowed − 1; `gap`: the certificate's own bound / σ − 1):"
-                 "\n\n" + markdown_table(shown, bound_formats((bound, "excess", "gap")),
-                                         index=False))
+                 "\n\n" + markdown_table(shown, interval_formats(
+                     significant_bound(5), upper=(bound, "excess", "gap")), index=False))
     entries = {"workspace_certified": continuous.certified, "workspace_rtol": continuous.rtol,
                "workspace_solves": continuous.solves,
                "workspace_certificate_calls": continuous.certificate_calls,
@@ -502,8 +503,9 @@ def verification_section(study: MachineStudy) -> Section:
         [pd.DataFrame(check.grid.fractions, columns=list(OUTPUTS))
          .assign(allocation=name, repeat=np.arange(1, check.grid.repeats + 1))
          for name, check in study.checks.items()])[["allocation", "repeat", *OUTPUTS]]
-    percent = {c: PERCENT for c in ("fosm_two_sided", "mc_estimate", "mc_lower", "mc_upper",
-                                    "fosm_worst_two_sided", "estimate", "lower", "upper")}
+    percent = {c: PERCENT for c in ("fosm_two_sided", "mc_estimate", "fosm_worst_two_sided",
+                                    "estimate")} | interval_formats(
+        percent_bound(3), lower=("mc_lower", "lower"), upper=("mc_upper", "upper"))
     check = study.checks[_last_checked(study)]
     text = "\n\n".join([
         f"Errors drawn as {_reading(check.distribution)}; FOSM beside them with the same "
