@@ -121,3 +121,12 @@ def test_allocate_prints_no_digit_past_its_rule(allocate_output):
         for number in NUMBER.finditer(line.split("no")[-1].split("yes")[-1]):
             digits = number.group(0).lstrip("-+").replace(".", "").lstrip("0")
             assert len(digits) <= 3, line                                  # 3 significant
+
+
+def test_a_probability_that_bounds_from_below_is_rounded_down():
+    assert display.percent_text(0.987656) == "98.7656 %"
+    assert display.percent_text(0.98765649, lower=True) == "98.7656 %"
+    assert display.percent_text(0.98765651, lower=True) == "98.7656 %"   # nearest: 98.7657
+    # failure 2.0428e-14 rounded up to two digits: 2.1e-14, P never read above its bound
+    assert display.percent_text(1 - 2.0428e-14, lower=True).endswith("(1 − 2.1e-14)")
+    assert display.bound_text(0.1234567) == "0.123456"                  # Bonferroni, down

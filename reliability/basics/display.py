@@ -12,10 +12,9 @@ beside each number; machine-readable CSV files keep mm and rad.
 
 Every number is printed only to the digits the computation fixes: a position in a pose
 text to :data:`POSITION_RESOLUTION` (a search over the continuous workspace fixes no
-finer), a probability near 1 by its failure probability to two significant digits, a gap
-or a bound to three (:func:`percent_text`, :func:`significant_percent`), and numbers in
-messages as plain numbers (:func:`number_text`), never as a numpy repr. The rules of the
-printed numbers:
+finer), a probability near 1 by its failure probability to two significant digits
+(:func:`percent_text`), and numbers in messages as plain numbers (:func:`number_text`),
+never as a numpy repr. The rules of the printed numbers:
 
 - a tolerance (or limit, σ, correction) in the units the machine file states, to at most
   0.001 µm or 0.001 arcsec (:func:`tolerance_text`, :func:`tolerance_number`), rounded
@@ -174,25 +173,22 @@ def number_text(value) -> str:
     return repr(float(value))
 
 
-def percent_text(probability: float) -> str:
+def percent_text(probability: float, lower: bool = False) -> str:
     """A probability in per cent to four decimals; near 1, where that would show
     ``100.0000 %``, as a bound with its failure probability ``1 − p`` beside it to the
-    digits double precision fixes: ``> 99.99999999999 % (1 − 2.0e-14)``."""
+    digits double precision fixes: ``> 99.99999999999 % (1 − 2.0e-14)``. With ``lower``
+    the probability is a lower bound (at a certified σ bound, say) and is rounded down:
+    four decimals cut, the failure probability rounded up."""
     probability = float(probability)
     failure = 1.0 - probability
     if failure <= 0.0:
         return "100 % (1 − 0 in double precision)"
     if failure >= SHOWN_FAILURE:
-        return f"{100.0 * probability:.4f} %"
+        return f"{decimals_text(probability, 4, 'lower' if lower else None, scale=100)} %"
     nines = math.ceil(-math.log10(failure)) - 1
     digits = 2 if failure >= ONE_DIGIT_FAILURE else 1
-    return f"> 99.{'9' * (nines - 2)} % (1 − {failure:.{digits - 1}e})"
-
-
-def significant_percent(fraction: float, digits: int = 3) -> str:
-    """A fraction in per cent to ``digits`` significant digits (a gap or a bound:
-    ``192 %``, ``0.0123 %``)."""
-    return f"{100.0 * float(fraction):.{digits}g} %"
+    shown = upper_bound_text(failure, digits) if lower else f"{failure:.{digits}g}"
+    return f"> 99.{'9' * (nines - 2)} % (1 − {float(shown):.{digits - 1}e})"
 
 
 def pose_columns(poses, axes, units) -> pd.DataFrame:
