@@ -4,6 +4,8 @@ prints."""
 
 from __future__ import annotations
 
+import contextlib
+import io
 import re
 from pathlib import Path
 
@@ -15,7 +17,7 @@ from reliability.basics.errors import InputError
 from reliability.basics.files import rounded_down, rounded_up
 from studies import cli
 
-MILL = str(Path(__file__).parent / "machines" / "mill3.toml")
+MACHINES = Path(__file__).parent / "machines"
 
 
 @pytest.mark.parametrize(("value", "unit", "text"), [
@@ -99,28 +101,49 @@ def decimals_by_unit(text: str, unit: str) -> list[int]:
             re.finditer(rf"[-+]?\d+(?:\.(\d+))?\s*{re.escape(unit)}(?!\w)", text)]
 
 
-@pytest.fixture(scope="module")
-def allocate_output(tmp_path_factory):
-    folder = tmp_path_factory.mktemp("digits")
-    import contextlib
-    import io
+def allocate(folder: Path, machine: str) -> str:
+    """What ``precrel allocate MACHINE --points 3 --workspace grid`` prints."""
     stdout = io.StringIO()
     with contextlib.redirect_stdout(stdout):
-        assert cli.main(["allocate", MILL, "--points", "3", "--workspace", "grid", "--out",
-                         str(folder / "a.csv")]) == 0
+        assert cli.main(["allocate", machine, "--points", "3", "--workspace", "grid",
+                         "--out", str(folder / "a.csv")]) == 0
     return stdout.getvalue()
 
 
-def test_allocate_prints_no_digit_past_its_rule(allocate_output):
-    out = allocate_output
+#: Most decimals of a tolerance in each unit: 0.001 µm and 0.001 arcsec at most.
+DECIMALS = {"mm": 6, "µm": 3, "rad": 8, "arcsec": 3}
+
+
+def changes_rows(out: str) -> list[list[str]]:
+    """The rows of the table of largest changes, split on blanks."""
+    table = out.split("largest changes from the initial allocation")[1].split("\n\n")[0]
+    return [line.split() for line in table.splitlines()[2:]]
+
+
+@pytest.mark.parametrize("name", ["mill3", "swivel5"])
+def test_allocate_prints_no_digit_past_its_rule(tmp_path, name):
+    out = allocate(tmp_path, str(MACHINES / f"{name}.toml"))
     assert max(decimals_by_unit(out, "%")) <= 2                       # 0.01 %
-    assert max(decimals_by_unit(out, "µm"), default=0) <= 3             # 0.001 µm
-    assert max(decimals_by_unit(out, "mm"), default=0) <= 6             # 0.001 µm in mm
+    for unit, most in DECIMALS.items():
+        assert max(decimals_by_unit(out, unit), default=0) <= most, unit
+    rows = changes_rows(out)
+    assert len(rows) == 10
+    for row in rows:                  # ... unit initial allocated change %
+        unit, initial, allocated, change = row[-5], row[-4], row[-3], row[-2]
+        for value in (initial, allocated):
+            assert len(value.partition(".")[2]) <= DECIMALS[unit], row
+        assert re.fullmatch(r"-?\d+\.\d\d", change) and row[-1] == "%", row
     table = out.split("requirements (elasticities")[1].split("\n\n")[0]
     for line in table.splitlines()[3:]:
-        for number in NUMBER.finditer(line.split("no")[-1].split("yes")[-1]):
+        for number in NUMBER.finditer(" ".join(line.split()[3:])):
             digits = number.group(0).lstrip("-+").replace(".", "").lstrip("0")
             assert len(digits) <= 3, line                                  # 3 significant
+
+
+def test_a_machine_in_micrometres_gets_its_changes_in_micrometres(tmp_path):
+    units = {row[-5] for row in changes_rows(allocate(tmp_path, str(MACHINES /
+                                                                      "swivel5.toml")))}
+    assert units <= {"µm", "arcsec"} and units
 
 
 def test_a_probability_that_bounds_from_below_is_rounded_down():
