@@ -141,7 +141,7 @@ def test_a_probability_near_one_shows_only_the_digits_it_has():
     assert percent(0.95) == "95.0000 %"
 
 
-def test_a_gap_is_shown_to_three_digits():
+def test_a_gap_is_shown_rounded_up_to_a_hundredth_of_a_percent():
     machine = SimpleNamespace(distribution="normal")
     problem = SimpleNamespace(machine=machine, poses=np.zeros((9, 3)), box_text=lambda: "box")
     check = SimpleNamespace(estimate=0.99, lower=0.98, upper=0.995, n=1000)
@@ -154,7 +154,7 @@ def test_a_gap_is_shown_to_three_digits():
         narrower_box_text=lambda: "", bound_text=lambda: "every row alone",
         calibration_text=lambda: "calibrated", convex_step_line=lambda: "convex steps")
     result.finding_lines = lambda: YieldAllocation.finding_lines(result)
-    assert "gap 192 % of the initial cost (79.4 % of the cost)" in describe_yield(result)
+    assert "gap 192.19 % of the initial cost (79.42 % of the cost)" in describe_yield(result)
 
 
 def test_catalogue_poses_are_named_by_their_positions():

@@ -302,8 +302,9 @@ def test_cli_allocates_for_yield(result, tmp_path, capsys):
     written = read_allocation_csv(out, reliability.load_machine(machine))
     problem = result.problem
     share = problem.cost.total(written) / problem.cost.total(problem.reference)
-    printed = re.search(r"cost \S+ = ([0-9.]+)% of the initial allocation", text)
-    assert float(printed.group(1)) == pytest.approx(100 * share, rel=1e-5)  # CSV = printed
+    printed = re.search(r"cost \S+ = ([0-9.]+) % of the initial allocation", text)
+    # CSV = printed: to the printed 0.01 % (half a step), beside 1e-5 of the CSV's rounding
+    assert float(printed.group(1)) == pytest.approx(100 * share, rel=1e-5, abs=0.005)
 
 
 @pytest.mark.parametrize("extra, words", [

@@ -44,7 +44,8 @@ import numpy as np
 import pandas as pd
 from scipy.optimize import Bounds, LinearConstraint, milp
 
-from reliability.basics.display import axis_units, pose_text
+from reliability.basics.display import (axis_units, lower_bound_text, pose_text,
+                                        upper_bound_text)
 from reliability.basics.errors import InputError, InputTypeError
 from reliability.basics.files import write_csv
 from reliability.basics.errors import SavedResultError
@@ -176,9 +177,10 @@ class CatalogueResult:
                   f"{len(problem.poses)} poses, {_reading(problem)}; classes as given (no "
                   f"search box), items in no component at the starting tolerances",
                   f"total price {self.price:.6g}{currency}",
-                  f"relative gap {self.gap:.1e} "
+                  f"relative gap {upper_bound_text(self.gap, 2)} "
                   f"({'certified optimum' if self.certified else 'NOT certified'}; "
-                  f"dual bound {self.dual_bound:.6g}, {self.details['nodes']} nodes)",
+                  f"dual bound {lower_bound_text(self.dual_bound)}, "
+                  f"{self.details['nodes']} nodes)",
                   "", self.to_frame().to_string(index=False), ""]
         binding = self.binding()
         if len(binding):

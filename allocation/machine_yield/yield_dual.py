@@ -56,6 +56,7 @@ from scipy.optimize import minimize_scalar
 from scipy.stats import beta, norm
 
 from reliability.basics import checks, streams
+from reliability.basics.display import percentage_text
 from reliability.basics.errors import InputError
 from reliability.basics.threads import one_blas_thread
 from reliability.sampling.machine_yield import YieldModel
@@ -113,13 +114,15 @@ class YieldDualBound:
 
     def text(self, reference_cost: float) -> str:
         """The bound relative to ``reference_cost``, in words."""
-        return (f"lower bound {self.bound / reference_cost:.4%} of the initial cost at "
-                f"{self.confidence:.0%} confidence (the yield is log-concave in the "
-                f"log-tolerances: linearised outputs, normal reading, independent errors; "
-                f"tangent at an allocation of {self.point_cost / reference_cost:.4%} with "
-                f"yield {self.point_yield:.4f} on {self.machines:,} machines, "
-                f"{self.steps} step{'' if self.steps == 1 else 's'} from the start; "
-                f"{self.point_estimate / reference_cost:.4%} with the estimates themselves)")
+        lower = percentage_text(self.bound / reference_cost, bound="lower")
+        return (f"lower bound {lower} of the initial cost at {self.confidence:.0%} "
+                f"confidence (the yield is log-concave in the log-tolerances: linearised "
+                f"outputs, normal reading, independent errors; tangent at an allocation of "
+                f"{percentage_text(self.point_cost / reference_cost)} with yield "
+                f"{self.point_yield:.4f} on {self.machines:,} machines, {self.steps} "
+                f"step{'' if self.steps == 1 else 's'} from the start; "
+                f"{percentage_text(self.point_estimate / reference_cost)} with the estimates "
+                f"themselves)")
 
 
 def not_log_concave(machine, profile: str, distribution: str) -> str | None:

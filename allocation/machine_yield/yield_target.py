@@ -104,11 +104,11 @@ import pandas as pd
 from reliability.basics import checks
 from reliability.basics.errors import InputError
 from reliability.basics.threads import one_blas_thread
-from reliability.basics.display import significant_percent
 from reliability.basics.saved_fields import (Array, Flag, Integer, Mapping, Nested, Number,
                                             Text, Texts, read_fields, write_fields)
 from reliability.basics.saved_results import load_payload, save_payload
 from reliability.basics.statistics import ProportionEstimate, all_within_share
+from reliability.basics.display import interval_text, percentage_text
 from reliability.model.machine import OUTPUTS
 
 from ..per_pose.problem import DEFAULT_FACTORS
@@ -333,39 +333,44 @@ class YieldAllocation:
         targets = ", ".join(f"{name} {target:.6g}" for name, target
                             in zip(OUTPUTS, self.output_targets))
         return [
-            f"lower bound {self.lower_bound / initial:.4%} of the initial cost "
+            f"lower bound {percentage_text(self.lower_bound / initial, bound='lower')} of "
+            f"the initial cost "
             f"({self.bound_text()})",
-            f"cost {self.cost:.6g} = {self.cost / initial:.4%} of the initial allocation "
+            f"cost {self.cost:.6g} = {percentage_text(self.cost / initial)} of the initial "
+            f"allocation "
             f"({initial:.6g}): the cheapest found by this search; not certified: see the "
             f"lower bound",
-            f"gap {significant_percent(self.gap / initial)} of the initial cost "
-            f"({significant_percent(self.relative_gap)} of the cost)",
+            f"gap {percentage_text(self.gap / initial, bound='upper')} of the initial cost "
+            f"({percentage_text(self.relative_gap, bound='upper')} of the cost)",
             self.calibration_text(),
             self.convex_step_line(),
-            f"verified yield {v.estimate:.4f}, 95% Clopper-Pearson [{v.lower:.4f}, "
-            f"{v.upper:.4f}] from {v.n:,} fresh built machines: {verdict}",
+            f"verified yield {v.estimate:.4f}, 95% Clopper-Pearson "
+            f"{interval_text(v.lower, v.upper)} from {v.n:,} fresh built machines: {verdict}",
             f"found by the {self.method} stage{self.narrower_box_text()}; per-output "
             f"per-pose targets of the first stage: {targets}",
             f"naive method ({self.naive.text()}, calibrated the same way): cost "
-            f"{self.naive.cost / initial:.4%} of the initial allocation, verified yield "
-            f"{n.estimate:.4f} [{n.lower:.4f}, {n.upper:.4f}] from {n.n:,} machines"]
+            f"{percentage_text(self.naive.cost / initial)} of the initial allocation, "
+            f"verified yield {n.estimate:.4f} {interval_text(n.lower, n.upper)} from "
+            f"{n.n:,} machines"]
 
     def calibration_text(self) -> str:
         """How the search's allocation (or the naive start's) became the result, in
         words."""
         initial = self.initial_cost
         c = self.calibration_yield
-        search = (f"the search ended at {self.search_cost / initial:.4%} of the "
+        search = (f"the search ended at {percentage_text(self.search_cost / initial)} of the "
                   f"initial cost (yield {self.design_yield.estimate:.4f} on its "
                   f"{self.design_yield.n:,} design machines)")
         if self.method == "convex step":
             return (f"{search}; the convex steps from it ended at "
-                    f"{self.convex_step_cost / initial:.4%}, scaled to the design yield "
-                    f"{self.design_yield_target:.4f} on {c.n:,} fresh calibration machines: "
+                    f"{percentage_text(self.convex_step_cost / initial)}, scaled to the "
+                    f"design yield {self.design_yield_target:.4f} on {c.n:,} fresh "
+                    f"calibration machines: "
                     f"the result (yield {c.estimate:.4f} there)")
         if self.method == "naive start":
-            return (f"{search}, {self.search_calibrated_cost / initial:.4%} once scaled to "
-                    f"the design yield {self.design_yield_target:.4f} on {c.n:,} fresh "
+            scaled = percentage_text(self.search_calibrated_cost / initial)
+            return (f"{search}, {scaled} once scaled to the design yield "
+                    f"{self.design_yield_target:.4f} on {c.n:,} fresh "
                     f"calibration machines: dearer than the naive start scaled the same "
                     f"way, which is the result (yield {c.estimate:.4f} there)")
         if not self.calibrated:
@@ -381,14 +386,14 @@ class YieldAllocation:
             return f"convex steps: {self.convex_step_text}"
         initial = self.initial_cost
         return (f"convex steps: {self.convex_step_text}; they ended at "
-                f"{self.convex_step_cost / initial:.4%}, "
-                f"{self.convex_step_calibrated_cost / initial:.4%} calibrated: not the "
-                f"cheapest")
+                f"{percentage_text(self.convex_step_cost / initial)}, "
+                f"{percentage_text(self.convex_step_calibrated_cost / initial)} calibrated: "
+                f"not the cheapest")
 
     def bound_text(self) -> str:
         """What the lower bound rests on, in words."""
         rows = (f"every (output, pose) row at probability {self.yield_target:g} alone: "
-                f"{self.row_bound / self.initial_cost:.4%}")
+                f"{percentage_text(self.row_bound / self.initial_cost, bound='lower')}")
         if self.lower_bound == self.row_bound:
             return f"{rows}; FOSM two-sided, certified"
         return (f"the six outputs' joint event at each pose, bounded through their fresh "

@@ -26,9 +26,11 @@ from dataclasses import dataclass, replace
 import numpy as np
 import pandas as pd
 
-from reliability.basics.display import error_units, quantity_text
+from reliability.basics.display import error_units
 from reliability.basics.saved_fields import Array, Flag, Frame, Number, read_fields, write_fields
 from reliability.basics.saved_results import load_payload, save_payload
+from reliability.basics.display import (lower_bound_text, percentage_text,
+                                        tolerance_text)
 from reliability.compensation.compensation_plans import K
 from reliability.compensation.residual import (fixed_rule_terms, positioning_variance,
                                                posterior_covariance)
@@ -108,8 +110,9 @@ class CompensatedAllocation:
     def summary(self) -> str:
         """Cost with and without compensation, the bracket and what stays tight."""
         tight = self.tight()
+        gap = percentage_text(self.cost / self.lower_bound - 1, bound="upper")
         lines = [f"cost after compensation {self.cost:.6g} (certified lower bound "
-                 f"{self.lower_bound:.6g}, gap {self.cost / self.lower_bound - 1:.2%}); "
+                 f"{lower_bound_text(self.lower_bound)}, gap {gap}); "
                  f"without compensation {self.cost_without:.6g}: ratio "
                  f"{self.cost / self.cost_without:.4f}",
                  f"{len(self.rounds)} linearisations; meets every target after compensation "
@@ -119,8 +122,8 @@ class CompensatedAllocation:
         if len(tight):
             lines.append("items kept tight:")
             units = error_units(tight["error"], self.result.problem.machine.cost_coefficients.units)
-            lines += [f"  {row.error} ({row.iso}): {quantity_text(row.allocated, unit)} of up "
-                      f"to {quantity_text(row.upper, unit)}, posterior σ "
+            lines += [f"  {row.error} ({row.iso}): {tolerance_text(row.allocated, unit)} of "
+                      f"up to {tolerance_text(row.upper, unit)}, posterior σ "
                       f"{row.posterior_share:.2f} of prior, "
                       f"{'seen' if row.seen else 'not seen'} by the plan"
                       for row, unit in zip(tight.itertuples(), units)]

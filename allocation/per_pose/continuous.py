@@ -47,7 +47,8 @@ import numpy as np
 import pandas as pd
 
 from reliability.basics import checks
-from reliability.basics.display import OUTPUT_UNITS, axis_units, pose_frame, pose_text
+from reliability.basics.display import (OUTPUT_UNITS, axis_units, pose_frame, pose_text,
+                                        upper_bound_text)
 from reliability.basics.errors import InputError
 from reliability.basics.saved_fields import (Flag, Frame, Integer, Number, Text, read_fields,
                                             write_fields)
@@ -441,9 +442,9 @@ def certificate_text(problem, table) -> str:
                                  for row in table[list(machine.axes)].to_numpy(dtype=float)],
         "unit": list(OUTPUT_UNITS),
         name: [f"{v:.6g}" for v in table[value]],
-        f"{name} bound": [f"{v:.6g}" for v in table[bound]],
+        f"{name} bound": [upper_bound_text(v, 6) for v in table[bound]],
         "allowed": [f"{v:.6g}" for v in table["allowed"]],
-        "bound/allowed - 1": [f"{v:+.2e}" for v in table["excess"]],
+        "bound/allowed - 1": [upper_bound_text(v, 3) for v in table["excess"]],
         "certificate gap": [gap_text(v) for v in table["gap"]],
     }, index=table.index)
     return shown.to_string()

@@ -53,6 +53,7 @@ from reliability.basics.errors import InputError, MachineDescriptionError
 from reliability.basics.saved_fields import (Array, Flag, Frame, Mapping, Number, Text, Texts,
                                             read_fields, write_fields)
 from reliability.basics.saved_results import load_payload, save_payload
+from reliability.basics.display import (lower_bound_text, upper_bound_text)
 from reliability.model.correlation import check_correlation_matrix
 from reliability.model.iso_names import iso_names
 from reliability.model.machine import OUTPUTS
@@ -120,8 +121,9 @@ class CorrelatedAllocation:
 
     def summary(self) -> str:
         verdict = "certified" if self.certified else "NOT certified"
-        return (f"cost {self.cost:.6e} (dual bound {self.dual_bound:.6e}, relative gap "
-                f"{self.relative_gap:.2e}, {verdict}); {len(self.active)} binding row(s)")
+        return (f"cost {self.cost:.6e} (dual bound {lower_bound_text(self.dual_bound, 7)}, "
+                f"relative gap {upper_bound_text(self.relative_gap, 3)}, {verdict}); "
+                f"{len(self.active)} binding row(s)")
 
     def save(self, path, overwrite: bool = False):
         """Save as JSON (:data:`SAVED_FIELDS` and ``forms``, the binding rows' linear forms

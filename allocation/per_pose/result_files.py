@@ -29,7 +29,8 @@ import numpy as np
 import pandas as pd
 
 from reliability.basics.display import (UNIT_SCALES, axis_units, error_units, number_text,
-                                        pose_columns, unit_symbol)
+                                        percent_number, percentage_text, pose_columns,
+                                        ratio_columns, tolerance_numbers, unit_symbol)
 from reliability.basics.errors import InputError, InputTypeError
 from reliability.basics.files import SIGNIFICANT, as_written, rounded_down, write_csv
 from reliability.basics.saved_results import check_count, encode_frame, load_payload, save_payload
@@ -73,10 +74,12 @@ def cost_units_text(cost) -> str:
 
 def cost_shares_text(cost, t) -> str:
     """Each cost group's share at ``t``, translational and angular items apart, e.g.
-    ``linear: translational 0.001 %, angular 55.0 %; …``."""
+    ``linear: translational < 0.01 %, angular 55.02 %; …``
+    (:func:`~reliability.basics.display.percentage_text`)."""
     shares = cost.shares(t)
-    return "; ".join(f"{group}: translational {100 * row.translational:.3g} %, angular "
-                     f"{100 * row.angular:.3g} %" for group, row in shares.iterrows())
+    return "; ".join(f"{group}: translational {percentage_text(row.translational)}, "
+                     f"angular {percentage_text(row.angular)}"
+                     for group, row in shares.iterrows())
 
 
 def nearly_free_text(result) -> str:
@@ -184,7 +187,7 @@ def allocation_summary(result, top: int = 5) -> str:
               _status_line(result), ""]
     lines += _binding_lines(result, context)
     lines += ["", "Largest changes from the reference (tolerance in mm or rad)",
-              _changes(result, top).to_string(float_format=lambda v: f"{v:.4g}")]
+              _changes(result, top).to_string()]
     return "\n".join(lines)
 
 
@@ -219,7 +222,7 @@ def _binding_lines(result, context) -> list[str]:
             columns={"elasticity": "dlncost/dln_limit"})
         head = ["What binds: requirements with binding rows (dlncost/dln_limit: relaxing a "
                 "limit by 1 % changes the cost by about this many %; negative, a saving)",
-                table.to_string(float_format="{:.4g}".format)]
+                ratio_columns(table).to_string()]
     else:
         outputs = sorted(set(result.active["output"])) if len(result.active) else []
         head = [f"What binds: {', '.join(outputs) if outputs else 'no reliability target'}"]
@@ -237,10 +240,15 @@ def _binding_lines(result, context) -> list[str]:
 
 
 def _changes(result, top: int) -> pd.DataFrame:
+    """The ``top`` largest changes, tolerances in mm or rad cut to 0.001 µm or arcsec and
+    the change to 0.01 %."""
     frame = result.to_frame()
-    frame["change [%]"] = 100.0 * frame.pop("rate")
-    order = frame["change [%]"].abs().sort_values(ascending=False, kind="stable").index
-    return frame.loc[order[:top]]
+    units = error_units(frame.index, None)
+    order = frame["rate"].abs().sort_values(ascending=False, kind="stable").index
+    shown = frame.assign(reference=tolerance_numbers(frame["reference"], units),
+                         allocated=tolerance_numbers(frame["allocated"], units))
+    shown["change [%]"] = [percent_number(v) for v in shown.pop("rate")]
+    return shown.loc[order[:top]]
 
 
 # ----- files ---------------------------------------------------------------------------

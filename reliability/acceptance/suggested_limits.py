@@ -35,6 +35,7 @@ import numpy as np
 import pandas as pd
 from scipy.stats import binom
 
+from ..basics.display import interval_text, lower_bound_text, upper_bound_text
 from ..basics.errors import InputError
 from ..basics.pass_rule import passes
 from ..basics.saved_fields import Frame, Nested, Number, load_fields, save_fields
@@ -235,7 +236,7 @@ class SuggestedLimits:
                  f"Wilson {100 * self.confidence:g} %:")
         lines = [heading, self._printed_table().to_string(index=False), "", joint]
         lines += [f"  {row.test} ({row.quantities}): {row.pass_probability:.4f} "
-                  f"[{row.pass_low:.4f}, {row.pass_high:.4f}]"
+                  f"{interval_text(row.pass_low, row.pass_high)}"
                   for row in self.joint_pass().itertuples()]
         return "\n".join(lines)
 
@@ -275,7 +276,7 @@ class SuggestedLimits:
             "limit µm": [f"{1000 * v:.3g}" if pd.notna(v) else "-" for v in frame["limit"]],
             "suggested µm": [f"{1000 * v:.4g}" for v in frame["suggested_limit"]],
             f"{100 * self.confidence:g} % interval µm": [
-                f"[{1000 * low:.4g}, {1000 * high:.4g}]"
+                f"[{lower_bound_text(1000 * low, 4)}, {upper_bound_text(1000 * high, 4)}]"
                 for low, high in zip(frame["suggested_low"], frame["suggested_high"])]})
 
 

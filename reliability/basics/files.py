@@ -13,7 +13,7 @@ from __future__ import annotations
 import os
 import tempfile
 import tomllib
-from decimal import ROUND_DOWN, Decimal
+from decimal import ROUND_DOWN, ROUND_UP, Decimal
 from pathlib import Path
 
 import numpy as np
@@ -39,28 +39,46 @@ def rounded_down(values, digits: int = SIGNIFICANT) -> np.ndarray:
     A value whose nearest ``digits``-digit decimal reads back at or below it is written as
     that decimal (``0.0015`` stays ``0.0015``); any other is cut in exact decimal arithmetic.
     Either way what a file reads back is never above the value: a tolerance written this
-    way is never looser than the one computed.
+    way is never looser than the one computed. :func:`rounded_up` is its mirror.
 
     Raises
     ------
     InputError
         A value that is not a finite number > 0.
     """
+    return _rounded(values, digits, ROUND_DOWN, "down")
+
+
+def rounded_up(values, digits: int = SIGNIFICANT) -> np.ndarray:
+    """Positive ``values`` rounded away from zero to ``digits`` significant digits, as
+    floats that ``%.{digits}g`` writes exactly: what is written is never below the value
+    (an upper bound stays an upper bound: ``2.04831e-05`` at 5 digits is ``2.0484e-05``).
+
+    Raises
+    ------
+    InputError
+        A value that is not a finite number > 0.
+    """
+    return _rounded(values, digits, ROUND_UP, "up")
+
+
+def _rounded(values, digits: int, rounding: str, words: str) -> np.ndarray:
     values = np.asarray(values, dtype=float)
     bad = np.flatnonzero(~(np.isfinite(values) & (values > 0)))
     if len(bad):
         raise InputError(f"values: entry {int(bad[0])} is {float(values.ravel()[bad[0]])!r}; "
-                         f"expected a finite number > 0 to round down")
-    return np.array([_cut(float(v), digits) for v in values.ravel()]).reshape(values.shape)
+                         f"expected a finite number > 0 to round {words}")
+    return np.array([_cut(float(v), digits, rounding)
+                     for v in values.ravel()]).reshape(values.shape)
 
 
-def _cut(value: float, digits: int) -> float:
+def _cut(value: float, digits: int, rounding: str) -> float:
     nearest = float(f"{value:.{digits}g}")
-    if nearest <= value:
+    if nearest == value or (nearest < value) == (rounding == ROUND_DOWN):
         return nearest
     exact = Decimal(value)
     step = Decimal(1).scaleb(exact.adjusted() - digits + 1)
-    return float(exact.quantize(step, rounding=ROUND_DOWN))
+    return float(exact.quantize(step, rounding=rounding))
 
 
 def probability_text(value: float, digits: int = SIGNIFICANT) -> str:

@@ -30,6 +30,7 @@ import pandas as pd
 from scipy import stats
 
 from . import checks
+from .display import lower_bound_text, upper_bound_text
 from .errors import InputError, InputTypeError
 
 __all__ = [
@@ -231,14 +232,15 @@ class _FrameMixin:
         head = (f"{type(self).__name__}: {self.confidence:.0%} {self.method} interval, "
                 f"{n[0] if len(n) == 1 else n} {trials}")
         frame = pd.DataFrame({
-            "estimate": np.atleast_1d(self.estimate), "lower": np.atleast_1d(self.lower),
-            "upper": np.atleast_1d(self.upper),
+            "estimate": np.atleast_1d(self.estimate),
+            "lower": [lower_bound_text(v) for v in np.atleast_1d(self.lower)],
+            "upper": [upper_bound_text(v) for v in np.atleast_1d(self.upper)],
             "standard_error": np.atleast_1d(self.standard_error)},
             index=pd.Index(self.names if self.names else
                            range(np.size(np.atleast_1d(self.estimate))), name="output"))
         if np.ndim(self.estimate) == 0:
-            return (f"{head}: {float(self.estimate):.6g} [{float(self.lower):.6g}, "
-                    f"{float(self.upper):.6g}], standard error "
+            return (f"{head}: {float(self.estimate):.6g} [{lower_bound_text(self.lower)}, "
+                    f"{upper_bound_text(self.upper)}], standard error "
                     f"{float(self.standard_error):.3g}")
         return f"{head}\n{frame.to_string(float_format='{:.6g}'.format)}"
 

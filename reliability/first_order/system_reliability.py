@@ -35,7 +35,7 @@ from scipy.special import ndtr, ndtri
 from scipy.stats import qmc
 
 from ..basics import streams
-from ..basics.display import axis_units, bound_text, pose_text
+from ..basics.display import axis_units, bound_text, decimals_text, pose_text
 from ..basics.errors import InputError
 from ..basics.saved_fields import Array, Integer, Texts, load_fields, save_fields
 from ..basics.ties import worst_rows
@@ -149,9 +149,10 @@ class SystemReliability:
             f"({self.n_batches} × {self.n_points} scrambled Sobol' points per pose)",
             f"worst pose {positions}",
             f"  all six inside  {self.probability[w]:.8f} ± {self.error[w]:.2g} (std. error)",
-            f"  product         {self.product[w]:.8f} (Šidák lower bound)",
+            f"  product         {decimals_text(self.product[w], 8, 'lower')} (Šidák lower "
+            f"bound)",
             f"  Bonferroni      {bound_text(self.bonferroni[w], 8)}",
-            f"  least output    {self.min_marginal[w]:.8f} "
+            f"  least output    {decimals_text(self.min_marginal[w], 8, 'upper')} "
             f"({OUTPUTS[int(np.argmin(self.marginal[w]))]})",
         ])
 

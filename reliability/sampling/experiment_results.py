@@ -9,7 +9,7 @@ import numpy as np
 import pandas as pd
 
 from ..basics import checks
-from ..basics.display import output_limits_text
+from ..basics.display import output_limits_text, percent_number
 from ..basics.errors import InputError, InputTypeError, SavedResultError
 from ..basics.files import write_csv
 from ..basics.saved_results import encode_frame
@@ -131,7 +131,8 @@ class GridExperimentResult:
             f"t = ±{self.k:g}σ",
             f"machine-level yield: {int(self.all_inside.sum())} of {self.repeats} experiments "
             f"entirely within every limit ({machines.estimate:.1%}, {confidence:.0%} "
-            f"Clopper–Pearson [{machines.lower:.1%}, {machines.upper:.1%}])",
+            f"Clopper–Pearson [{percent_number(machines.lower, 'lower', 1)} %, "
+            f"{percent_number(machines.upper, 'upper', 1)} %])",
             "share of poses in tolerance (interval: Wilson score on the effective sample "
             "size from the spread between experiments):",
             table.to_string()])
@@ -450,5 +451,5 @@ def _percent(values) -> list[str]:
 
 def _percent_intervals(estimate) -> list[str]:
     """Each output's interval as ``"[lower, upper]"`` in percent."""
-    return [f"[{100 * lo:.3f}, {100 * hi:.3f}]"
+    return [f"[{percent_number(lo, 'lower', 3)}, {percent_number(hi, 'upper', 3)}]"
             for lo, hi in zip(np.asarray(estimate.lower), np.asarray(estimate.upper))]

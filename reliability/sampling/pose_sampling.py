@@ -31,7 +31,7 @@ import pandas as pd
 from scipy.stats import multivariate_normal
 
 from ..basics import checks, streams
-from ..basics.display import shown_positions
+from ..basics.display import lower_bound_text, shown_positions, upper_bound_text
 from ..basics.errors import InputError, InputTypeError
 from ..basics.pass_rule import passes
 from ..basics.saved_fields import (Array, Flag, Integer, Number, Text, Texts, load_fields,
@@ -142,8 +142,10 @@ class PoseSamplingResult:
                      f"{'reached' if self.reached else 'NOT reached (sample cap)'}.")
         columns = ["pose", "event", *self.axes, "failures",
                    "mc_failure", "lower", "upper", "fosm_failure"]
-        return head + "\n" + self.to_frame()[columns].to_string(index=False,
-                                                                 float_format="{:.4g}".format)
+        frame = self.to_frame()[columns]
+        frame = frame.assign(lower=[lower_bound_text(v, 4) for v in frame["lower"]],
+                             upper=[upper_bound_text(v, 4) for v in frame["upper"]])
+        return head + "\n" + frame.to_string(index=False, float_format="{:.4g}".format)
 
     def __str__(self) -> str:
         return self.summary()

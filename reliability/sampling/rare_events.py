@@ -45,7 +45,7 @@ from scipy.special import logsumexp
 from scipy.stats import norm
 
 from ..basics import checks, streams
-from ..basics.display import pose_text, shown_positions
+from ..basics.display import lower_bound_text, pose_text, shown_positions, upper_bound_text
 from ..basics.errors import InputError, InputTypeError
 from ..basics.pass_rule import passes
 from ..basics.saved_fields import (Array, Flag, Integer, Number, Records, Text, load_fields,
@@ -142,7 +142,8 @@ class RareEventResult:
             body = f"failure probability exactly 0 ({self.note})"
         else:
             body = (f"failure probability {self.probability:.3e} (CoV {self.cov:.3f}, "
-                    f"{level} interval [{self.interval[0]:.3e}, {self.interval[1]:.3e}]), "
+                    f"{level} interval [{lower_bound_text(self.interval[0], 4)}, "
+                    f"{upper_bound_text(self.interval[1], 4)}]), "
                     f"{self.n_evaluations} exact-model evaluations, target CoV "
                     f"{self.target_cov:g} {'reached' if self.reached else 'NOT reached'}")
         return (f"{self.event} at pose ({pose}), {self.distribution} inputs, {self.method}: "

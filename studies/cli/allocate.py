@@ -24,7 +24,7 @@ from allocation.machine_yield.yield_dual import log_concave_bound, not_log_conca
 from reliability.basics import display
 from reliability.basics.errors import InputError
 from reliability.model.poses import workspace_grid
-from studies.report.machine_sections import tolerance_table
+from studies.report.machine_sections import shown_tolerance_table, tolerance_table
 from studies.report.writer import SIGNIFICANT
 
 from . import choose, compensate, options
@@ -223,8 +223,8 @@ def changes_text(result, top: int = 10) -> str:
     problem = result.problem
     table = tolerance_table(problem.machine, problem.reference, result.tolerances)
     order = table["change"].abs().sort_values(ascending=False, kind="stable").index[:top]
-    shown = table.loc[order].copy()
-    shown["change"] = [f"{v:+.1%}" for v in shown["change"]]
+    shown = shown_tolerance_table(problem.machine, problem.reference,
+                                  result.tolerances).loc[order]
     return (f"\nlargest changes from the initial allocation ({top} of {len(table)}; "
             f"tolerances in the machine file's units):\n{shown.to_string(index=False)}")
 
@@ -262,7 +262,8 @@ def run_yield(args) -> int:
         bound = log_concave_bound(result, machines=args.bound_machines, steps=1,
                                   seed=args.seed)
         print(f"\n{bound.text(result.initial_cost)}: gap "
-              f"{display.significant_percent(1 - bound.bound / result.cost)} of the cost")
+              f"{display.percentage_text(1 - bound.bound / result.cost, bound='upper')} "
+              f"of the cost")
     return 0
 
 
@@ -328,7 +329,8 @@ def describe(result, workspace: str) -> str:
     problem = result.problem
     initial = problem.cost.total(problem.reference)
     lines = [f"method: {result.method}; cost {result.cost:.6g} = "
-             f"{result.cost / initial:.4%} of the initial allocation ({initial:.6g}); "
+             f"{display.percentage_text(result.cost / initial)} of the initial allocation "
+             f"({initial:.6g}); "
              f"{options.reading_text(problem.machine)}", workspace]
     if result.method == "exact":
         certificate = result.certificate
@@ -348,7 +350,7 @@ def describe(result, workspace: str) -> str:
         lines.append(nearly_free_text(result))
     if result.requirements is not None:
         lines += ["", "requirements (elasticities from the Lagrange multipliers):",
-                  requirement_table(result).to_string()]
+                  display.ratio_columns(requirement_table(result)).to_string()]
     elif len(result.active):
         lines += ["", "binding (output, pose) constraints: "
                   + ", ".join(sorted(set(result.active["output"])))]

@@ -12,6 +12,7 @@ import pandas as pd
 from allocation import AllocationProblem
 from allocation.per_pose.compensated import allocate_compensated
 from allocation.per_pose.result_files import allocation_to_csv
+from reliability.basics import display
 from reliability.basics.errors import InputError
 from reliability.basics.statistics import binomial_interval
 from reliability.basics.streams import extra_stream
@@ -93,20 +94,27 @@ def _identification(args, machine):
 
 
 def residual_text(identification, tables) -> str:
-    """Worst mean and σ of each output before and after compensation on the grid."""
+    """Worst mean and σ of each output before and after compensation on the grid, in the
+    machine file's units (mm and rad when it states none), to three significant digits; a
+    mean zero to rounding (:func:`~reliability.basics.display.resolved_text`, against the
+    sd before) as 0."""
     machine = identification.machine
     poses = workspace_grid(machine, RESIDUAL_GRID)
     before, before_sd = identification.predict(poses, frame=machine.frame)
     mean, sigma = measured_residual(identification, tables, poses)
-    frame = pd.DataFrame({"limit": machine.limits,
-                          "|mean| before": np.abs(before).max(axis=0),
-                          "sd before": before_sd.max(axis=0), "|mean| after": np.abs(mean).max(axis=0),
-                          "sd after": sigma.max(axis=0)},
-                         index=pd.Index(machine.outputs, name="output"))
+    units = display.output_people_units(machine.cost_coefficients.units)
+    scale = display.in_units(before_sd.max(axis=0), units)
+    columns = {"|mean| before": np.abs(before).max(axis=0), "sd before": before_sd.max(axis=0),
+               "|mean| after": np.abs(mean).max(axis=0), "sd after": sigma.max(axis=0)}
+    frame = pd.DataFrame({"unit": [display.unit_symbol(u) for u in units],
+                          "limit": display.tolerance_numbers(machine.limits, units)} | {
+        name: [display.resolved_text(v, s, digits=3) for v, s in
+               zip(display.in_units(values, units), scale)]
+        for name, values in columns.items()}, index=pd.Index(machine.outputs, name="output"))
     return (f"this machine's outputs ({machine.frame} frame) on the {RESIDUAL_GRID}-point "
             f"grid, worst over the poses: posterior mean and sd before compensation, and "
             f"what the tables leave (the sd after adds repeatability and reversal)\n"
-            f"{frame.to_string(float_format=lambda v: f'{v:.3g}')}")
+            f"{frame.to_string()}")
 
 
 def add_allocation_option(parser) -> None:
@@ -186,7 +194,9 @@ def verification_text(machine, tolerances, args) -> str:
 
 def _yield_line(what, passes) -> str:
     low, high = binomial_interval(int(passes.sum()), len(passes))
-    return (f"  {what}: {passes.mean():.4f} [{float(low):.4f}, {float(high):.4f}] "
+    return (f"  {what}: {passes.mean():.4f} "
+            f"[{display.probability_bound_text(float(low), upper=False)}, "
+            f"{display.probability_bound_text(float(high), upper=True)}] "
             f"({len(passes)} machines)")
 
 

@@ -7,7 +7,8 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from reliability.basics.display import (output_people_units, quantity_text, target_text,
+from reliability.basics.display import (output_people_units, percent_text,
+                                        quantity_bound_text, quantity_text, target_text,
                                         top_contributors)
 from reliability.basics.files import SIGNIFICANT, write_csv
 from reliability.first_order.fosm import fosm, two_sided_probability
@@ -83,8 +84,9 @@ def prediction_frame(machine, result):
 
 
 def certificate_table(machine, table, grid_result) -> pd.DataFrame:
-    """One row per output: the certified worst pose (degrees and mm), σ there, the bound,
-    the grid's worst σ (σ in the machine file's units), the two-sided probability at the bound, boxes and time."""
+    """One row per output: the certified worst pose (degrees and mm), σ there, the bound
+    (rounded up), the grid's worst σ (σ in the machine file's units), the two-sided
+    probability at the bound (a lower bound, rounded down), boxes and time."""
     rows = np.arange(len(OUTPUTS))
     grid_sigma = grid_result.sigma[grid_result.worst_pose, rows]
     units = output_people_units(machine.cost_coefficients.units)
@@ -96,10 +98,10 @@ def certificate_table(machine, table, grid_result) -> pd.DataFrame:
             "output": output,
             "worst pose": options.pose_text(machine, pose),
             "sigma": quantity_text(row["sigma"], units[i], 6),
-            "sigma bound": quantity_text(row["sigma_bound"], units[i], 6),
+            "sigma bound": quantity_bound_text(row["sigma_bound"], units[i], 6),
             "grid sigma": quantity_text(grid_sigma[i], units[i], 6),
-            "P two-sided at bound": options.percent(
-                two_sided_probability(machine.limits[i], row["sigma_bound"])),
+            "P two-sided at bound": percent_text(
+                two_sided_probability(machine.limits[i], row["sigma_bound"]), lower=True),
             "certified": "yes" if row["certified"] else "NO",
             "boxes": int(row["calls"]),
             "time [s]": f"{row['seconds']:.2f}",

@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
+from reliability.basics import display
 from reliability.basics.errors import InputError
 from reliability.basics.files import SIGNIFICANT, write_csv
 from reliability.basics.streams import extra_stream
@@ -180,9 +181,12 @@ def rare_text(machine, tolerances, args, *, rng) -> str:
     table = rare_event_table(machine, tolerances, method=args.rare_method,
                              target_cov=args.target_cov,
                              max_evaluations=args.max_evaluations, rng=rng)
+    shown = table.drop(columns=["distribution"]).assign(
+        lower=[display.lower_bound_text(v, 4) for v in table["lower"]],
+        upper=[display.upper_bound_text(v, 4) for v in table["upper"]])
     return (f"Failure probability at each event's worst grid pose ({args.rare_method}, exact "
             f"model, {machine.distribution} errors):\n"
-            + table.drop(columns=["distribution"]).to_string(float_format="{:.4g}".format))
+            + shown.to_string(float_format="{:.4g}".format))
 
 
 def report_tables(machine, result, where: str = "grid") -> str:
@@ -225,4 +229,6 @@ def _pct(values) -> list[str]:
 
 
 def _interval(lower, upper) -> list[str]:
-    return [f"[{100 * lo:.3f}, {100 * hi:.3f}]" for lo, hi in zip(lower, upper)]
+    """Intervals in per cent to 0.001 %, their ends rounded outward."""
+    return [f"[{display.percent_number(lo, 'lower', 3)}, "
+            f"{display.percent_number(hi, 'upper', 3)}]" for lo, hi in zip(lower, upper)]

@@ -12,6 +12,7 @@ from matplotlib.figure import Figure
 from reliability.acceptance.acceptance_result import profile_note
 from reliability.acceptance.prediction import DEFAULT_PROFILE, acceptance
 from reliability.acceptance.suggested_limits import suggest_limits
+from reliability.basics.display import decimals_text, lower_bound_text, upper_bound_text
 from reliability.basics.streams import acceptance_stream
 from studies.workflows.compensated_acceptance import SUFFIX, comparison_frame
 
@@ -119,8 +120,17 @@ def _pass_summary(frame, suffix: str) -> dict:
 
 
 def _interval(row, suffix: str = "") -> str:
-    return (f"{row['pass_probability' + suffix]:.4f} [{row['pass_low' + suffix]:.4f}, "
-            f"{row['pass_high' + suffix]:.4f}]")
+    """A pass probability to four decimals, its interval's ends rounded outward."""
+    return (f"{row['pass_probability' + suffix]:.4f} "
+            f"[{decimals_text(row['pass_low' + suffix], 4, 'lower')}, "
+            f"{decimals_text(row['pass_high' + suffix], 4, 'upper')}]")
+
+
+def _suggested_text(limit, low, high) -> str:
+    """A suggested limit in µm (mm given) to three digits, its interval's ends rounded
+    outward."""
+    return (f"{1000 * limit:.3g} [{lower_bound_text(1000 * low, 3)}, "
+            f"{upper_bound_text(1000 * high, 3)}]")
 
 
 def _suggested_pass(suggestion) -> str:
@@ -140,8 +150,8 @@ def _shown(result, frame):
     rows["drivers"] = [result.top_drivers(r.test, r.quantity) or "-" for r in rows.itertuples()]
     suggested = ["suggested"] if "suggested_limit" in rows else []
     if suggested:
-        rows["suggested"] = [f"{1000 * r.suggested_limit:.3g} [{1000 * r.suggested_low:.3g}, "
-                             f"{1000 * r.suggested_high:.3g}]" for r in rows.itertuples()]
+        rows["suggested"] = [_suggested_text(r.suggested_limit, r.suggested_low,
+                                             r.suggested_high) for r in rows.itertuples()]
     compensated = _compensated_columns(rows)
     return rows[["test", "quantity", "limit", "mean", "q95", "pass", *suggested, *compensated,
                  "drivers"]].rename(columns={"limit": "limit µm", "mean": "mean µm",
@@ -160,9 +170,8 @@ def _compensated_columns(rows) -> list[str]:
     shown = ["compensated µm (q05–q95)", "compensated pass"]
     if "suggested_limit" + SUFFIX in rows:
         rows["compensated suggested µm"] = [
-            f"{1000 * r['suggested_limit' + SUFFIX]:.3g} "
-            f"[{1000 * r['suggested_low' + SUFFIX]:.3g}, "
-            f"{1000 * r['suggested_high' + SUFFIX]:.3g}]" for _, r in rows.iterrows()]
+            _suggested_text(r["suggested_limit" + SUFFIX], r["suggested_low" + SUFFIX],
+                            r["suggested_high" + SUFFIX]) for _, r in rows.iterrows()]
         shown.append("compensated suggested µm")
     return shown
 

@@ -19,7 +19,7 @@ from reliability.basics.files import SIGNIFICANT
 from reliability.model.machine import OUTPUTS
 from reliability.sampling.pose_sampling import sample_at_poses
 
-from .markdown import markdown_table
+from .markdown import interval_formats, markdown_table, percent_bound
 from .section import Section
 
 PERCENT = "{:.3%}".format
@@ -78,8 +78,9 @@ def catalogue_section(result, *, samples: int = 20_000, rng=None,
              f"interval on the probability of staying inside the limit, beside FOSM: "
              + (f"**below the target for {', '.join(short)}**." if short else
                 "every interval reaches the target."), "",
-             markdown_table(checked, {c: PERCENT for c in ("mc", "lower", "upper", "fosm",
-                                                           "target")}, index=False)]
+             markdown_table(checked, {c: PERCENT for c in ("mc", "fosm", "target")}
+                            | interval_formats(percent_bound(3), lower=("lower",),
+                                               upper=("upper",)), index=False)]
     summary = {"catalogue": {"price": result.price, "relative_gap": result.gap,
                              "certified": result.certified, "feasible": result.feasible,
                              "choice": dict(result.choice), "currency": catalogue.currency,

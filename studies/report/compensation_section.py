@@ -5,7 +5,9 @@ the designer relax and what it cannot, and why (docs/compensation.md)."""
 from __future__ import annotations
 
 from allocation.per_pose.compensated import allocate_compensated
-from reliability.basics.display import error_units, in_units, unit_symbol
+from reliability.basics.display import error_units, unit_symbol
+from reliability.basics.display import (decimals_text, percentage_text,
+                                        tolerance_numbers)
 from reliability.model.iso_names import plain_names
 
 from .markdown import markdown_table
@@ -30,9 +32,7 @@ def compensation_section(study, plan, plan_name: str) -> Section:
     relaxed = shown[table["change"] > 1e-6].sort_values("change", ascending=False,
                                                        kind="stable")
     tight = shown[table["limited_by"].isin(("targets", "lower bound"))]
-    formats = {name: "{:.4g}".format for name in ("without compensation", "allocated",
-                                                  "upper", "posterior_share")}
-    formats["change"] = "{:+.1%}".format
+    formats = {"posterior_share": "{:.4g}".format, "change": percentage_text}
     text = "\n\n".join([
         _opening(found, plan, plan_name, len(study.problem.poses)),
         f"**What compensation lets you relax** ({len(relaxed)} items; the largest; "
@@ -49,11 +49,12 @@ def compensation_section(study, plan, plan_name: str) -> Section:
 
 def _for_people(table, machine):
     """The items with their plain names and the unit of each tolerance (the machine file's,
-    :func:`~reliability.basics.display.people_units`), tolerances converted to it."""
+    :func:`~reliability.basics.display.people_units`), tolerances shown in it
+    (:func:`~reliability.basics.display.tolerance_numbers`)."""
     units = error_units(table["error"], machine.cost_coefficients.units)
     shown = table.copy()
     for column in ("without compensation", "allocated", "upper"):
-        shown[column] = in_units(table[column].to_numpy(dtype=float), units)
+        shown[column] = tolerance_numbers(table[column], units)
     shown.insert(2, "name", plain_names(machine))
     shown.insert(3, "unit", [unit_symbol(u) for u in units])
     return shown
@@ -65,8 +66,8 @@ def _opening(found, plan, plan_name, poses) -> str:
             f"{plan.spacing_mm:g} mm and {plan.spacing_deg:g} degrees). The cheapest "
             f"allocation found after compensation costs **{found.cost / found.cost_without:.4f}"
             f"** × the certified optimum without compensation on the same {poses} poses and "
-            f"box, with a certified lower bound of {found.lower_bound / found.cost_without:.4f}"
-            f" ×; it meets every target after compensation at every pose: "
+            f"box, with a certified lower bound of "
+            f"{decimals_text(found.lower_bound / found.cost_without, 4, 'lower')} ×; it meets every target after compensation at every pose: "
             f"{'yes' if found.feasible else 'NO'}.")
 
 

@@ -21,7 +21,8 @@ from allocation.per_pose.result_files import (DRAWING_FILE, MULTIPLIER_DIGITS, a
                                      drawing_frame, gap_text, nearly_free_text,
                                      written_cost_text)
 from reliability.basics.display import (OUTPUT_UNITS, axis_units, error_units, in_units,
-                                        output_people_units, pose_frame, shown_positions,
+                                        output_people_units, percentage_text, pose_frame,
+                                        shown_positions, tolerance_numbers,
                                         top_contributors, unit_symbol)
 from reliability.basics.files import SIGNIFICANT, as_written
 from reliability.model.identifiability import EQUAL_RTOL, indistinguishable_groups
@@ -30,7 +31,8 @@ from reliability.model.machine import OUTPUTS
 from studies.workflows.machine_study import UNCHANGED, MachineStudy, summary
 
 from . import plots
-from .markdown import markdown_table
+from .markdown import (interval_formats, markdown_table, percent_bound,
+                       significant_bound)
 from .section import Section
 from .yield_section import yield_section, yield_sentence
 
@@ -260,6 +262,17 @@ def tolerance_table(machine, reference, tolerances) -> pd.DataFrame:
                          "change": np.asarray(tolerances) / np.asarray(reference) - 1.0})
 
 
+def shown_tolerance_table(machine, reference, tolerances) -> pd.DataFrame:
+    """:func:`tolerance_table` as printed: the tolerances cut to 0.001 µm or 0.001 arcsec
+    in their unit (:func:`~reliability.basics.display.tolerance_numbers`), the change in
+    per cent to 0.01 % (:func:`~reliability.basics.display.percentage_text`)."""
+    table = tolerance_table(machine, reference, tolerances)
+    units = error_units(machine.error_names, machine.cost_coefficients.units)
+    return table.assign(initial=tolerance_numbers(reference, units),
+                        allocated=tolerance_numbers(tolerances, units),
+                        change=[percentage_text(v) for v in table["change"]])
+
+
 def sections(study: MachineStudy, extra=()) -> list[Section]:
     """The report's sections, answers first.
 
@@ -309,7 +322,8 @@ def workspace_section(study: MachineStudy) -> Section:
         tables["workspace_certificate.csv"] = shown
         text += ("\n\nThe certificate at the optimum (`allowed`: the σ the target allows; "
                  "`excess`: bound / allowed − 1; `gap`: the certificate's own bound / σ − 1):"
-                 "\n\n" + markdown_table(shown, index=False))
+                 "\n\n" + markdown_table(shown, interval_formats(
+                     significant_bound(5), upper=(bound, "excess", "gap")), index=False))
     entries = {"workspace_certified": continuous.certified, "workspace_rtol": continuous.rtol,
                "workspace_solves": continuous.solves,
                "workspace_certificate_calls": continuous.certificate_calls,
@@ -386,7 +400,7 @@ def allocation_section(study: MachineStudy) -> Section:
     optimum, machine = study.optimum, study.machine
     groups = groups_table(machine, study.problem.poses)
     detail = optimum.to_frame().reset_index()
-    people = tolerance_table(machine, study.problem.reference, optimum.tolerances)
+    people = shown_tolerance_table(machine, study.problem.reference, optimum.tolerances)
     people["status"] = detail["status"].to_numpy()
     requirements = requirement_table(optimum).reset_index()
     for column in ("dlncost/dln_limit", "dlncost/dln_target"):
@@ -406,7 +420,7 @@ def allocation_section(study: MachineStudy) -> Section:
             f"Allocation in the machine file's units (`change` = allocated / initial − 1; "
             f"`status` says which bound holds; `allocation.csv` and `allocation_detail.csv` "
             f"hold mm and rad):\n\n"
-            f"{markdown_table(people, {'change': '{:+.1%}'.format}, index=False)}"
+            f"{markdown_table(people, index=False)}"
             f"\n\n{cost_text(study)}\n\n{drawing_text(study)}\n\n"
             f"{groups_text(machine, groups)}")
     figures = {}
@@ -489,8 +503,9 @@ def verification_section(study: MachineStudy) -> Section:
         [pd.DataFrame(check.grid.fractions, columns=list(OUTPUTS))
          .assign(allocation=name, repeat=np.arange(1, check.grid.repeats + 1))
          for name, check in study.checks.items()])[["allocation", "repeat", *OUTPUTS]]
-    percent = {c: PERCENT for c in ("fosm_two_sided", "mc_estimate", "mc_lower", "mc_upper",
-                                    "fosm_worst_two_sided", "estimate", "lower", "upper")}
+    percent = {c: PERCENT for c in ("fosm_two_sided", "mc_estimate", "fosm_worst_two_sided",
+                                    "estimate")} | interval_formats(
+        percent_bound(3), lower=("mc_lower", "lower"), upper=("mc_upper", "upper"))
     check = study.checks[_last_checked(study)]
     text = "\n\n".join([
         f"Errors drawn as {_reading(check.distribution)}; FOSM beside them with the same "

@@ -13,6 +13,9 @@ import re
 import numpy as np
 import pandas as pd
 
+from reliability.basics.display import (lower_bound_text, percent_number,
+                                        probability_bound_text, upper_bound_text)
+
 
 def markdown_table(frame: pd.DataFrame, formats: dict | None = None,
                    index: bool = True) -> str:
@@ -26,6 +29,37 @@ def markdown_table(frame: pd.DataFrame, formats: dict | None = None,
         cells = [formats.get(c, format_cell)(row[c]) for c in frame.columns]
         rows.append("| " + " | ".join(cells) + " |")
     return "\n".join([header, rule, *rows])
+
+
+def interval_formats(show, lower=(), upper=()) -> dict:
+    """Formats for :func:`markdown_table` that round each column of ``lower`` (lower bounds,
+    an interval's lower ends) down and each of ``upper`` up, so a printed bound still
+    bounds: ``show(value, bound)`` with ``bound`` ``"lower"`` or ``"upper"`` (one of
+    :func:`significant_bound`, :func:`percent_bound`, :func:`probability_bound`); NaN as
+    ``–``."""
+    def cell(bound):
+        return lambda value: "–" if np.isnan(value) else show(value, bound)
+    return {column: cell("lower") for column in lower} | \
+        {column: cell("upper") for column in upper}
+
+
+def significant_bound(digits: int):
+    """``show`` for :func:`interval_formats`: ``digits`` significant digits
+    (:func:`~reliability.basics.display.upper_bound_text`, ``lower_bound_text``)."""
+    return lambda value, bound: (upper_bound_text if bound == "upper" else
+                                 lower_bound_text)(value, digits)
+
+
+def percent_bound(decimals: int):
+    """``show`` for :func:`interval_formats`: a probability in per cent to ``decimals``
+    decimals, ``"98.930%"`` (:func:`~reliability.basics.display.percent_number`)."""
+    return lambda value, bound: f"{percent_number(value, bound, decimals)}%"
+
+
+def probability_bound(value: float, bound: str) -> str:
+    """``show`` for :func:`interval_formats`: a yield's interval end as yields are shown
+    (:func:`~reliability.basics.display.probability_bound_text`)."""
+    return probability_bound_text(value, upper=bound == "upper")
 
 
 def format_cell(value) -> str:

@@ -12,7 +12,7 @@ from reliability.basics.streams import spawn
 from reliability.sampling.pose_sampling import sample_at_poses
 from reliability.sampling.verification import rare_event_table
 
-from .markdown import markdown_table
+from .markdown import interval_formats, markdown_table, significant_bound
 from .section import Section
 
 SCIENTIFIC = "{:.3e}".format
@@ -49,8 +49,9 @@ def rare_section(machine, tolerances, *, label: str = "allocation", samples: int
             f"(FOSM two-sided; system: six-dimensional normal rectangle) answer.", "",
             markdown_table(mc[["pose", "event", *verification.axes, "mc_failure", "lower",
                                "upper", "fosm_failure"]],
-                           {c: SCIENTIFIC for c in ("mc_failure", "lower", "upper",
-                                                    "fosm_failure")}, index=False)]
+                           {c: SCIENTIFIC for c in ("mc_failure", "fosm_failure")}
+                           | interval_formats(significant_bound(4), lower=("lower",),
+                                              upper=("upper",)), index=False)]
     tables = {f"{label}_worst_pose_mc.csv": mc}
     summary = {f"{label}_worst_pose_mc": {
         "samples": verification.n_samples, "precision": precision,
@@ -67,8 +68,9 @@ def rare_section(machine, tolerances, *, label: str = "allocation", samples: int
                  f"system the union bound Σ_o, an upper bound).", "",
                  markdown_table(table[["probability", "cov", "lower", "upper",
                                        "n_evaluations", "fosm_probability"]],
-                                {c: SCIENTIFIC for c in ("probability", "lower", "upper",
-                                                         "fosm_probability")}
+                                {c: SCIENTIFIC for c in ("probability", "fosm_probability")}
+                                | interval_formats(significant_bound(4), lower=("lower",),
+                                                   upper=("upper",))
                                 | {"cov": "{:.3f}".format})]
         tables[f"{label}_rare_events.csv"] = table
         summary[f"{label}_rare_events"] = {

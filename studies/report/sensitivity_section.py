@@ -47,7 +47,7 @@ def sensitivity_section(machine, tolerances, *, label: str, points: int = 5,
     result = yield_sensitivity(model, tolerances, machines=machines, rng=rng)
     table = tightening_table(result, machine, tolerances)
     formats = {"yield change [%]": "{:+.3f}".format, "se [%]": "{:.3f}".format,
-               "cost change [%]": "{:+.3f}".format}
+               "cost change [%]": "{:+.2f}".format}
     how = ("the score function on the yield's own draws" if result.method == "score" else
            "central differences on common random numbers")
     text = "\n\n".join([

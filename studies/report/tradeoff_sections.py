@@ -14,6 +14,7 @@ import pandas as pd
 from allocation.per_pose.front import allocation_point, cost_reliability_front, front_file_table
 from allocation.per_pose.result_files import gap_bound, gap_text
 from reliability.basics.display import axis_units, bound_text, pose_frame, pose_text
+from reliability.basics.display import (decimals_text)
 from reliability.basics.streams import spawn
 from reliability.first_order.system_reliability import worst_system_reliability
 from reliability.model.poses import workspace_grid
@@ -132,8 +133,10 @@ def system_section(machine, allocations, *, poses=None, rng=None) -> Section:
                      "least_output": result.min_marginal[w]})
     table = pd.DataFrame(rows).set_index("allocation")
     lines = [f"| {label} | {where[label]} | {row['system']:.6f} ± {row['error']:.1g} | "
-             f"{row['product']:.6f} | {bound_text(row['bonferroni'])} | "
-             f"{row['least_output']:.6f} |" for label, row in table.iterrows()]
+             f"{decimals_text(row['product'], 6, 'lower')} | "
+             f"{bound_text(row['bonferroni'])} | "
+             f"{decimals_text(row['least_output'], 6, 'upper')} |"
+             for label, row in table.iterrows()]
     text = ("A part is good only when all six outputs are inside their limits at once. "
             "For the linearised model this is a six-dimensional normal rectangle "
             "probability, computed exactly up to the stated numerical standard error; "

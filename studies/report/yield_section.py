@@ -13,8 +13,9 @@ import pandas as pd
 from matplotlib.figure import Figure
 
 from reliability.sampling.yield_estimate import yield_text
+from reliability.basics.display import interval_text
 
-from .markdown import markdown_table
+from .markdown import interval_formats, markdown_table, percent_bound, probability_bound
 from .section import Section
 
 #: Regions drawn per allocation in the failure-share figure (largest shares).
@@ -52,7 +53,7 @@ def share_table(study) -> pd.DataFrame:
 def yield_sentence(study) -> str:
     """The yields in one markdown line, for the Answers."""
     parts = [f"{LABELS.get(name, name)} **{yield_text(c.machine_yield.estimate)}** "
-             f"[{yield_text(c.machine_yield.lower)}, {yield_text(c.machine_yield.upper)}]"
+             f"{interval_text(c.machine_yield.lower, c.machine_yield.upper)}"
              for name, c in study.checks.items()]
     first = next(iter(study.checks.values())).machine_yield
     return (f"- Machine yield (share of built machines with all six outputs within their "
@@ -68,9 +69,10 @@ def yield_section(study) -> Section:
     shown = table[["allocation", "yield", "lower", "upper", "failure_probability", "cov",
                    "method", "machines", "failing", "first_order_lower",
                    "first_order_upper"]]
-    formats = {"yield": yield_text, "lower": yield_text, "upper": yield_text,
-               "failure_probability": "{:.3g}".format, "cov": "{:.3g}".format,
-               "first_order_lower": yield_text, "first_order_upper": yield_text}
+    formats = {"yield": yield_text, "failure_probability": "{:.3g}".format,
+               "cov": "{:.3g}".format} | interval_formats(
+        probability_bound, lower=("lower", "first_order_lower"),
+        upper=("upper", "first_order_upper"))
     parts = [
         f"The share of built machines that keep all six outputs within their limits at "
         f"every pose of the {first.workspace} at once, under the error profile "
@@ -101,8 +103,9 @@ def yield_section(study) -> Section:
                 if len(own) > TABLED_SHARES else "")
         parts += [f"{label.capitalize()} allocation{more}:",
                   markdown_table(own.head(TABLED_SHARES),
-                                 {"share": "{:.1%}".format, "lower": "{:.1%}".format,
-                                  "upper": "{:.1%}".format}, index=False)]
+                                 {"share": "{:.1%}".format} | interval_formats(
+                                     percent_bound(1), lower=("lower",), upper=("upper",)),
+                                 index=False)]
     figures = {} if shares.empty else {"failure_shares.png": failure_share_figure(study)}
     return Section("Machine yield", "\n\n".join(parts), figures=figures,
                    tables={"machine_yield.csv": table.set_index("allocation"),
@@ -146,7 +149,7 @@ def plot_failure_shares(estimate, *, ax=None, title: str = "", count: int = PLOT
     ax.set_xlabel(f"share of failing machines [%] ({estimate.confidence:.0%} interval)")
     ax.set_xlim(0, 100)
     ax.set_title(f"{title}: yield {yield_text(estimate.estimate)} "
-                 f"[{yield_text(estimate.lower)}, {yield_text(estimate.upper)}], "
+                 f"{interval_text(estimate.lower, estimate.upper)}, "
                  f"{estimate.method}, {estimate.machines:,} machines, {estimate.failures:,} "
                  f"failing", fontsize=10)
     return ax

@@ -12,7 +12,8 @@ import pandas as pd
 from matplotlib.figure import Figure
 from matplotlib.patches import Circle, Rectangle
 
-from reliability.basics.display import OUTPUT_UNITS, axis_units, pose_text, with_unit
+from reliability.basics.display import (OUTPUT_UNITS, axis_units, interval_text, pose_text,
+                                        with_unit)
 from reliability.model.work_zone import tool_frames
 from reliability.sampling.yield_estimate import yield_text
 
@@ -55,8 +56,7 @@ def allocation_rows(comparison) -> pd.DataFrame:
         rows.append({"allocation": label, "cost (× initial)": f"{row['cost']:.4g}",
                      **{f"yield {WORKSPACE_WORDS[name]}":
                         f"{yield_text(row[f'yield {name}'])} "
-                        f"[{yield_text(row[f'yield {name} low'])}, "
-                        f"{yield_text(row[f'yield {name} high'])}]"
+                        f"{interval_text(row[f'yield {name} low'], row[f'yield {name} high'])}"
                         for name in WORKSPACE_WORDS}})
     return pd.DataFrame(rows)
 

@@ -35,7 +35,8 @@ from reliability.acceptance.prediction import acceptance, results_of_deviations
 from reliability.basics import checks, streams
 from reliability.basics.chunks import chunks
 from reliability.basics.display import (UNIT_SCALES, axis_units, output_people_units,
-                                        pose_text, unit_symbol)
+                                        percent_number, pose_text, resolved_text,
+                                        unit_symbol)
 from reliability.basics.pass_rule import passes
 from reliability.basics.statistics import binomial_interval
 from reliability.first_order.fosm import fosm
@@ -255,9 +256,10 @@ def _acceptance_table(machine, identification, tests, tolerances, draws, rng,
 
 
 def holds_text(holds: dict) -> str:
-    """``99.1 % [98.6, 99.5]``: an estimate with its interval, in per cent."""
-    return (f"{100 * holds['estimate']:.2f} % [{100 * holds['lower']:.2f}, "
-            f"{100 * holds['upper']:.2f}]")
+    """``99.10 % [98.60, 99.50]``: an estimate with its interval, in per cent to 0.01 %,
+    the interval's ends rounded outward."""
+    return (f"{percent_number(holds['estimate'])} % "
+            f"{_ends_text(holds['lower'], holds['upper'])}")
 
 
 def output_table(result) -> pd.DataFrame:
@@ -272,7 +274,8 @@ def output_table(result) -> pd.DataFrame:
             "holds everywhere %": _interval_text(row["holds"], row["holds_lower"],
                                                  row["holds_upper"]),
             "its worst pose": _pose(result.machine, row["worst_pose"]),
-            "mean ± sd there": f"{scale * row['mean']:.3g} ± {scale * row['sd']:.3g} {unit}",
+            "mean ± sd there": f"{resolved_text(scale * row['mean'], scale * row['sd'], 3)} "
+                               f"± {scale * row['sd']:.3g} {unit}",
             "inside there %": _interval_text(row["inside"], row["inside_lower"],
                                              row["inside_upper"]),
             "design worst pose": _pose(result.machine, row["design_pose"]),
@@ -297,7 +300,11 @@ def acceptance_table(table) -> pd.DataFrame:
 
 
 def _interval_text(value, low, high) -> str:
-    return f"{100 * value:.2f} [{100 * low:.2f}, {100 * high:.2f}]"
+    return f"{percent_number(value)} {_ends_text(low, high)}"
+
+
+def _ends_text(low, high) -> str:
+    return f"[{percent_number(low, bound='lower')}, {percent_number(high, bound='upper')}]"
 
 
 def _pass_text(value, low, high) -> str:

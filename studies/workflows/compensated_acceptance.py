@@ -26,6 +26,7 @@ from reliability.acceptance.prediction import results_of_deviations
 from reliability.acceptance.suggested_limits import suggest_limits
 from reliability.basics import checks, streams
 from reliability.basics.chunks import chunks
+from reliability.basics.display import decimals_text
 from reliability.compensation.compensation_plans import K
 from reliability.model.error_draws import psd_factor
 
@@ -139,8 +140,10 @@ def _passes(rows, suffix) -> list[str]:
 
 
 def _interval(row, suffix) -> str:
-    return (f"{row['pass_probability' + suffix]:.4f} [{row['pass_low' + suffix]:.4f}, "
-            f"{row['pass_high' + suffix]:.4f}]")
+    """A pass probability to four decimals, its interval's ends rounded outward."""
+    return (f"{row['pass_probability' + suffix]:.4f} "
+            f"[{decimals_text(row['pass_low' + suffix], 4, 'lower')}, "
+            f"{decimals_text(row['pass_high' + suffix], 4, 'upper')}]")
 
 
 def _micrometres(value) -> str:
