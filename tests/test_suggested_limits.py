@@ -113,11 +113,11 @@ def test_command_adds_the_suggested_columns_and_the_joint_pass(tmp_path, capsys)
                      'line = { Y = 200.0, Z = -175.0 }\nlimit = { E = 0.015, A = 0.02 }\n')
     machine = str(MACHINES / "mill3.toml")
     assert cli.main(["acceptance", machine, "--tests", str(tests), "--machines", "200",
-                     "--seed", "4", "--suggest", "0.9", "--out", str(tmp_path / "out")]) == 0
+                     "--seed", "4", "--suggest", "0.9", "--out", str(tmp_path / "acc.csv")]) == 0
     printed = capsys.readouterr().out
     assert "suggested limits: the 0.9-quantile" in printed
     assert "position_X (E, A): " in printed
-    written = pd.read_csv(tmp_path / "out" / "acceptance.csv")
+    written = pd.read_csv(tmp_path / "acc.csv")
     assert list(written.columns[-3:]) == ["suggested_limit", "suggested_low", "suggested_high"]
     assert written.iloc[-1][["suggested_limit", "suggested_low", "suggested_high"]].isna().all()
     rows = written.iloc[:-1]
