@@ -265,12 +265,13 @@ def tolerance_table(machine, reference, tolerances) -> pd.DataFrame:
 def shown_tolerance_table(machine, reference, tolerances) -> pd.DataFrame:
     """:func:`tolerance_table` as printed: the tolerances cut to 0.001 µm or 0.001 arcsec
     in their unit (:func:`~reliability.basics.display.tolerance_numbers`), the change in
-    per cent to 0.01 % (:func:`~reliability.basics.display.percentage_text`)."""
+    per cent to 0.01 % with its sign (:func:`~reliability.basics.display.percentage_text`)."""
     table = tolerance_table(machine, reference, tolerances)
     units = error_units(machine.error_names, machine.cost_coefficients.units)
     return table.assign(initial=tolerance_numbers(reference, units),
                         allocated=tolerance_numbers(tolerances, units),
-                        change=[percentage_text(v) for v in table["change"]])
+                        change=[("+" if v > 0 else "") + percentage_text(v)
+                                for v in table["change"]])
 
 
 def sections(study: MachineStudy, extra=()) -> list[Section]:
