@@ -362,13 +362,29 @@ EXPORTED_IN_0_2_0 = {
 }
 
 
-@pytest.mark.parametrize("package", sorted(EXPORTED_IN_0_2_0))
-def test_every_name_exported_in_0_2_0_still_works(package):
+#: What ``reliability`` and ``allocation`` exported at their top in 0.3.0, before the rooms
+#: of ``allocation``.
+EXPORTED_IN_0_3_0 = {
+    "reliability": [*EXPORTED_IN_0_2_0["reliability"], "CompensationTables", "Identification",
+                    "compensation_tables", "identify", "interop", "machine_from_toml",
+                    "read_compensation", "read_identification", "read_measurements",
+                    "write_compensation"],
+    "allocation": EXPORTED_IN_0_2_0["allocation"],
+}
+#: The lists written out here (not read from the packages), by release.
+EXPORTED = {"0.2.0": EXPORTED_IN_0_2_0, "0.3.0": EXPORTED_IN_0_3_0}
+
+
+@pytest.mark.parametrize(("release", "package"),
+                         [(release, package) for release in EXPORTED for package in
+                          sorted(EXPORTED[release])])
+def test_every_name_exported_in_an_earlier_release_still_works(release, package):
     import importlib
     module = importlib.import_module(package)
-    missing = [name for name in EXPORTED_IN_0_2_0[package] if not hasattr(module, name)]
-    assert not missing, f"{package} no longer exports {missing}"
-    assert set(EXPORTED_IN_0_2_0[package]) <= set(module.__all__)
+    names = EXPORTED[release][package]
+    missing = [name for name in names if not hasattr(module, name)]
+    assert not missing, f"{package} no longer exports {missing} (exported in {release})"
+    assert set(names) <= set(module.__all__)
 
 
 def test_rare_at_the_top_is_the_rare_event_module():
@@ -378,9 +394,11 @@ def test_rare_at_the_top_is_the_rare_event_module():
     assert callable(reliability.rare.failure_probability)
 
 
-def test_no_module_is_left_at_a_path_of_0_2_0():
-    flat = sorted(p.stem for p in (ROOT / "reliability").glob("*.py") if p.stem != "__init__")
-    assert flat == [], f"modules left at the top of reliability: {flat}"
+@pytest.mark.parametrize("package", ["reliability", "allocation"])
+def test_no_module_is_left_at_a_flat_path_of_an_earlier_release(package):
+    """``reliability`` moved into rooms in 0.3.0, ``allocation`` in 0.4.0."""
+    flat = sorted(p.stem for p in (ROOT / package).glob("*.py") if p.stem != "__init__")
+    assert flat == [], f"modules left at the top of {package}: {flat}"
 
 
 def test_no_two_library_modules_share_a_name():
