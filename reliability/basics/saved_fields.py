@@ -17,6 +17,8 @@ and the field.
 
 from __future__ import annotations
 
+from abc import ABC, abstractmethod
+
 import numpy as np
 
 from .saved_results import PayloadReader, encode_frame, load_payload, save_payload
@@ -24,8 +26,9 @@ from .saved_results import PayloadReader, encode_frame, load_payload, save_paylo
 PLAIN = (str, int, float, bool, type(None))
 
 
-class Field:
-    """One saved field: its name, whether it may be None, how it is written and read."""
+class Field(ABC):
+    """One saved field: its name, whether it may be None, how it is written and read (each
+    kind of field says how it reads)."""
 
     def __init__(self, name: str, optional: bool = False):
         self.name, self.optional = name, optional
@@ -34,9 +37,9 @@ class Field:
         """The JSON-ready form of ``value`` (numpy values are converted on writing)."""
         return value
 
+    @abstractmethod
     def read(self, data, dims: dict):
         """The field's value from ``data``, checked; ``dims`` holds the shared lengths."""
-        raise NotImplementedError
 
 
 class Number(Field):
