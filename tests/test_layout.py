@@ -149,45 +149,6 @@ RELIABILITY_ROOMS = {
 }
 
 
-def reliability_room(name: str) -> str | None:
-    """The room of ``reliability`` a module lives in (None for the package itself)."""
-    parts = name.split(".")
-    if parts[0] != "reliability" or len(parts) < 2:
-        return None
-    return ".".join(parts[:2])
-
-
-def test_every_reliability_module_lives_in_a_room():
-    homeless = [name for name in MODULES if name.startswith("reliability.")
-                and reliability_room(name) not in RELIABILITY_ROOMS]
-    assert not homeless, f"modules of reliability outside its rooms: {homeless}"
-    for package in RELIABILITY_ROOMS:
-        path = ROOT / package.replace(".", "/") / "__init__.py"
-        if path.exists():
-            assert ast.get_docstring(ast.parse(path.read_text())), f"{package} has no purpose line"
-
-
-def test_rooms_of_reliability_import_one_way():
-    upward = []
-    for name, targets in GRAPH.items():
-        here = reliability_room(name)
-        if here is None:
-            continue
-        for target in targets:
-            there = reliability_room(target)
-            if target == "reliability":
-                upward.append(f"{name} -> reliability (the package imports every room)")
-            elif there is not None and there != here and there not in RELIABILITY_ROOMS[here]:
-                upward.append(f"{name} -> {target} ({here} may not import {there})")
-    assert not upward, "imports against the rooms' one-way rule:\n" + "\n".join(upward)
-
-
-def test_the_room_rule_of_reliability_sees_an_upward_import():
-    assert reliability_room("reliability.model.machine") == "reliability.model"
-    assert "reliability.sampling" not in RELIABILITY_ROOMS["reliability.first_order"]
-    assert "reliability.first_order" not in RELIABILITY_ROOMS["reliability.acceptance"]
-
-
 #: What each room of ``allocation`` may import besides itself.
 ALLOCATION_ROOMS = {
     "allocation.solvers": set(),
@@ -199,42 +160,56 @@ ALLOCATION_ROOMS = {
 }
 
 
-def allocation_room(name: str) -> str | None:
-    """The room of ``allocation`` a module lives in (None for the package itself)."""
+#: The rooms of each package of the library.
+ROOMS = {"reliability": RELIABILITY_ROOMS, "allocation": ALLOCATION_ROOMS}
+
+
+def room_of(package: str, name: str) -> str | None:
+    """The room of ``package`` module ``name`` lives in (None for the package itself or a
+    module of another package)."""
     parts = name.split(".")
-    if parts[0] != "allocation" or len(parts) < 2:
+    if parts[0] != package or len(parts) < 2:
         return None
     return ".".join(parts[:2])
 
 
-def test_every_allocation_module_lives_in_a_room():
-    homeless = [name for name in MODULES if name.startswith("allocation.")
-                and allocation_room(name) not in ALLOCATION_ROOMS]
-    assert not homeless, f"modules of allocation outside its rooms: {homeless}"
-    for package in ALLOCATION_ROOMS:
-        path = ROOT / package.replace(".", "/") / "__init__.py"
-        assert path.exists(), f"{package} is not a package"
-        assert ast.get_docstring(ast.parse(path.read_text())), f"{package} has no purpose line"
+@pytest.mark.parametrize("package", sorted(ROOMS))
+def test_every_library_module_lives_in_a_room_with_a_purpose_line(package):
+    rooms = ROOMS[package]
+    homeless = [name for name in MODULES if name.startswith(f"{package}.")
+                and room_of(package, name) not in rooms]
+    assert not homeless, f"modules of {package} outside its rooms: {homeless}"
+    for room in rooms:
+        path = ROOT / room.replace(".", "/") / "__init__.py"
+        assert path.exists(), f"{room} is not a package"
+        assert ast.get_docstring(ast.parse(path.read_text())), f"{room} has no purpose line"
 
 
-def test_rooms_of_allocation_import_one_way():
-    upward = []
+@pytest.mark.parametrize("package", sorted(ROOMS))
+def test_rooms_of_the_library_import_one_way(package):
+    rooms, upward = ROOMS[package], []
     for name, targets in GRAPH.items():
-        here = allocation_room(name)
+        here = room_of(package, name)
         if here is None:
             continue
         for target in targets:
-            there = allocation_room(target)
-            if target == "allocation":
-                upward.append(f"{name} -> allocation (the package imports every room)")
-            elif there is not None and there != here and there not in ALLOCATION_ROOMS[here]:
+            there = room_of(package, target)
+            if target == package:
+                upward.append(f"{name} -> {package} (the package imports every room)")
+            elif there is not None and there != here and there not in rooms[here]:
                 upward.append(f"{name} -> {target} ({here} may not import {there})")
     assert not upward, "imports against the rooms' one-way rule:\n" + "\n".join(upward)
 
 
+def test_the_room_rule_of_reliability_sees_an_upward_import():
+    assert room_of("reliability", "reliability.model.machine") == "reliability.model"
+    assert "reliability.sampling" not in RELIABILITY_ROOMS["reliability.first_order"]
+    assert "reliability.first_order" not in RELIABILITY_ROOMS["reliability.acceptance"]
+
+
 def test_the_room_rule_of_allocation_sees_an_upward_import():
-    assert allocation_room("allocation.per_pose.front") == "allocation.per_pose"
-    assert allocation_room("allocation") is None
+    assert room_of("allocation", "allocation.per_pose.front") == "allocation.per_pose"
+    assert room_of("allocation", "allocation") is None
     assert "allocation.per_pose" not in ALLOCATION_ROOMS["allocation.solvers"]
     assert "allocation.machine_yield" not in ALLOCATION_ROOMS["allocation.catalogue"]
     assert "allocation.catalogue" not in ALLOCATION_ROOMS["allocation.machine_yield"]
