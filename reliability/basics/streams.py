@@ -152,6 +152,42 @@ def yield_allocation_streams(seed) -> list[np.random.Generator]:
     return spawn(seed, 6, "seed")
 
 
+def integer_seed(rng, name: str = "rng") -> int:
+    """The integer seed a function's named streams derive from: ``rng`` itself, or a fresh
+    one drawn from the operating system's entropy when ``rng`` is None (so that a result
+    recording its seed can be reproduced).
+
+    Parameters
+    ----------
+    rng : None or int
+        A non-negative integer seed, or None.
+    name : str
+        The argument's name in messages.
+
+    Returns
+    -------
+    int
+
+    Raises
+    ------
+    InputTypeError
+        ``rng`` is a Generator (or anything else that is not an integer): named streams
+        derive from an integer seed (:func:`spawn`, :func:`extra_stream`), which a
+        Generator does not expose.
+    InputError
+        ``rng`` is a negative integer.
+    """
+    if rng is None:
+        return int(np.random.default_rng().integers(2**63))
+    if isinstance(rng, (bool, np.bool_)) or not isinstance(rng, numbers.Integral):
+        raise InputTypeError(f"{name} must be None or a non-negative integer seed (the "
+                             f"named streams derive from an integer seed, so a Generator "
+                             f"is refused); got {rng!r} ({type(rng).__name__})")
+    if rng < 0:
+        raise InputError(f"{name} seed must be a non-negative integer; got {rng}")
+    return int(rng)
+
+
 def _seed(seed) -> int:
     if isinstance(seed, (bool, np.bool_)) or not isinstance(seed, numbers.Integral):
         raise InputTypeError(f"seed must be a non-negative integer; got {seed!r} "
