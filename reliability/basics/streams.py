@@ -15,6 +15,10 @@ the call which draws a number depends on:
   of the earlier numbers (the optional report sections, ``precrel verify --precision`` and
   ``--rare``).
 
+A function whose named streams need the integer itself (they are derived from it, not from
+a generator) takes it as ``rng`` too and reads it with :func:`integer_seed`: an integer, or
+None for a fresh one that the result records; a Generator is refused by name.
+
 Each quantity a report prints draws from one named stream of the report's seed, the same
 stream the command that computes that quantity alone draws from: :func:`machine_yield_stream`
 (the machine yield, ``precrel verify``), :func:`acceptance_stream` (acceptance tests, ``precrel
