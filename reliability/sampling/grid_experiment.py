@@ -81,6 +81,13 @@ class GridExperiment:
         Per axis, the indices of its ``P`` grid points the experiment evaluates (all by
         default): the poses are then the product of the kept points, in grid order, and
         errors are still given at all ``P`` points of every axis. Not with a work zone.
+
+    Attributes
+    ----------
+    points : int
+        Grid points per axis, ``P``.
+    axis_points : list of ndarray
+        The ``P`` grid points of every axis, in chain order.
     """
 
     @renamed("points_per_axis", "points")
