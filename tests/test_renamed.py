@@ -4,6 +4,8 @@ grid-experiment table saved by 0.3.0 (column ``points_per_axis``) still loads.""
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 
@@ -14,6 +16,7 @@ from reliability.basics.renamed import renamed
 from reliability.basics.streams import integer_seed
 from reliability.sampling.machine_yield import YieldModel, machine_yield
 from reliability.sampling.sobol import sobol_indices
+from reliability.sampling.verification import Verification, verify
 from studies.workflows import machine_study
 from studies.workflows.profile_comparison import profile_comparison
 from studies.workflows.sweep import SweepSpec
@@ -159,3 +162,18 @@ def test_the_sweep_spec_reads_points_per_axis(tmp_path):
     assert SweepSpec.from_dict({"machines": ["hobbing"], "points": 4}).points == 4
     with pytest.raises(InputTypeError, match="points_per_axis and points"):
         SweepSpec.from_dict({"machines": ["hobbing"], "points": 4, "points_per_axis": 4})
+
+
+def test_a_verification_saved_by_0_3_0_still_loads(mill3, tmp_path):
+    """A saved verification holds its grid table, whose grid column 0.3.0 named
+    ``points_per_axis``: the file still loads, with the grid read as ``points``."""
+    result = verify(mill3, mill3.initial_allocation, points=2, repeats=2, samples=50,
+                    machines=50, workspace="grid", rng=1)
+    path = result.save(tmp_path / "verification.json")
+    data = json.loads(path.read_text())
+    columns = data["payload"]["grid"]["table"]["columns"]
+    columns["points_per_axis"] = columns.pop("points")
+    path.write_text(json.dumps(data))
+    back = Verification.load(path)
+    assert back.grid.points == 2
+    np.testing.assert_array_equal(back.grid.inside, result.grid.inside)
