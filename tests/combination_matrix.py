@@ -120,7 +120,7 @@ def sweep_spec(cell: Cell, machine: Path, folder: Path) -> Path:
     """A one-task sweep of the cell's machine."""
     spec = {"machines": [str(machine)], "sides": ["two_sided"], "targets": [0.99],
             "profiles": [cell.profile], "seeds": [0], "repeats": [2],
-            "points_per_axis": int(POINTS)}
+            "points": int(POINTS)}
     if cell.box == "factors":
         spec["bounds"] = [0.5, 1.5]
     path = folder / "sweep.toml"

@@ -340,7 +340,7 @@ def test_sweep_with_a_catalogue(tmp_path):
     shutil.copy(MILL, tmp_path / "mill3.toml")
     shutil.copy(MILL_CATALOGUE, tmp_path / "cat.toml")
     spec_path.write_text('machines = ["mill3.toml"]\ncatalogue = "cat.toml"\n'
-                         'targets = [0.95, 0.99]\nrepeats = [2]\npoints_per_axis = 3\n')
+                         'targets = [0.95, 0.99]\nrepeats = [2]\npoints = 3\n')
     spec = SweepSpec.from_toml(spec_path)
     frame = run_sweep(spec, tmp_path / "store").frame
     machine = load_machine(MILL)

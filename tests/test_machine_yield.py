@@ -72,7 +72,7 @@ def binomial_se(p, n):
 def test_crude_yield_matches_a_direct_monte_carlo(mill, profile, distribution):
     t = 1.15 * mill.initial_allocation
     estimate = machine_yield(mill, t, profile=profile, distribution=distribution,
-                             points_per_axis=3, machines=6000, rng=1, method="crude")
+                             points=3, machines=6000, rng=1, method="crude")
     reference = reference_yield(mill, t, 3, 12_000, profile, distribution, seed=2)
     assert 0.2 < reference < 0.95  # a yield both estimators see well
     se = np.hypot(binomial_se(estimate.estimate, 6000), binomial_se(reference, 12_000))
@@ -85,7 +85,7 @@ def test_crude_yield_matches_a_direct_monte_carlo(mill, profile, distribution):
 
 @pytest.mark.parametrize("profile", ["independent", "gp:300", "constant"])
 def test_row_vectors_are_the_linearised_chain_and_have_fosm_sigma(mill, profile):
-    model = YieldModel(mill, profile=profile, distribution="normal", points_per_axis=3)
+    model = YieldModel(mill, profile=profile, distribution="normal", points=3)
     t = mill.initial_allocation
     rows = np.array([0, 7, 50, 100, 161])
     vectors = model.linear.row_vectors(rows, t)
@@ -105,7 +105,7 @@ def chain_ratios(model, u, t):
     ``machine.comprehensive_error`` called on the grid poses, one machine at a time."""
     machine, poses = model.machine, model.experiment.poses
     motion, assembly = model.errors(u, t)
-    n, points = len(machine.axes), model.experiment.points_per_axis
+    n, points = len(machine.axes), model.experiment.points
     index = np.stack(np.unravel_index(np.arange(len(poses)), (points,) * n), axis=-1)
     out = np.empty((len(u), 6))
     for m in range(len(u)):
@@ -129,7 +129,7 @@ def test_output_ratios_are_the_exact_chain_per_machine(machine_name, profile, di
     kept = deciding_points(machine, axis_profiles(machine, profile), 3)
     poses = 3 ** len(machine.axes) if kept is None else np.prod([len(k) for k in kept])
     model = YieldModel(machine, profile=profile, distribution=distribution,
-                       points_per_axis=3, memory=2 * 4 * 6 * 8 * int(poses))
+                       points=3, memory=2 * 4 * 6 * 8 * int(poses))
     assert model.batch == 2
     t = 1.3 * machine.initial_allocation
     u = model.draws(5, rng=11)
@@ -159,7 +159,7 @@ def test_the_deciding_poses_give_the_whole_grids_largest_ratios(path, distributi
     linear = [spec.kind == "linear" for spec in machine.axis_specs]
     assert [len(k) for k in kept] == [2 if lin else 3 for lin in linear]
     model = YieldModel(machine, profile="constant", distribution=distribution,
-                       points_per_axis=3)
+                       points=3)
     t = 4.0 * machine.initial_allocation
     u = model.draws(6, rng=5)
     ratios, poses = model.output_ratios(u, t, with_poses=True)
@@ -184,7 +184,7 @@ def test_the_ends_of_a_linear_axis_do_not_decide_when_its_errors_vary_along_it()
     kept = [np.array([0, 2]) if spec.kind == "linear" else np.arange(3)
             for spec in machine.axis_specs]
     ends = GridExperiment(machine, 3, "independent", kept_points=kept)
-    model = YieldModel(machine, profile="independent", points_per_axis=3)
+    model = YieldModel(machine, profile="independent", points=3)
     u = model.draws(20, rng=5)
     errors = model.errors(u, 4.0 * machine.initial_allocation)
     at_ends = np.max(np.abs(ends.evaluate(*errors)), axis=1)
@@ -193,7 +193,7 @@ def test_the_ends_of_a_linear_axis_do_not_decide_when_its_errors_vary_along_it()
 
 
 def test_draws_come_from_the_seed_through_the_stream_door(mill):
-    model = YieldModel(mill, points_per_axis=3)
+    model = YieldModel(mill, points=3)
     u = model.draws(7, rng=3)
     assert u.shape == (7, model.dimension)
     np.testing.assert_array_equal(u, model.draws(7, rng=np.random.default_rng(3)))
@@ -204,7 +204,7 @@ def test_draws_come_from_the_seed_through_the_stream_door(mill):
 def test_proposal_weights_are_the_exact_density_ratio(mill):
     """Under the proposal, E_q[w] = 1 and E_q[w 1(F_r)] = p_r for every row (because
     w = φ/q exactly), checked at z = 4."""
-    model = YieldModel(mill, profile="constant", distribution="normal", points_per_axis=3)
+    model = YieldModel(mill, profile="constant", distribution="normal", points=3)
     t = 0.8 * mill.initial_allocation
     events = RowEvents.dominant(model.linear, t)
     u = events.draw(np.random.default_rng(4), 40_000)
@@ -225,7 +225,7 @@ def test_importance_sampling_agrees_with_crude_on_a_moderate_yield(mill, profile
     """Unbiased for the true failure indicator: non-linear chain, and under 'truncated'
     the copula map of the draws."""
     t = scale * mill.initial_allocation
-    options = {"profile": profile, "distribution": distribution, "points_per_axis": 3}
+    options = {"profile": profile, "distribution": distribution, "points": 3}
     crude = machine_yield(mill, t, machines=40_000, rng=5, method="crude", **options)
     weighted = machine_yield(mill, t, machines=4000, rng=6, method="importance",
                              target_cov=0.01, **options)
@@ -241,7 +241,7 @@ def test_importance_intervals_cover_a_small_failure_probability(mill):
     95 % intervals should cover about 38 times; at least 32 (P < 1e-4 for correct
     intervals)."""
     t = 0.5 * mill.initial_allocation
-    model = YieldModel(mill, points_per_axis=3)
+    model = YieldModel(mill, points=3)
     truth = model.estimate(t, machines=30_000, rng=7, method="importance", target_cov=0.005)
     assert 1e-6 < truth.failure_probability < 1e-3
     covered = 0
@@ -254,20 +254,20 @@ def test_importance_intervals_cover_a_small_failure_probability(mill):
 
 def test_auto_switches_to_importance_and_beats_crude(mill):
     t = 0.5 * mill.initial_allocation
-    result = machine_yield(mill, t, points_per_axis=3, machines=4000, rng=8, target_cov=0.1)
+    result = machine_yield(mill, t, points=3, machines=4000, rng=8, target_cov=0.1)
     assert result.method == "importance" and "< 50" in result.method_reason
     assert result.cov <= 0.1
     assert result.crude_equivalent > 20 * result.machines
     assert "1 − " not in f"{result.estimate}"  # a number, not a rounded 1
     assert result.estimate < 1.0
-    moderate = machine_yield(mill, mill.initial_allocation, points_per_axis=3, machines=4000,
+    moderate = machine_yield(mill, mill.initial_allocation, points=3, machines=4000,
                              rng=8)
     assert moderate.method == "crude"
 
 
 def test_first_order_bounds_bracket_the_yield_and_are_the_row_formulas(mill):
     t = 0.7 * mill.initial_allocation
-    model = YieldModel(mill, profile="constant", distribution="normal", points_per_axis=3)
+    model = YieldModel(mill, profile="constant", distribution="normal", points=3)
     lower, upper = model.first_order_bounds(t)
     prediction = fosm(mill, t, model.experiment.poses, distribution="normal")
     failure = 2 * norm.sf(mill.limits / prediction.sigma)
@@ -280,7 +280,7 @@ def test_first_order_bounds_bracket_the_yield_and_are_the_row_formulas(mill):
 
 def test_failure_shares_sum_to_one_and_name_readable_regions(mill):
     result = machine_yield(mill, mill.initial_allocation, profile="constant",
-                           points_per_axis=3, machines=3000, rng=10, method="crude")
+                           points=3, machines=3000, rng=10, method="crude")
     shares = result.failure_shares
     assert shares["share"].sum() == pytest.approx(1.0)
     assert shares["failures"].sum() == result.failures
@@ -297,7 +297,7 @@ def test_failure_shares_sum_to_one_and_name_readable_regions(mill):
     ({"machines": 0}, "machines"), ({"profile": "wavy"}, "unknown profile"),
     ({"method": "fast"}, "method"), ({"distribution": "uniform"}, "distribution"),
     ({"confidence": 1.5}, "confidence"), ({"target_cov": 0.0}, "target_cov"),
-    ({"points_per_axis": 1}, "points_per_axis")])
+    ({"points": 1}, "points must be")])
 def test_bad_inputs_are_refused_naming_the_argument(mill, kwargs, words):
     with pytest.raises(InputError, match=words):
         machine_yield(mill, mill.initial_allocation, **kwargs)
@@ -322,7 +322,7 @@ def test_command_line_refuses_bad_yield_options(tmp_path, capsys, argv, words):
 
 
 def test_summary_opens_with_the_yield_of_both_allocations(mill):
-    study = machine_study.run(mill, points=3, repeats=2, samples=200, seed=1, machines=400)
+    study = machine_study.run(mill, points=3, repeats=2, samples=200, rng=1, machines=400)
     info = machine_study.summary(study)
     assert list(info)[:4] == ["yield", "yield_interval", "yield_profile", "yield_machines"]
     assert set(info["yield"]) == {"initial", "optimal"}
@@ -331,7 +331,7 @@ def test_summary_opens_with_the_yield_of_both_allocations(mill):
         assert info["yield"][name] == estimate.estimate
         assert info["yield_interval"][name] == [estimate.lower, estimate.upper]
     assert info["yield_profile"] == "constant" and info["yield_machines"] == 400
-    blocked = machine_study.run(mill, points=3, repeats=2, samples=200, seed=1,
+    blocked = machine_study.run(mill, points=3, repeats=2, samples=200, rng=1,
                                 machines=200, bounds=(1.0, 1.0))
     info = machine_study.summary(blocked)
     assert not info["reachable"]
@@ -360,7 +360,7 @@ def test_a_saved_yield_reloads_with_its_verdicts_and_refuses_a_changed_count(
         mill, tmp_path, scale, method):
     """save/load keeps every field and the failure shares; a file whose counts no longer
     give its yield (or whose file exists) is refused."""
-    result = machine_yield(mill, scale * mill.initial_allocation, points_per_axis=3,
+    result = machine_yield(mill, scale * mill.initial_allocation, points=3,
                            machines=1500, rng=12, method=method, target_cov=0.2)
     assert inspect.signature(result.save).parameters["overwrite"].default is False
     path = result.save(tmp_path / "yield.json")
@@ -382,7 +382,7 @@ def test_a_saved_yield_reloads_with_its_verdicts_and_refuses_a_changed_count(
 
 
 def test_a_saved_crude_yield_must_match_its_passing_machines(mill, tmp_path):
-    result = machine_yield(mill, mill.initial_allocation, points_per_axis=3, machines=1000,
+    result = machine_yield(mill, mill.initial_allocation, points=3, machines=1000,
                            rng=13, method="crude")
     assert result.failures > 0
     path = result.save(tmp_path / "yield.json")

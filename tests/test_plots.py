@@ -473,7 +473,7 @@ def test_convergence_takes_the_history_solve_gwo_returns(mill3):
 
 def test_repeats_leaves_out_table9_summary_rows(hobbing):
     from reliability.sampling.grid_experiment import GridExperiment
-    result = GridExperiment(hobbing, points_per_axis=2).run(
+    result = GridExperiment(hobbing, points=2).run(
         hobbing.initial_allocation, repeats=3, rng=0)
     ax = plot_repeats(result.table9())
     # One point per experiment and output: 3 x 6, none for Avg/Min/Max.
@@ -493,7 +493,7 @@ def test_every_report_figure_is_readable_and_draws_the_tables_interval(mill3):
     from studies.report import machine_sections
     from studies.report.extras import EXTRAS, builders
     from studies.workflows import machine_study
-    study = machine_study.run(mill3, points=3, repeats=4, samples=500, seed=0)
+    study = machine_study.run(mill3, points=3, repeats=4, samples=500, rng=0)
     sections = machine_sections.sections(study, extra=builders(EXTRAS))
     figures = {name: figure for section in sections
                for name, figure in section.figures.items()}

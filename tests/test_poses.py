@@ -41,7 +41,7 @@ def test_grid_order_first_axis_slowest(hobbing):
     assert strides == [3125, 625, 125, 25, 5, 1]
 
 
-def test_grid_points_per_axis(mill3, trunnion5):
+def test_grid_points(mill3, trunnion5):
     assert workspace_grid(mill3, 3).shape == (27, 3)
     np.testing.assert_array_equal(np.unique(workspace_grid(mill3, 3)[:, 1]), [-300, 0, 300])
     points = grid_axis_points(trunnion5, 4)
@@ -52,7 +52,7 @@ def test_grid_points_per_axis(mill3, trunnion5):
 
 @pytest.mark.parametrize("bad", [1, 0, -3, 2.5, "5", True])
 def test_grid_refusals(hobbing, bad):
-    with pytest.raises((ValueError, TypeError), match="points_per_axis"):
+    with pytest.raises((ValueError, TypeError), match="points must be"):
         workspace_grid(hobbing, bad)
 
 

@@ -31,7 +31,7 @@ PINNED_INSIDE = [[15625, 15625, 15625, 15625, 15625, 15625],
 
 def _many(machine, profile, n, seed, points=5, k=3.0, distribution="normal", t=None):
     """``n`` experiments' motion errors ``(n, n_axes, P, 6)`` through the three stages."""
-    axis_points = GridExperiment(machine, points).points
+    axis_points = GridExperiment(machine, points).axis_points
     factors = travel_factors(machine, axis_profiles(machine, profile), axis_points)
     z = standard_normals(np.random.default_rng(seed), (n, len(axis_points), points, 6))
     t = np.ones((len(axis_points), 6)) if t is None else t
@@ -116,7 +116,7 @@ def test_periodic_kernel_wraps_on_a_full_turn_axis(hobbing):
     expected = math.exp(-2 * math.sin(delta / 2) ** 2 / (2000.0 / 1500.0) ** 2)
     assert c[0, 1] == pytest.approx(expected, rel=1e-14)
     # on the grid, the last point (1.6π) neighbours the first as closely as the second does
-    grid = GridExperiment(hobbing).points[0]
+    grid = GridExperiment(hobbing).axis_points[0]
     on_grid = model.correlation(axis, grid)
     assert on_grid[0, -1] == pytest.approx(on_grid[0, 1], rel=1e-12)
     # small angles: the squared exponential in arc length
@@ -143,7 +143,7 @@ def test_cholesky_factor_keeps_a_unit_diagonal_when_jitter_is_needed():
 
 
 def test_factors_reproduce_the_kernel(hobbing):
-    points = GridExperiment(hobbing).points
+    points = GridExperiment(hobbing).axis_points
     models = axis_profiles(hobbing, "gp:300")
     for model, axis, p, factor in zip(models, hobbing.axis_specs, points,
                                       travel_factors(hobbing, models, points)):

@@ -25,7 +25,7 @@ def small(hobbing):
     allocations = {"table6": hobbing.error_vector(TABLE6, default=None),
                    "wide": hobbing.initial_allocation * 1.3}
     frame = profile_comparison(hobbing, allocations, ("independent", "gp:200", "constant"),
-                               (4, 40), seed=1, keep=kept)
+                               (4, 40), rng=1, keep=kept)
     return frame, kept
 
 
@@ -64,8 +64,8 @@ def test_paper_check_quantiles_and_percentile(small):
 def test_systematic_effect_lowers_the_worst_pose(hobbing):
     bow = measured_profile(hobbing, "X.dz", [0.0, 200.0, 400.0], [0.006, -0.003, 0.006])
     effect = systematic_effect(hobbing, hobbing.error_vector(TABLE6, default=None),
-                               SystematicErrors(hobbing, (bow,)), repeats=6, seed=3,
-                               points_per_axis=3)
+                               SystematicErrors(hobbing, (bow,)), repeats=6, rng=3,
+                               points=3)
     assert effect.loc["dz", "worst_with"] < effect.loc["dz", "worst_without"]
     assert effect.loc["ex", "worst_with"] == effect.loc["ex", "worst_without"]
     assert effect.loc["dz", "largest_output_mean"] == pytest.approx(0.006, rel=1e-6)

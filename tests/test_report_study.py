@@ -57,7 +57,7 @@ def swivel_gp():
 
 @pytest.fixture(scope="module")
 def study(swivel_gp):
-    return machine_study.run(swivel_gp, points=POINTS, seed=SEED, repeats=2, samples=200,
+    return machine_study.run(swivel_gp, points=POINTS, rng=SEED, repeats=2, samples=200,
                              machines=MACHINES, workspace="grid")
 
 
@@ -74,7 +74,7 @@ def two_tests(tmp_path_factory, swivel_gp):
 def test_the_yield_is_machine_yield_on_its_named_stream(study, swivel_gp):
     for name, tolerances in (("initial", swivel_gp.initial_allocation),
                              ("optimum", study.allocated)):
-        alone = machine_yield(swivel_gp, tolerances, machines=MACHINES, points_per_axis=POINTS,
+        alone = machine_yield(swivel_gp, tolerances, machines=MACHINES, points=POINTS,
                               rng=machine_yield_stream(SEED))
         reported = study.checks[name].machine_yield
         assert (alone.estimate, alone.lower, alone.upper) == \

@@ -43,7 +43,7 @@ def swivel():
 @pytest.fixture(scope="module")
 def study(swivel):
     """A small study of the long-named swivel machine on its 3-point grid."""
-    return machine_study.run(swivel, points=3, seed=0, repeats=2, samples=300,
+    return machine_study.run(swivel, points=3, rng=0, repeats=2, samples=300,
                              machines=200, workspace="grid")
 
 
@@ -130,7 +130,7 @@ def test_failure_regions_say_which_positions_the_worst_poses_share(study):
     from reliability.sampling.machine_yield import YieldModel
 
     machine = study.machine
-    model = YieldModel(machine, points_per_axis=3)
+    model = YieldModel(machine, points=3)
     u = np.random.default_rng(11).standard_normal((3000, model.dimension))
     failed, rows = model.worst_rows(u, study.allocated)
     rows = rows[failed]

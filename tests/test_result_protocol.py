@@ -148,11 +148,11 @@ def build(name, request):
         "RareEventResult": lambda: (failure_probability(mill3, 3 * t, get("grid")[0],
                                                         event="dx", rng=1), {}),
         "SobolIndices": lambda: (sobol_indices(mill3, samples=64, resamples=20,
-                                               points_per_axis=2, rng=1), {}),
+                                               points=2, rng=1), {}),
         "YieldSensitivity": lambda: (yield_sensitivity(
-            YieldModel(mill3, points_per_axis=2), t, machines=300, rng=1), {}),
+            YieldModel(mill3, points=2), t, machines=300, rng=1), {}),
         "Verification": lambda: (get("verification"), {}),
-        "YieldEstimate": lambda: (machine_yield(mill3, t, points_per_axis=2, machines=200,
+        "YieldEstimate": lambda: (machine_yield(mill3, t, points=2, machines=200,
                                                 rng=1), {}),
         "Identification": lambda: (get("identification"), {"machine": mill3}),
         "CompensationTables": lambda: (compensation_tables(get("identification"),
@@ -198,7 +198,7 @@ def _compensated(mill3, plan):
 
 def _yield_allocation(mill3):
     result = allocate_for_yield(mill3, 0.9, profile="constant", points=2, machines=300,
-                                seed=1, rounds=2, naive_steps=3, restore_steps=1,
+                                rng=1, rounds=2, naive_steps=3, restore_steps=1,
                                 shape_steps=2)
     extra = {"search_problem": result.search_problem} if result.from_narrower_box else {}
     return result, {"problem": result.problem, **extra}

@@ -32,7 +32,7 @@ N_POSES = 100
 @pytest.fixture
 def result():
     return GridExperimentResult(limits=LIMITS.copy(), inside=INSIDE.copy(), n_poses=N_POSES,
-                                distribution="normal", k=2.5, points_per_axis=3)
+                                distribution="normal", k=2.5, points=3)
 
 
 def test_fractions_and_all_inside(result):
@@ -114,7 +114,7 @@ def test_to_frame(result):
     assert tuple(frame.columns) == FRAME_COLUMNS + METADATA_COLUMNS
     assert len(frame) == 4 * 6
     assert set(frame["distribution"]) == {"normal"} and set(frame["k"]) == {2.5}
-    assert set(frame["points_per_axis"]) == {3}
+    assert set(frame["points"]) == {3}
     np.testing.assert_array_equal(frame["repeat"], np.repeat([1, 2, 3, 4], 6))
     assert list(frame["output"]) == list(OUTPUTS) * 4
     np.testing.assert_array_equal(frame["limit"], np.tile(LIMITS, 4))
@@ -136,7 +136,7 @@ def test_from_frame_round_trip_in_any_row_order(result):
     frame = result.to_frame()
     back = GridExperimentResult.from_frame(frame)  # how it was drawn travels with it
     _same(back, result)
-    assert (back.distribution, back.k, back.points_per_axis) == ("normal", 2.5, 3)
+    assert (back.distribution, back.k, back.points) == ("normal", 2.5, 3)
     assert back.values is None
     shuffled = frame.sample(frac=1.0, random_state=0).reset_index(drop=True)
     _same(GridExperimentResult.from_frame(shuffled), result)
@@ -148,7 +148,7 @@ def test_save_and_load_round_trip(result, tmp_path):
     assert written == path and path.exists()
     back = GridExperimentResult.load(path)
     _same(back, result)
-    assert (back.distribution, back.k, back.points_per_axis) == ("normal", 2.5, 3)
+    assert (back.distribution, back.k, back.points) == ("normal", 2.5, 3)
     pd.testing.assert_frame_equal(pd.read_csv(path), result.to_frame(), check_dtype=False)
 
 

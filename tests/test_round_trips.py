@@ -43,7 +43,7 @@ def study(swivel5):
     its certified optimum sits on its targets, where a nearest six-digit rounding of the
     tolerances misses three of them."""
     return machine_study.run(swivel5, points=3, workspace="grid", repeats=2, samples=200,
-                             machines=50, seed=3)
+                             machines=50, rng=3)
 
 
 @pytest.fixture(scope="module")
@@ -101,7 +101,7 @@ def test_the_report_says_its_own_optimum_meets_its_targets(study, tmp_path):
 def test_the_yield_of_the_written_allocation_is_the_yield_in_memory(study, swivel5,
                                                                      tmp_path):
     path = study.optimum.to_csv(tmp_path / "allocation.csv", significant=SIGNIFICANT)
-    options = {"points_per_axis": 3, "machines": 400, "rng": 11, "method": "crude"}
+    options = {"points": 3, "machines": 400, "rng": 11, "method": "crude"}
     computed = machine_yield(swivel5, study.optimum.tolerances, **options)
     read = machine_yield(swivel5, read_allocation_csv(path, swivel5), **options)
     # the same built machines, each tolerance at most 1e-5 tighter: the same count, or one
@@ -146,7 +146,7 @@ def test_a_front_file_keeps_its_targets_short_of_1(mill3, tmp_path):
 
 def test_a_sweep_results_file_keeps_its_targets_short_of_1(tmp_path):
     spec = SweepSpec(machines=(str(HERE / "machines" / "mill3.toml"),), sides=("two_sided",),
-                     targets=(NEAR_ONE,), seeds=(0,), repeats=(1,), points_per_axis=3)
+                     targets=(NEAR_ONE,), seeds=(0,), repeats=(1,), points=3)
     result = run_sweep(spec, tmp_path / "store")  # out of reach in the box: no sampling
     read = pd.read_csv(result.path)
     assert read["target"].iloc[0] < 1

@@ -247,7 +247,7 @@ def test_evaluate_matches_reference_and_literal_product(machines, name, points):
 
     # Literal Eq. 16-18: M_e and M hold entries up to the lever length L, so rounding in
     # inv(M) @ M_e - I is a few eps * L absolutely for δ and a few eps for ε. Bound: 64 eps.
-    literal = literal_grid_errors(m, g.points, motion, assembly)
+    literal = literal_grid_errors(m, g.axis_points, motion, assembly)
     bound = 64 * EPS * np.array([1 + lever_length(m)] * 3 + [1.0] * 3)
     difference = np.abs(fast - literal).max(axis=(0, 1))
     assert np.all(difference <= bound), (
@@ -284,7 +284,7 @@ def test_one_axis_machine_is_evaluated():
     motion, assembly = _large_draws(m, 4, repeats=2, seed=5)
     assert assembly.shape == (2, 0, 6)
     fast = g.evaluate(motion, assembly)
-    literal = literal_grid_errors(m, g.points, motion, assembly)
+    literal = literal_grid_errors(m, g.axis_points, motion, assembly)
     bound = 64 * EPS * np.array([1 + lever_length(m)] * 3 + [1.0] * 3)
     assert np.all(np.abs(fast - literal).max(axis=(0, 1)) <= bound)
 
@@ -337,7 +337,7 @@ def test_evaluate_refuses_wrong_shapes(hob):
         g.evaluate(np.zeros((1, 6, 5, 6)), np.zeros((1, 5, 6)))
     with pytest.raises(ValueError, match="assembly errors"):
         g.evaluate(np.zeros((1, 6, 3, 6)), np.zeros((2, 5, 6)))
-    with pytest.raises(ValueError, match="points_per_axis"):
+    with pytest.raises(ValueError, match="points must be"):
         GridExperiment(hob, 1)
 
 
@@ -414,7 +414,7 @@ def test_run_same_seed_same_counts_and_matches_its_documented_procedure(hob, gri
     b = grid3.run(t, repeats=5, rng=42, keep_values="none")
     np.testing.assert_array_equal(a.inside, b.inside)
     assert a.inside.dtype.kind == "i" and a.inside.shape == (5, 6)
-    assert a.n_poses == 729 and a.points_per_axis == 3
+    assert a.n_poses == 729 and a.points == 3
     assert a.distribution == "truncated" and a.k == 3.0
     np.testing.assert_array_equal(a.limits, hob.limits)
     # Repeat r: errors from the r-th generator spawned from the seed; Eq. (19) strict.

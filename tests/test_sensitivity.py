@@ -21,7 +21,7 @@ MILL = "tests/machines/mill3.toml"
 
 
 def test_sobol_indices_of_a_nearly_linear_chain_are_its_fosm_variance_shares(mill3):
-    result = sobol_indices(mill3, samples=1000, points_per_axis=3, rng=5)
+    result = sobol_indices(mill3, samples=1000, points=3, rng=5)
     shares = fosm_shares(mill3, mill3.initial_allocation, result.poses)
     moving = np.isfinite(shares)
     # the bootstrap half-width is z = 1.96 standard errors
@@ -41,7 +41,7 @@ def test_sobol_indices_refuse_correlated_errors(mill3):
 
 @pytest.mark.parametrize("profile", ["constant", "independent"])
 def test_the_yield_score_function_agrees_with_central_differences(mill3, profile):
-    model = YieldModel(mill3, profile=profile, points_per_axis=3)
+    model = YieldModel(mill3, profile=profile, points=3)
     t = mill3.initial_allocation
     draws = model.draws(2000, rng=11)
     score = yield_sensitivity(model, t, draws=draws)
@@ -58,14 +58,14 @@ def test_the_yield_score_function_agrees_with_central_differences(mill3, profile
 
 def test_item_scores_have_mean_zero_under_correlation_and_a_travel_profile(mill3):
     machine = mill3.with_correlation({("X.ey", "X.dz"): 0.6, ("Y-X.dx", "X-Z.dy"): -0.4})
-    model = YieldModel(machine, profile="gp:200", points_per_axis=3)
+    model = YieldModel(machine, profile="gp:200", points=3)
     scores = item_scores(model, model.draws(4000, rng=3))
     se = scores.std(axis=0, ddof=1) / np.sqrt(len(scores))
     assert np.all(np.abs(scores.mean(axis=0)) <= Z_MANY * se)
 
 
 def test_the_score_function_refuses_the_truncated_reading(mill3):
-    model = YieldModel(mill3, distribution="truncated", points_per_axis=2)
+    model = YieldModel(mill3, distribution="truncated", points=2)
     with pytest.raises(InputError, match="method 'difference'"):
         yield_sensitivity(model, mill3.initial_allocation, machines=10, method="score")
     auto = yield_sensitivity(model, mill3.initial_allocation, machines=20, rng=1,

@@ -40,7 +40,7 @@ def mill(tmp_path):
 
 def small_spec(machine, **changes):
     options = dict(machines=(machine,), sides=("one_sided", "two_sided"),
-                   targets=(0.99, 0.999), seeds=(0, 1, 2), repeats=(3,), points_per_axis=3)
+                   targets=(0.99, 0.999), seeds=(0, 1, 2), repeats=(3,), points=3)
     options.update(changes)
     return SweepSpec(**options)
 
@@ -222,7 +222,7 @@ def parse(argv):
 def test_command_writes_results_and_reports_resumed_tasks(mill, tmp_path, capsys):
     spec = tmp_path / "spec.toml"
     spec.write_text(f'machines = ["{mill}"]\nsides = ["two_sided"]\ntargets = [0.99]\n'
-                    'seeds = [0, 1]\nrepeats = [2]\npoints_per_axis = 3\n')
+                    'seeds = [0, 1]\nrepeats = [2]\npoints = 3\n')
     store = tmp_path / "out"
     assert command.run(parse(["sweep", str(spec), "--out", str(store)])) == 0
     first = capsys.readouterr()
@@ -248,7 +248,7 @@ def test_command_still_reads_the_old_store_spelling(mill, tmp_path, capsys):
     """``--store DIR``, the old spelling of ``--out DIR``, works with a warning."""
     spec = tmp_path / "spec.toml"
     spec.write_text(f'machines = ["{mill}"]\nsides = ["two_sided"]\ntargets = [0.99]\n'
-                    'seeds = [0]\nrepeats = [2]\npoints_per_axis = 3\n')
+                    'seeds = [0]\nrepeats = [2]\npoints = 3\n')
     assert command.run(parse(["sweep", str(spec), "--store", str(tmp_path / "s")])) == 0
     err = capsys.readouterr().err
     assert "precrel: warning: --store is deprecated; use --out" in err

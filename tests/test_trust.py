@@ -80,7 +80,7 @@ def test_report_and_verify_print_the_same_monte_carlo_numbers(lean_mill_report, 
 def test_the_report_verifies_the_allocation_as_written(tmp_path, mill3):
     from studies.workflows import machine_study
 
-    study = machine_study.run(mill3, points=3, repeats=2, samples=500, seed=9)
+    study = machine_study.run(mill3, points=3, repeats=2, samples=500, rng=9)
     written = read_allocation_csv(_written_allocation(tmp_path, study), mill3)
     np.testing.assert_array_equal(study.allocated, written)
     check = verify(mill3, written, points=3, repeats=2, samples=500, rng=9)

@@ -24,7 +24,7 @@ MACHINE_DIR = Path(__file__).parent / "machines"
 def swivel_model():
     """A workpiece-frame machine whose motion errors differ at every grid point."""
     machine = reliability.load_machine(MACHINE_DIR / "swivel5.toml")
-    return YieldModel(replace(machine, profile="independent"), points_per_axis=3)
+    return YieldModel(replace(machine, profile="independent"), points=3)
 
 
 def test_ratios_at_the_grid_worst_poses_are_the_grid_ratios(swivel_model):

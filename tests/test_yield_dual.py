@@ -171,7 +171,7 @@ def box_yield_scale(t, target):
 def stepped(trunnion5):
     """trunnion5 (3-point grid, 300 machines) with one convex step on 2 000 machines."""
     return allocate_for_yield(trunnion5, 0.9, profile="constant", points=3, machines=300,
-                              seed=3, convex_steps=1, convex_machines=2000)
+                              rng=3, convex_steps=1, convex_machines=2000)
 
 
 def test_allocation_for_yield_takes_the_convex_step_where_the_theorem_holds(stepped,
@@ -187,19 +187,29 @@ def test_allocation_for_yield_takes_the_convex_step_where_the_theorem_holds(step
     assert "convex steps: 1 step from the search's allocation" in stepped.summary()
     assert "2,000 machines of their own" in stepped.summary()
     truncated = allocate_for_yield(trunnion5, 0.9, profile="constant", points=3,
-                                   machines=300, seed=3, convex_steps=1,
+                                   machines=300, rng=3, convex_steps=1,
                                    distribution="truncated")
     assert truncated.convex_step_cost is None and truncated.method != "convex step"
     assert "convex steps: not run: the reading is 'truncated'" in truncated.summary()
 
 
+def test_log_concave_bound_takes_seed_and_a_generator(stepped):
+    """``seed=`` is the deprecated spelling of ``rng=`` (the same bound, with a warning);
+    a Generator of the same seed gives the same samples (one spawn of it)."""
+    with pytest.warns(DeprecationWarning, match="seed is deprecated; use rng"):
+        old = log_concave_bound(stepped, machines=2000, steps=0, seed=2)
+    new = log_concave_bound(stepped, machines=2000, steps=0, rng=2)
+    drawn = log_concave_bound(stepped, machines=2000, steps=0, rng=np.random.default_rng(2))
+    assert old.bound == new.bound == drawn.bound
+
+
 def test_bound_of_an_allocation_for_yield_lies_below_its_cost(stepped):
     """The bound at the result itself (no step) is below the result's cost and its point is
     the result; a step moves it to a cheaper point at yield near Y on its sample."""
-    at_start = log_concave_bound(stepped, machines=4000, steps=0, seed=1)
+    at_start = log_concave_bound(stepped, machines=4000, steps=0, rng=1)
     np.testing.assert_array_equal(at_start.point, stepped.tolerances)
     assert at_start.bound < at_start.point_estimate < stepped.cost
-    moved = log_concave_bound(stepped, machines=4000, steps=1, seed=1)
+    moved = log_concave_bound(stepped, machines=4000, steps=1, rng=1)
     assert moved.point_cost < stepped.cost
     assert abs(moved.point_yield - 0.9) <= Z * np.sqrt(0.09 / 4000)
     assert "at 95% confidence" in moved.text(stepped.initial_cost)

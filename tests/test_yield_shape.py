@@ -18,7 +18,7 @@ TRUNNION = Path(__file__).parent / "machines" / "trunnion5.toml"
 @pytest.fixture(scope="module")
 def setting():
     machine = load_machine(TRUNNION)
-    model = YieldModel(machine, points_per_axis=3)
+    model = YieldModel(machine, points=3)
     u = np.random.default_rng(4).standard_normal((400, model.dimension))
     return machine, model, u
 
@@ -28,7 +28,7 @@ def test_contributions_sum_to_the_chains_worst_row(profile):
     """Σ_i J_ri x_i at each machine's worst row is the exact chain's value there to first
     order: at a tenth of the tolerances the relative difference is below 1e-4."""
     machine = load_machine(TRUNNION)
-    model = YieldModel(machine, profile=profile, points_per_axis=3)
+    model = YieldModel(machine, profile=profile, points=3)
     u = np.random.default_rng(1).standard_normal((50, model.dimension))
     t = 0.1 * machine.initial_allocation
     ratio, worst = model.worst_ratios(u, t)
@@ -66,7 +66,7 @@ def test_scaling_to_a_yield_finds_the_largest_scale_when_lower_bounds_hold_items
     stall; the scale found is then bisected: its yield reaches the target on the sample, a
     scale 1 % larger misses it, and the allocation is the clipped multiple of the shape."""
     machine = load_machine(Path(__file__).parent / "machines" / "trunnion5.toml")
-    model = YieldModel(machine, profile="constant", points_per_axis=3)
+    model = YieldModel(machine, profile="constant", points=3)
     u = model.draws(300, 4)
     shape = np.asarray(machine.initial_allocation, dtype=float)
     lower, upper = 0.2 * shape, 10.0 * shape

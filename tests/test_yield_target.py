@@ -40,7 +40,7 @@ NAIVE_KEPT_SEED = 7
 @pytest.fixture(scope="module")
 def result(trunnion5):
     return allocate_for_yield(trunnion5, Y, profile="constant", points=3, machines=MACHINES,
-                              seed=SEED)
+                              rng=SEED)
 
 
 def fosm_two_sided(machine, poses, t):
@@ -131,7 +131,7 @@ def test_calibration_scales_the_search_allocation_to_the_design_yield(result, tr
     np.testing.assert_allclose(final, np.clip(scale * found, problem.lower, problem.upper),
                                rtol=1e-12)
     assert result.calibrated
-    model = YieldModel(trunnion5, profile="constant", points_per_axis=3)
+    model = YieldModel(trunnion5, profile="constant", points=3)
     u = model.draws(MACHINES, streams.yield_allocation_streams(SEED)[4])
     for final, share in ((result.tolerances, result.calibration_yield),
                          (result.naive.tolerances, result.naive.calibration_yield)):
@@ -145,7 +145,7 @@ def test_a_calibrated_allocation_is_verified_in_at_least_97_5_percent_of_runs(tr
     above Y in at least 97.5 % of 40 pairs of samples (the failures at most their
     expectation 1 plus 3 binomial standard errors). Scaled to Y itself it fails in
     every one of these 40 pairs."""
-    model = YieldModel(trunnion5, profile="constant", points_per_axis=3)
+    model = YieldModel(trunnion5, profile="constant", points=3)
     problem = YieldSearch(trunnion5, 3, None, MACHINES, 0, 0.0).problem
     design = Y + DESIGN_Z * np.sqrt(Y * (1 - Y) / MACHINES)
     shape = 1.2 * problem.reference
@@ -164,7 +164,7 @@ def test_shape_stage_meets_the_design_yield_on_its_sample(result):
     shape stage (when it won) is cheaper than the per-output stage alone."""
     assert result.design_yield.estimate >= result.design_yield_target
     targets_only = allocate_for_yield(result.problem.machine, Y, points=3,
-                                      machines=MACHINES, seed=SEED, shape_steps=0)
+                                      machines=MACHINES, rng=SEED, shape_steps=0)
     assert result.search_cost <= targets_only.search_cost
     if result.method == "error shape":
         assert result.cost < targets_only.cost
@@ -174,7 +174,7 @@ def test_naive_target_is_one_common_target(result):
     """rounds=0 without the shape stage is the naive method alone, and the same seed gives
     the same naive point."""
     naive = allocate_for_yield(result.problem.machine, Y, points=3, machines=MACHINES,
-                               seed=SEED, rounds=0, shape_steps=0)
+                               rng=SEED, rounds=0, shape_steps=0)
     assert naive.method == "per-output targets"
     assert np.array_equal(naive.tolerances, result.naive.tolerances)
     assert naive.cost == pytest.approx(result.naive.cost, rel=1e-9)
@@ -205,7 +205,7 @@ def test_both_stages_and_verify_judge_machines_by_one_engine(result):
     YieldModel.output_ratios on one draw per sample from the seed's streams; and verify's
     crude yield (YieldModel.estimate) on the same draws gives the same verdicts."""
     machine = result.problem.machine
-    model = YieldModel(machine, points_per_axis=result.points)
+    model = YieldModel(machine, points=result.points)
     search = YieldSearch(machine, result.points, None, MACHINES, result.seed, 0.0,
                      problem=result.problem)
     every = streams.yield_allocation_streams(result.seed)
@@ -250,6 +250,18 @@ def test_cost_at_yield_interpolates_linearly():
     assert np.isnan(_cost_at_yield(costs, passes, 0.75, weights)[0])
 
 
+def test_equal_yield_margin_takes_seed_and_refuses_a_generator(result):
+    """``seed=`` is the deprecated spelling of ``rng=`` (the same margin, with a warning);
+    a Generator is refused by name, the named streams deriving from an integer seed."""
+    with pytest.warns(DeprecationWarning, match="seed is deprecated; use rng"):
+        old = equal_yield_margin(result, seed=SEED + 4, resamples=20)
+    new = equal_yield_margin(result, rng=SEED + 4, resamples=20)
+    assert (old["naive"], old["result"], old["margin_error"]) == \
+        (new["naive"], new["result"], new["margin_error"])
+    with pytest.raises(InputTypeError, match="rng must be None or a non-negative integer"):
+        equal_yield_margin(result, rng=np.random.default_rng(SEED))
+
+
 def test_equal_yield_margin_is_paired_and_finite(result):
     margin = equal_yield_margin(result, level=Y, resamples=300)
     assert margin["level"] == Y
@@ -269,7 +281,7 @@ def test_two_sided_target_inverts_the_required_index():
     ({"yield_target": 0.0}, "yield_target"), ({"yield_target": 1.0}, "yield_target"),
     ({"yield_target": 1.5}, "yield_target"), ({"yield_target": True}, "yield_target"),
     ({"yield_target": 0.9, "machines": 0}, "machines"),
-    ({"yield_target": 0.9, "seed": -1}, "seed"),
+    ({"yield_target": 0.9, "rng": -1}, "rng"),
     ({"yield_target": 0.9, "rounds": -1}, "rounds"),
     ({"yield_target": 0.9, "convex_steps": -1}, "convex_steps"),
     ({"yield_target": 0.9, "convex_machines": 0}, "convex_machines"),
@@ -368,7 +380,7 @@ def nested_boxes(mill3):
     """One search in the default box and one in a box containing it (same seed, machines,
     grid); on these draws the wider box's own search ends dearer than the default box's once
     both are calibrated (cheaper before)."""
-    options = dict(points=3, machines=100, seed=1, rounds=2, shape_steps=6)
+    options = dict(points=3, machines=100, rng=1, rounds=2, shape_steps=6)
     return {box: allocate_for_yield(mill3, Y, bounds=box, **options)
             for box in ((0.5, 1.5), (0.375, 3.0))}
 
@@ -399,7 +411,7 @@ def test_naive_start_moves_towards_the_lower_bounds_when_its_target_cannot():
     target's allocation moved part of the way to the lower bounds, the search goes on from
     there, and the summary says so."""
     swivel5 = reliability.load_machine(MACHINE_DIR / "swivel5.toml")
-    result = allocate_for_yield(swivel5, Y, points=3, machines=MACHINES, seed=0, rounds=2,
+    result = allocate_for_yield(swivel5, Y, points=3, machines=MACHINES, rng=0, rounds=2,
                                 shape_steps=6)
     share = result.naive.toward_lower
     assert 0.0 < share < 1.0
@@ -420,14 +432,14 @@ def test_the_naive_start_is_the_result_when_it_is_cheaper_once_calibrated(trunni
     design yield on the calibration sample, so the result is the calibrated naive start,
     named as such, and the search's own costs stay on record."""
     result = allocate_for_yield(trunnion5, Y, profile="constant", points=3,
-                                machines=MACHINES, seed=NAIVE_KEPT_SEED)
+                                machines=MACHINES, rng=NAIVE_KEPT_SEED)
     assert result.method == "naive start"
     assert result.search_cost < result.naive.search_cost
     assert result.search_calibrated_cost > result.cost == result.naive.cost
     np.testing.assert_array_equal(result.tolerances, result.naive.tolerances)
     assert result.verified_yield.estimate == result.naive.verified_yield.estimate
     assert result.calibration_yield.estimate == result.naive.calibration_yield.estimate
-    model = YieldModel(trunnion5, profile="constant", points_per_axis=3)
+    model = YieldModel(trunnion5, profile="constant", points=3)
     u = model.draws(MACHINES, streams.yield_allocation_streams(NAIVE_KEPT_SEED)[4])
     problem = result.search_problem
     scaled = scaled_to_yield(model, problem.lower, problem.upper, result.search_tolerances,

@@ -58,6 +58,7 @@ from scipy.stats import beta, norm
 from reliability.basics import checks, streams
 from reliability.basics.display import percentage_text
 from reliability.basics.errors import InputError
+from reliability.basics.renamed import renamed
 from reliability.basics.threads import one_blas_thread
 from reliability.sampling.machine_yield import YieldModel
 
@@ -275,9 +276,10 @@ def tangent_bound(cost_weights, lower, upper, point, passes, gradient, error, ma
     return float(value(multiplier)), multiplier, np.exp(minimiser)
 
 
+@renamed("seed", "rng")
 @one_blas_thread
 def log_concave_bound(result, *, machines: int = 50_000, steps: int = 1,
-                      confidence: float = 0.95, seed: int = 0) -> YieldDualBound:
+                      confidence: float = 0.95, rng=0) -> YieldDualBound:
     """The lower bound of the module docstring for the yield of ``result``, with the
     tangent taken ``steps`` steps from ``result.tolerances``.
 
@@ -292,9 +294,10 @@ def log_concave_bound(result, *, machines: int = 50_000, steps: int = 1,
         Steps towards the tangent problem's optimum before the bound (0: at the start).
     confidence : float
         The bound holds with this probability over the bound's sample.
-    seed : int
-        Seed of the samples (:func:`reliability.basics.streams.spawn`, one stream per step
-        and the last for the bound).
+    rng : None, int or numpy.random.Generator
+        Source of the samples (:func:`reliability.basics.streams.spawn`, one stream per step
+        and the last for the bound). ``seed=`` is the deprecated spelling
+        (:mod:`reliability.basics.renamed`).
 
     Raises
     ------
@@ -313,11 +316,11 @@ def log_concave_bound(result, *, machines: int = 50_000, steps: int = 1,
         raise InputError(f"log_concave_bound: {why}; the yield is log-concave in the "
                          f"log-tolerances for independent normal errors constant along "
                          f"travel only")
-    model = YieldModel(machine, profile="constant", points_per_axis=result.points)
+    model = YieldModel(machine, profile="constant", points=result.points)
     rows = scaled_rows(machine, model.deciding_poses)
     weights = np.asarray(problem.cost.weights, dtype=float)
     lower, upper = np.asarray(problem.lower, float), np.asarray(problem.upper, float)
-    samples = streams.spawn(seed, steps + 1)
+    samples = streams.spawn(rng, steps + 1)
     point = np.asarray(result.tolerances, dtype=float)
     for step in range(steps):
         draws = samples[step].standard_normal((machines, len(point)))

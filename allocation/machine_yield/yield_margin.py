@@ -6,16 +6,18 @@ from __future__ import annotations
 
 import numpy as np
 
-from reliability.basics import checks
+from reliability.basics import checks, streams
+from reliability.basics.renamed import renamed
 from reliability.first_order.fosm import required_index
 
 from .yield_search import SearchPoint, YieldSearch
 from .yield_target import YieldAllocation
 
 
+@renamed("seed", "rng")
 def equal_yield_margin(result: YieldAllocation, *, level: float | None = None,
                        spacing: float = 0.04,
-                       machines: int | None = None, seed: int | None = None,
+                       machines: int | None = None, rng: int | None = None,
                        resamples: int = 2000) -> dict:
     """Cost of the naive method and of the result at one yield, and their difference with
     its error bar, measured on one fresh sample shared by both (paired).
@@ -35,8 +37,11 @@ def equal_yield_margin(result: YieldAllocation, *, level: float | None = None,
     The error bar is the bootstrap standard error over the sample's machines (Poisson
     weights, the same resample for both families, so the difference is paired). The shared
     sample and the weights draw from the second and the fourth stream of
-    :func:`reliability.basics.streams.yield_allocation_streams` of ``seed`` (by default
-    ``result.seed + 1``), and the machines are judged by the engine of the search.
+    :func:`reliability.basics.streams.yield_allocation_streams` of the integer seed ``rng``
+    (None: ``result.seed + 1``; a Generator is refused with an InputTypeError naming
+    ``rng``, as the named streams derive from an integer seed; ``seed=`` is the deprecated
+    spelling, :mod:`reliability.basics.renamed`), and the machines are judged by the engine
+    of the search.
 
     Returns
     -------
@@ -50,7 +55,7 @@ def equal_yield_margin(result: YieldAllocation, *, level: float | None = None,
     spacing = checks.finite_float(spacing, "spacing", 0.0, low_open=True)
     machines = result.machines if machines is None else checks.positive_int(machines,
                                                                             "machines")
-    seed = result.seed + 1 if seed is None else checks.positive_int(seed, "seed", minimum=0)
+    seed = result.seed + 1 if rng is None else streams.integer_seed(rng)
     resamples = checks.positive_int(resamples, "resamples")
     target = result.design_yield_target if level is None else checks.probability(level, "level")
     search = YieldSearch(result.problem.machine, result.points, None, machines, seed, 0.0,

@@ -114,7 +114,7 @@ class YieldSearch:
         self.solver = CommonTargetSolver(self.problem, gap_tol)
         self.gap_tol = gap_tol
         self.z_build = float(self.problem.required_index[0])
-        self.model = YieldModel(machine, points_per_axis=points, executor=executor)
+        self.model = YieldModel(machine, points=points, executor=executor)
         self.streams = streams.yield_allocation_streams(seed)
         self._draws = {}
         self.machines = machines

@@ -101,8 +101,9 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 import pandas as pd
 
-from reliability.basics import checks
+from reliability.basics import checks, streams
 from reliability.basics.errors import InputError
+from reliability.basics.renamed import renamed
 from reliability.basics.threads import one_blas_thread
 from reliability.basics.saved_fields import (Array, Flag, Integer, Mapping, Nested, Number,
                                             Text, Texts, read_fields, write_fields)
@@ -526,10 +527,11 @@ SAVED_FIELDS = (
     Mapping("seconds"))
 
 
+@renamed("seed", "rng")
 @one_blas_thread
 def allocate_for_yield(machine, yield_target: float, *, profile=None, distribution=None,
                        points: int = 5, bounds=None, machines: int = DEFAULT_MACHINES,
-                       seed: int = 0, rounds: int = 6, naive_steps: int = 8,
+                       rng: int | None = 0, rounds: int = 6, naive_steps: int = 8,
                        restore_steps: int = 4, shape_steps: int = 20,
                        convex_steps: int = 0, convex_machines: int | None = None,
                        gap_tol: float = 1e-6, executor=None) -> YieldAllocation:
@@ -555,11 +557,14 @@ def allocate_for_yield(machine, yield_target: float, *, profile=None, distributi
     machines : int
         Built machines in each sample: the design samples of the two stages and,
         independently, the calibration and the verification samples.
-    seed : int
+    rng : int or None
         Seed of the samples: the design sample of the per-output stage, the verification
         sample, the design sample of the shape stage and the calibration sample draw from
         the first, second, third and fifth streams of
-        :func:`reliability.basics.streams.yield_allocation_streams`, once each.
+        :func:`reliability.basics.streams.yield_allocation_streams`, once each; None draws
+        a fresh seed (recorded as the result's ``seed``). A Generator is refused
+        (InputTypeError naming ``rng``): the named streams derive from an integer seed.
+        ``seed=`` is the deprecated spelling (:mod:`reliability.basics.renamed`).
     rounds : int
         Rounds of the search over the six per-output targets (0: the naive method only).
     naive_steps, restore_steps : int
@@ -602,7 +607,7 @@ def allocate_for_yield(machine, yield_target: float, *, profile=None, distributi
     started = time.perf_counter()
     yield_target = checks.probability(yield_target, "yield_target")
     machines = checks.positive_int(machines, "machines")
-    seed = checks.positive_int(seed, "seed", minimum=0)
+    seed = streams.integer_seed(rng)
     for value, name in ((rounds, "rounds"), (naive_steps, "naive_steps"),
                         (restore_steps, "restore_steps"), (shape_steps, "shape_steps"),
                         (convex_steps, "convex_steps")):

@@ -15,6 +15,10 @@ the call which draws a number depends on:
   of the earlier numbers (the optional report sections, ``precrel verify --precision`` and
   ``--rare``).
 
+A function whose named streams need the integer itself (they are derived from it, not from
+a generator) takes it as ``rng`` too and reads it with :func:`integer_seed`: an integer, or
+None for a fresh one that the result records; a Generator is refused by name.
+
 Each quantity a report prints draws from one named stream of the report's seed, the same
 stream the command that computes that quantity alone draws from: :func:`machine_yield_stream`
 (the machine yield, ``precrel verify``), :func:`acceptance_stream` (acceptance tests, ``precrel
@@ -150,6 +154,42 @@ def yield_allocation_streams(seed) -> list[np.random.Generator]:
     second of ``S`` (its shared sample) and the fourth (the bootstrap's Poisson weights).
     """
     return spawn(seed, 6, "seed")
+
+
+def integer_seed(rng, name: str = "rng") -> int:
+    """The integer seed a function's named streams derive from: ``rng`` itself, or a fresh
+    one drawn from the operating system's entropy when ``rng`` is None (so that a result
+    recording its seed can be reproduced).
+
+    Parameters
+    ----------
+    rng : None or int
+        A non-negative integer seed, or None.
+    name : str
+        The argument's name in messages.
+
+    Returns
+    -------
+    int
+
+    Raises
+    ------
+    InputTypeError
+        ``rng`` is a Generator (or anything else that is not an integer): named streams
+        derive from an integer seed (:func:`spawn`, :func:`extra_stream`), which a
+        Generator does not expose.
+    InputError
+        ``rng`` is a negative integer.
+    """
+    if rng is None:
+        return int(np.random.default_rng().integers(2**63))
+    if isinstance(rng, (bool, np.bool_)) or not isinstance(rng, numbers.Integral):
+        raise InputTypeError(f"{name} must be None or a non-negative integer seed (the "
+                             f"named streams derive from an integer seed, so a Generator "
+                             f"is refused); got {rng!r} ({type(rng).__name__})")
+    if rng < 0:
+        raise InputError(f"{name} seed must be a non-negative integer; got {rng}")
+    return int(rng)
 
 
 def _seed(seed) -> int:

@@ -10,6 +10,7 @@ import numpy as np
 
 from ..basics import checks, streams
 from ..basics.errors import InputError
+from ..basics.renamed import renamed
 from .work_zone import inside_zone, zone_text
 
 #: Random poses drawn per accepted pose, at most, before a work zone is judged too small.
@@ -28,14 +29,14 @@ def axis_grid_points(axis, points: int) -> np.ndarray:
     return np.linspace(low, high, points)
 
 
-def grid_axis_points(machine, points_per_axis: int = 5) -> list[np.ndarray]:
+def grid_axis_points(machine, points: int = 5) -> list[np.ndarray]:
     """The grid points of every axis, in chain order."""
-    points_per_axis = checks.positive_int(points_per_axis, "points_per_axis", 2)
-    return [axis_grid_points(axis, int(points_per_axis)) for axis in machine.axis_specs]
+    points = checks.positive_int(points, "points", 2)
+    return [axis_grid_points(axis, int(points)) for axis in machine.axis_specs]
 
 
-def workspace_grid(machine, points_per_axis: int = 5, *, budget: int | None = None
-                   ) -> np.ndarray:
+@renamed("points_per_axis", "points")
+def workspace_grid(machine, points: int = 5, *, budget: int | None = None) -> np.ndarray:
     """The grid's poses in the workspace: all combinations of the axes' grid points, or on
     a machine with a work zone those inside it.
 
@@ -43,6 +44,15 @@ def workspace_grid(machine, points_per_axis: int = 5, *, budget: int | None = No
     axis varies slowest, the last fastest (5^6 = 15 625 rows for the paper's machine).
     The ``P^n`` rows must fit in ``budget`` bytes (default
     :data:`reliability.basics.checks.DEFAULT_BUDGET`), checked before any is built.
+
+    Parameters
+    ----------
+    machine : Machine
+    points : int
+        Grid points per axis, ``P >= 2`` (``points_per_axis=`` is its deprecated spelling,
+        :mod:`reliability.basics.renamed`).
+    budget : int, optional
+        Bytes the grid may take.
 
     Returns
     -------
@@ -54,34 +64,34 @@ def workspace_grid(machine, points_per_axis: int = 5, *, budget: int | None = No
     InputError
         When the machine has a work zone and no grid pose lies inside it.
     """
-    grid = full_grid(machine, points_per_axis, budget=budget)
+    grid = full_grid(machine, points, budget=budget)
     if machine.work_zone is None:
         return grid
-    return grid[grid_inside_zone(machine, grid, points_per_axis)]
+    return grid[grid_inside_zone(machine, grid, points)]
 
 
-def grid_inside_zone(machine, grid, points_per_axis: int) -> np.ndarray:
+def grid_inside_zone(machine, grid, points: int) -> np.ndarray:
     """Which rows of a full grid lie in the machine's work zone, ``(P^n,)`` bool; an
     InputError when none does."""
     inside = inside_zone(machine, grid)
     if not inside.any():
-        raise InputError(f"no pose of the {points_per_axis}-point grid lies in the "
+        raise InputError(f"no pose of the {points}-point grid lies in the "
                          f"{zone_text(machine)}; use more points per axis or check the "
                          f"zone against the strokes and the tool_offset")
     return inside
 
 
-def full_grid(machine, points_per_axis: int = 5, *, budget: int | None = None) -> np.ndarray:
+def full_grid(machine, points: int = 5, *, budget: int | None = None) -> np.ndarray:
     """All combinations of the axes' grid points, ``(P^n, n_axes)``, whatever the work
     zone (row order as :func:`workspace_grid`)."""
-    points = grid_axis_points(machine, points_per_axis)
-    n_axes = len(points)
+    axis_points = grid_axis_points(machine, points)
+    n_axes = len(axis_points)
     # the meshes and the stacked rows take 16 n bytes per pose
-    checks.require_size(len(points[0]) ** n_axes, 16 * n_axes, budget,
-                        f"a {len(points[0])}-point grid on {n_axes} axes",
+    checks.require_size(len(axis_points[0]) ** n_axes, 16 * n_axes, budget,
+                        f"a {len(axis_points[0])}-point grid on {n_axes} axes",
                         "use fewer points per axis, pass an explicit pose set, or draw "
                         "random poses")
-    mesh = np.meshgrid(*points, indexing="ij")  # first axis slowest, as itertools.product
+    mesh = np.meshgrid(*axis_points, indexing="ij")  # first axis slowest, as itertools.product
     return np.stack([axis.ravel() for axis in mesh], axis=-1).astype(float)
 
 

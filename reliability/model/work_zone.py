@@ -219,7 +219,7 @@ def zone_text(machine) -> str:
             f"frame)")
 
 
-def grid_text(machine, points_per_axis: int, n_poses: int) -> str:
+def grid_text(machine, points: int, n_poses: int) -> str:
     """The grid a study used, in words: ``5-point grid (15 625 poses; no work zone: every
     pose of the strokes)`` or ``5-point grid, 105 of its 3 125 poses inside the work zone
     …``.
@@ -227,14 +227,14 @@ def grid_text(machine, points_per_axis: int, n_poses: int) -> str:
     Parameters
     ----------
     machine : Machine
-    points_per_axis : int
+    points : int
     n_poses : int
         The grid poses the study used.
     """
-    whole = int(points_per_axis) ** len(machine.axis_specs)
+    whole = int(points) ** len(machine.axis_specs)
     if machine.work_zone is None:
-        return f"{points_per_axis}-point grid ({_count(whole)} poses; {zone_text(machine)})"
-    return (f"{points_per_axis}-point grid, {_count(n_poses)} of its {_count(whole)} poses "
+        return f"{points}-point grid ({_count(whole)} poses; {zone_text(machine)})"
+    return (f"{points}-point grid, {_count(n_poses)} of its {_count(whole)} poses "
             f"inside the {zone_text(machine)}")
 
 

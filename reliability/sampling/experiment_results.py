@@ -12,12 +12,15 @@ from ..basics import checks
 from ..basics.display import output_limits_text, percent_number
 from ..basics.errors import InputError, InputTypeError, SavedResultError
 from ..basics.files import write_csv
+from ..basics.renamed import renamed
 from ..basics.saved_results import encode_frame
 from ..basics.statistics import all_within_share, between_experiment_interval, proportion
 from ..model.machine import OUTPUTS
 
 FRAME_COLUMNS = ("repeat", "output", "limit", "inside", "outside", "fraction")
-METADATA_COLUMNS = ("distribution", "k", "points_per_axis")
+METADATA_COLUMNS = ("distribution", "k", "points")
+#: The name of the ``points`` column in tables saved by 0.3 and earlier (still read).
+OLD_POINTS_COLUMN = "points_per_axis"
 
 
 @dataclass(frozen=True, eq=False)
@@ -32,8 +35,9 @@ class GridExperimentResult:
         Poses with ``|y| < I`` (Eq. 19) in each experiment.
     n_poses : int
         Poses per experiment (15 625 for 5 points on 6 axes).
-    distribution, k, points_per_axis
-        How the errors were drawn and the grid.
+    distribution, k, points
+        How the errors were drawn and the grid points per axis (``points_per_axis=`` is
+        the deprecated spelling of ``points``, :mod:`reliability.basics.renamed`).
     values : ndarray (kept, n_poses, 6) or None
         Per-pose comprehensive errors of the kept experiments (Figs. 10–15).
     """
@@ -43,7 +47,7 @@ class GridExperimentResult:
     n_poses: int
     distribution: str = "truncated"
     k: float = 3.0
-    points_per_axis: int = 5
+    points: int = 5
     values: np.ndarray | None = None
 
     def __post_init__(self):
@@ -127,7 +131,7 @@ class GridExperimentResult:
             index=pd.Index(OUTPUTS, name="output"))
         return "\n".join([
             f"{self.repeats} grid experiments of {self.n_poses:,} poses "
-            f"({self.points_per_axis} points per axis), errors {self.distribution}, "
+            f"({self.points} points per axis), errors {self.distribution}, "
             f"t = ±{self.k:g}σ",
             f"machine-level yield: {int(self.all_inside.sum())} of {self.repeats} experiments "
             f"entirely within every limit ({machines.estimate:.1%}, {confidence:.0%} "
@@ -149,7 +153,7 @@ class GridExperimentResult:
                              "outside": self.n_poses - inside,
                              "fraction": inside / self.n_poses,
                              "distribution": self.distribution, "k": self.k,
-                             "points_per_axis": self.points_per_axis})
+                             "points": self.points})
 
     @classmethod
     def from_frame(cls, frame: pd.DataFrame, source: str = "grid-experiment table"
@@ -160,9 +164,11 @@ class GridExperimentResult:
         ``0 ≤ inside ≤ poses``, ``inside + outside`` the same pose count on every row, the
         fraction equal to ``inside / poses``, one limit per output and one value of each
         metadata column. The first problem raises :class:`SavedResultError` naming
-        ``source``, the row and the column.
+        ``source``, the row and the column. A table of 0.3 or earlier, whose grid column is
+        ``points_per_axis``, is read as well.
         """
-        table = _Table(frame, source, FRAME_COLUMNS + METADATA_COLUMNS)
+        table = _Table(_current_columns(frame, source), source,
+                       FRAME_COLUMNS + METADATA_COLUMNS)
         repeat = table.integers("repeat", minimum=1)
         output = table.labels("output", OUTPUTS, "outputs")
         limit = table.reals("limit", positive=True)
@@ -174,7 +180,7 @@ class GridExperimentResult:
         metadata = {c: table.same(c, c, table.frame[c]) for c in METADATA_COLUMNS}
         metadata["distribution"] = table.labels("distribution", ("truncated", "normal"))[0]
         k = table.reals("k", positive=True)[0]
-        points = int(table.integers("points_per_axis", minimum=2)[0])
+        points = int(table.integers("points", minimum=2)[0])
         table.each_once(("repeat", "output"), repeat, output, OUTPUTS)
         for name in OUTPUTS:
             rows = output == name
@@ -185,7 +191,7 @@ class GridExperimentResult:
         limits = np.array([limit[output == o][0] for o in OUTPUTS])
         return cls(limits=limits, inside=wide, n_poses=int(n_poses),
                    distribution=str(metadata["distribution"]), k=float(k),
-                   points_per_axis=points)
+                   points=points)
 
     def save(self, path, overwrite: bool = False) -> Path:
         """Write :meth:`to_frame` to CSV atomically; an existing file is kept unless
@@ -206,8 +212,23 @@ class GridExperimentResult:
         """The result from :meth:`payload`'s fields read through ``data`` (a
         :class:`~reliability.basics.saved_results.PayloadReader`), verified as
         :meth:`from_frame` says."""
-        return cls.from_frame(data.frame("table", columns=FRAME_COLUMNS + METADATA_COLUMNS),
+        return cls.from_frame(data.frame("table", columns=FRAME_COLUMNS),
                               source=f"{data.path}: field {data.where}.table")
+
+
+GridExperimentResult.__init__ = renamed("points_per_axis", "points")(
+    GridExperimentResult.__init__)
+
+
+def _current_columns(frame, source: str):
+    """``frame`` with a 0.3 table's ``points_per_axis`` column named ``points``; a table
+    with both raises :class:`SavedResultError` naming ``source``."""
+    if not isinstance(frame, pd.DataFrame) or OLD_POINTS_COLUMN not in frame.columns:
+        return frame
+    if "points" in frame.columns:
+        raise SavedResultError(f"{source}: the table has both columns 'points' and "
+                               f"{OLD_POINTS_COLUMN!r} (its former name); keep one")
+    return frame.rename(columns={OLD_POINTS_COLUMN: "points"})
 
 
 @dataclass(frozen=True, eq=False)

@@ -62,7 +62,7 @@ class FailureRegions:
     def _mean_along(self, a: int, values) -> np.ndarray:
         """Mean of per-pose ``values (n_poses, 6)`` at each grid point of axis ``a`` that
         some pose uses, ``(used points, 6)``."""
-        points = self.experiment.points_per_axis
+        points = self.experiment.points
         index = self.grid_index[:, a]
         counts = np.bincount(index, minlength=points)
         sums = np.stack([np.bincount(index, weights=column, minlength=points)
@@ -88,7 +88,7 @@ class FailureRegions:
         shared, free = [], []
         for a, axis in enumerate(self.machine.axis_specs):
             values = np.unique(poses[:, a])
-            if len(values) == len(self.experiment.points[a]):
+            if len(values) == len(self.experiment.axis_points[a]):
                 free.append(axis.name)
                 continue
             unit = "deg" if axis.kind == "rotary" else "mm"

@@ -29,6 +29,7 @@ from ..basics import checks, streams
 from ..basics.chunks import chunk_size
 from ..basics.errors import InputError
 from ..basics.pass_rule import passes
+from ..basics.renamed import renamed
 from ..basics.result_store import ResultStore, machine_fingerprint
 from ..model.error_draws import check_reading, draw_errors, draw_grid_errors
 from ..model.kinematics import (deviation_from_transports, ideal_motion, ideal_rotation,
@@ -62,8 +63,9 @@ class GridExperiment:
     Parameters
     ----------
     machine : Machine
-    points_per_axis : int
-        Grid points per axis (5 in the paper).
+    points : int
+        Grid points per axis (5 in the paper); ``points_per_axis=`` is its deprecated
+        spelling (:mod:`reliability.basics.renamed`).
     profile : str, profile model or mapping
         How each axis' motion errors hang together along its travel
         (:mod:`reliability.model.profiles`): ``"independent"`` (the paper's, default),
@@ -79,24 +81,32 @@ class GridExperiment:
         Per axis, the indices of its ``P`` grid points the experiment evaluates (all by
         default): the poses are then the product of the kept points, in grid order, and
         errors are still given at all ``P`` points of every axis. Not with a work zone.
+
+    Attributes
+    ----------
+    points : int
+        Grid points per axis, ``P``.
+    axis_points : list of ndarray
+        The ``P`` grid points of every axis, in chain order.
     """
 
-    def __init__(self, machine, points_per_axis: int = 5, profile="independent",
+    @renamed("points_per_axis", "points")
+    def __init__(self, machine, points: int = 5, profile="independent",
                  systematic=None, *, budget: int | None = None, kept_points=None):
         self.machine = machine
-        self.points = grid_axis_points(machine, points_per_axis)
-        self._kept = self._check_kept(kept_points, len(self.points[0]))
-        checks.require_size(len(self.points[0]) ** len(self.points), 6 * 8, budget,
-                            f"one experiment on a {len(self.points[0])}-point grid of "
-                            f"{len(self.points)} axes",
+        self.axis_points = grid_axis_points(machine, points)
+        self._kept = self._check_kept(kept_points, len(self.axis_points[0]))
+        checks.require_size(len(self.axis_points[0]) ** len(self.axis_points), 6 * 8, budget,
+                            f"one experiment on a {len(self.axis_points[0])}-point grid of "
+                            f"{len(self.axis_points)} axes",
                             "use fewer points per axis, or sample random poses instead")
         self.budget = budget
-        self.points_per_axis = int(points_per_axis)
+        self.points = int(points)
         self.profiles = axis_profiles(machine, profile)
-        self._travel = travel_factors(machine, self.profiles, self.points)
+        self._travel = travel_factors(machine, self.profiles, self.axis_points)
         self._independent = all(isinstance(p, IndependentProfile) for p in self.profiles)
         self._motion_means = None if systematic is None else \
-            grid_means(systematic, machine, self.points)
+            grid_means(systematic, machine, self.axis_points)
         n = len(machine.axis_specs)
         self.n_head = n // 2  # empty head for a one-axis machine
         head_factors, self._head_gaps = self._segment(0, self.n_head)
@@ -156,12 +166,12 @@ class GridExperiment:
     def full_grid_rows(self) -> np.ndarray:
         """The row of each of :attr:`poses` in the grid of all ``P^n`` points (with kept
         points, their rows in it; otherwise :meth:`pose_rows`)."""
-        full = (len(self.points[0]),) * len(self._kept)
+        full = (len(self.axis_points[0]),) * len(self._kept)
         index = np.meshgrid(*self._kept, indexing="ij")
         return np.ravel_multi_index([i.ravel() for i in index], full)[self.pose_rows()]
 
     def _whole_grid(self) -> np.ndarray:
-        mesh = np.meshgrid(*[p[k] for p, k in zip(self.points, self._kept)], indexing="ij")
+        mesh = np.meshgrid(*[p[k] for p, k in zip(self.axis_points, self._kept)], indexing="ij")
         return np.stack([m.ravel() for m in mesh], axis=-1)
 
     def _rows_in_zone(self) -> np.ndarray | None:
@@ -169,7 +179,7 @@ class GridExperiment:
         if self.machine.work_zone is None:
             return None
         return np.flatnonzero(grid_inside_zone(self.machine, self._whole_grid(),
-                                               self.points_per_axis))
+                                               self.points))
 
     # ----- set-up ------------------------------------------------------------------
     def _segment(self, first: int, stop: int):
@@ -187,7 +197,7 @@ class GridExperiment:
         for i in range(first, stop):
             factors[-1] = factors[-1] @ offset_transform(specs[i].offset)
             gaps.append(("motion", i))
-            position = self.points[i][self._kept[i]].reshape(_grid_shape(i - first, counts))
+            position = self.axis_points[i][self._kept[i]].reshape(_grid_shape(i - first, counts))
             factors.append(ideal_motion(specs[i], position))
             if i < stop - 1:
                 gaps.append(("joint", i))
@@ -276,9 +286,9 @@ class GridExperiment:
         n = len(self.machine.axis_specs)
         motion = checks.numeric_array(motion, "motion errors")
         assembly = checks.numeric_array(assembly, "assembly errors")
-        expected = (n, self.points_per_axis, 6)
+        expected = (n, self.points, 6)
         if motion.ndim != 4 or motion.shape[1:] != expected:
-            raise InputError(f"motion errors must have shape (R, {n}, {self.points_per_axis}, 6);"
+            raise InputError(f"motion errors must have shape (R, {n}, {self.points}, 6);"
                              f" got {motion.shape}")
         if assembly.shape != (motion.shape[0], n - 1, 6):
             raise InputError(f"assembly errors must have shape ({motion.shape[0]}, {n - 1}, 6);"
@@ -359,7 +369,7 @@ class GridExperiment:
         return GridExperimentResult(
             limits=self.machine.limits.copy(), inside=np.concatenate(inside),
             n_poses=self.n_poses, distribution=distribution, k=float(k),
-            points_per_axis=self.points_per_axis,
+            points=self.points,
             values=np.concatenate(kept) if kept else None)
 
     def _checkpoint_key(self, t, children, k, distribution) -> dict:
@@ -367,7 +377,7 @@ class GridExperiment:
         seeds = [[child.bit_generator.seed_seq.entropy,
                   list(child.bit_generator.seed_seq.spawn_key)] for child in children]
         return {"kind": "grid_experiment", "machine": machine_fingerprint(self.machine),
-                "points_per_axis": self.points_per_axis,
+                "points_per_axis": self.points,  # the key of checkpoints saved before 0.4
                 "tolerances": t, "k": float(k), "distribution": distribution,
                 "profiles": [str(p) for p in self.profiles],
                 "systematic": None if self._motion_means is None else self._motion_means,
@@ -379,7 +389,7 @@ class GridExperiment:
         n = len(self.machine.axis_specs)
         if self.machine.correlation is not None:
             motion, assembly = draw_grid_errors(
-                self.machine, t, self.points_per_axis, k=k, distribution=distribution,
+                self.machine, t, self.points, k=k, distribution=distribution,
                 rng=rng, travel=None if self._independent else self._travel)
         else:
             motion = self._draw_motion(t[:6 * n].reshape(n, 6), rng, k, distribution)
@@ -392,7 +402,7 @@ class GridExperiment:
     def _draw_motion(self, motion_t, rng, k, distribution):
         """Uncorrelated items: each axis' motion errors at its P points, per its profile."""
         if self._independent:
-            shape = (motion_t.shape[0], self.points_per_axis, 6)
+            shape = (motion_t.shape[0], self.points, 6)
             return draw_errors(np.broadcast_to(motion_t[:, None, :], shape), (), k=k,
                                distribution=distribution, rng=rng)
         return draw_motion_errors(self._travel, motion_t, rng, k, distribution)

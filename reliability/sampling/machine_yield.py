@@ -10,10 +10,10 @@ and reading of a tolerance.
 The API (stable)::
 
     machine_yield(machine, tolerances, *, profile=None, distribution=None,
-                  points_per_axis=5, machines=DEFAULT_MACHINES, rng=None, method="auto",
+                  points=5, machines=DEFAULT_MACHINES, rng=None, method="auto",
                   confidence=0.95, k=3.0, target_cov=0.1, memory=None) -> YieldEstimate
 
-    model = YieldModel(machine, profile=None, distribution=None, points_per_axis=5, k=3.0,
+    model = YieldModel(machine, profile=None, distribution=None, points=5, k=3.0,
                        memory=None, executor=None)
     model.estimate(tolerances, machines=..., rng=..., method=..., ...) -> YieldEstimate
     model.first_order_bounds(tolerances) -> (lower, upper)
@@ -83,6 +83,7 @@ import numpy as np
 from ..basics import checks, streams
 from ..basics.chunks import chunk_size, chunks
 from ..basics.pass_rule import passes
+from ..basics.renamed import renamed
 from ..first_order.fosm import two_sided_failure
 from ..model.error_draws import check_reading, grid_factors, normal_to_marginal
 from ..model.kinematics import (chain_factors, deviation_from_transports, ideal_rotation,
@@ -119,8 +120,9 @@ class YieldModel:
         ``machine.profile`` by default.
     distribution : {'normal', 'truncated'}, optional
         The reading of a tolerance; ``machine.distribution`` by default.
-    points_per_axis : int
-        Grid points per axis (5: the 15 625-pose grid of Sec. 5.3 on six axes).
+    points : int
+        Grid points per axis (5: the 15 625-pose grid of Sec. 5.3 on six axes);
+        ``points_per_axis=`` is its deprecated spelling (:mod:`reliability.basics.renamed`).
     k : float
         Coverage factor, t = ±kσ.
     memory : int, optional
@@ -141,7 +143,8 @@ class YieldModel:
         (:mod:`reliability.sampling.failure_regions`).
     """
 
-    def __init__(self, machine, *, profile=None, distribution=None, points_per_axis: int = 5,
+    @renamed("points_per_axis", "points")
+    def __init__(self, machine, *, profile=None, distribution=None, points: int = 5,
                  k: float = 3.0, memory: int | None = None, executor=None):
         distribution = machine.distribution if distribution is None else distribution
         self.k = check_reading(distribution, k)
@@ -149,19 +152,19 @@ class YieldModel:
         self.profiles = axis_profiles(machine, profile)
         self.machine = machine
         self.distribution = distribution
-        self.experiment = GridExperiment(machine, points_per_axis, profile)
+        self.experiment = GridExperiment(machine, points, profile)
         self.memory = memory
         self.blocks = MachineBlocks(executor)
         self._last_block = None
-        kept = deciding_points(machine, self.profiles, self.experiment.points_per_axis)
+        kept = deciding_points(machine, self.profiles, self.experiment.points)
         self._deciding = self.experiment if kept is None else GridExperiment(
-            machine, points_per_axis, profile, kept_points=kept)
+            machine, points, profile, kept_points=kept)
         # each evaluated pose's index into experiment.poses (the whole grid when kept)
         self._deciding_rows = np.arange(self.experiment.n_poses) if kept is None \
             else self._deciding.full_grid_rows()
         self.batch = chunk_size(4 * 6 * 8 * self._deciding.n_grid, memory)
-        n, points = len(machine.axis_specs), self.experiment.points_per_axis
-        self.travel = travel_factors(machine, self.profiles, self.experiment.points)
+        n, points = len(machine.axis_specs), self.experiment.points
+        self.travel = travel_factors(machine, self.profiles, self.experiment.axis_points)
         if machine.correlation is None:
             self.item_factors = np.broadcast_to(np.eye(6), (n, 6, 6))
             self.assembly_factor = np.eye(6 * (n - 1))
@@ -190,8 +193,8 @@ class YieldModel:
         count, whole = (f"{n:,}".replace(",", " ") for n in (self.experiment.n_poses,
                                                                self.experiment.n_grid))
         if self.machine.work_zone is None:
-            return f"{self.experiment.points_per_axis}-point grid ({count} poses)"
-        return (f"{self.experiment.points_per_axis}-point grid, {count} of its {whole} poses "
+            return f"{self.experiment.points}-point grid ({count} poses)"
+        return (f"{self.experiment.points}-point grid, {count} of its {whole} poses "
                 f"in the work zone")
 
     # ----- the machine as drawn -----------------------------------------------------
@@ -199,7 +202,7 @@ class YieldModel:
         """Motion ``(R, n, P, 6)`` and assembly ``(R, n − 1, 6)`` errors of standard
         normal draws ``u (R, dimension)``: correlated by the profile (and the machine's
         item correlation), then mapped to each error's marginal."""
-        n, points = len(self.machine.axis_specs), self.experiment.points_per_axis
+        n, points = len(self.machine.axis_specs), self.experiment.points
         motion_u = u[:, :self._motion_size].reshape(-1, n, points, 6)
         z_motion = np.einsum("apq,aij,Raqj->Rapi", self.travel, self.item_factors, motion_u,
                              optimize=True)
@@ -468,8 +471,9 @@ class YieldModel:
         return samples
 
 
+@renamed("points_per_axis", "points")
 def machine_yield(machine, tolerances, *, profile=None, distribution=None,
-                  points_per_axis: int = 5, machines: int = DEFAULT_MACHINES, rng=None,
+                  points: int = 5, machines: int = DEFAULT_MACHINES, rng=None,
                   method: str = "auto", confidence: float = 0.95, k: float = 3.0,
                   target_cov: float = 0.1, memory: int | None = None) -> YieldEstimate:
     """The probability that one built machine keeps all six outputs within their limits at
@@ -485,8 +489,9 @@ def machine_yield(machine, tolerances, *, profile=None, distribution=None,
         default.
     distribution : {'normal', 'truncated'}, optional
         The reading of a tolerance; ``machine.distribution`` by default.
-    points_per_axis : int
-        Grid points per axis (5 in the paper: 15 625 poses on six axes).
+    points : int
+        Grid points per axis (5 in the paper: 15 625 poses on six axes);
+        ``points_per_axis=`` is its deprecated spelling (:mod:`reliability.basics.renamed`).
     machines : int
         Built machines simulated (crude), or at most (importance sampling).
     rng : None, int or numpy.random.Generator
@@ -509,7 +514,7 @@ def machine_yield(machine, tolerances, *, profile=None, distribution=None,
     YieldEstimate
     """
     model = YieldModel(machine, profile=profile, distribution=distribution,
-                       points_per_axis=points_per_axis, k=k, memory=memory)
+                       points=points, k=k, memory=memory)
     return model.estimate(tolerances, machines=machines, rng=rng, method=method,
                           confidence=confidence, target_cov=target_cov)
 

@@ -32,6 +32,7 @@ from scipy.stats import norm
 
 from ..basics import checks, streams
 from ..basics.errors import InputError
+from ..basics.renamed import renamed
 from ..basics.saved_fields import Array, Integer, Number, Text, Texts, load_fields, save_fields
 from ..first_order.fosm import error_sigma
 from ..first_order.worst_grid_pose import worst_grid_poses
@@ -190,10 +191,11 @@ SAVED_FIELDS = (Texts("errors", "errors", unique=True), Array("poses", (len(OUTP
                 Text("distribution"))
 
 
+@renamed("points_per_axis", "points")
 def sobol_indices(machine, tolerances=None, poses=None, *, samples: int = DEFAULT_SAMPLES,
                   distribution: str | None = None, frame: str | None = None,
                   k: float = 3.0, confidence: float = 0.95,
-                  resamples: int = DEFAULT_RESAMPLES, points_per_axis: int = 5,
+                  resamples: int = DEFAULT_RESAMPLES, points: int = 5,
                   rng=None) -> SobolIndices:
     """First-order and total Sobol indices of every output at a pose, on the exact chain.
 
@@ -205,7 +207,7 @@ def sobol_indices(machine, tolerances=None, poses=None, *, samples: int = DEFAUL
         ``(n_errors,)`` allocation read as ±kσ; the machine's initial allocation by default.
     poses : array_like, optional
         One pose ``(n_axes,)`` for every output, or one per output ``(6, n_axes)`` (mm,
-        rad); each output's worst pose of the ``points_per_axis`` grid by default.
+        rad); each output's worst pose of the ``points`` grid by default.
     samples : int
         Rows ``N`` of the samples ``A`` and ``B``.
     distribution : {'normal', 'truncated'}, optional
@@ -218,8 +220,9 @@ def sobol_indices(machine, tolerances=None, poses=None, *, samples: int = DEFAUL
         Level of the bootstrap intervals.
     resamples : int
         Bootstrap resamples.
-    points_per_axis : int
-        Grid of the default poses.
+    points : int
+        Grid of the default poses (points per axis); ``points_per_axis=`` is its deprecated
+        spelling (:mod:`reliability.basics.renamed`).
     rng : None, int or numpy.random.Generator
         Split into the stream of the samples and the stream of the bootstrap.
 
@@ -236,7 +239,7 @@ def sobol_indices(machine, tolerances=None, poses=None, *, samples: int = DEFAUL
     resamples = checks.positive_int(resamples, "resamples")
     confidence = checks.finite_float(confidence, "confidence", 0.0, 1.0, low_open=True,
                                      high_open=True)
-    at = _output_poses(machine, t, poses, points_per_axis, distribution, k)
+    at = _output_poses(machine, t, poses, points, distribution, k)
     draw_rng, boot_rng = streams.spawn(rng, 2)
     u = draw_rng.standard_normal((2, samples, machine.n_errors))
     a, b = normal_to_marginal(u, k, distribution) * (t / k)
@@ -266,9 +269,9 @@ def fosm_shares(machine, tolerances, poses, *, distribution: str = "normal", k: 
         return np.where(total > 0, terms / total, np.nan)
 
 
-def _output_poses(machine, t, poses, points_per_axis, distribution, k) -> np.ndarray:
+def _output_poses(machine, t, poses, points, distribution, k) -> np.ndarray:
     if poses is None:
-        return worst_grid_poses(machine, t, points=points_per_axis, k=k,
+        return worst_grid_poses(machine, t, points=points, k=k,
                                 distribution=distribution)
     q = machine.check_positions(poses)
     if q.shape == (len(machine.axes),):

@@ -219,7 +219,7 @@ def verify(machine, tolerances, *, points: int = 5, repeats: int = 20,
         worst_poses = worst_poses.to_numpy(dtype=float)
     grid_rng, random_rng, worst_rng, yield_rng = verification_streams(rng)
     yield_model = YieldModel(machine, profile=profile, distribution=distribution,
-                             points_per_axis=points)
+                             points=points)
     experiment = GridExperiment(machine, points)
     result = fosm(machine, tolerances, experiment.poses, distribution=distribution) \
         if prediction is None else prediction

@@ -199,8 +199,8 @@ def item_scores(model, u) -> np.ndarray:
     """``(R, n_errors)``: the score ``s_i(u)`` of every item for draws ``u (R, dimension)``
     (the module's docstring); each has mean 0 under ``u ~ N(0, I)``."""
     machine = model.machine
-    n, points = len(machine.axis_specs), model.experiment.points_per_axis
-    travel = travel_factors(machine, model.profiles, model.experiment.points)
+    n, points = len(machine.axis_specs), model.experiment.points
+    travel = travel_factors(machine, model.profiles, model.experiment.axis_points)
     if machine.correlation is None:
         item_factors = np.broadcast_to(np.eye(6), (n, 6, 6))
         assembly_factor = np.eye(6 * (n - 1))

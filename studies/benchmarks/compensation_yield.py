@@ -103,7 +103,7 @@ def highest_reachable(found, yield_target) -> float:
 
 def without_compensation(machine, yield_target, grid, machines, seed) -> dict:
     result = allocate_for_yield(machine, yield_target, profile="constant", points=grid,
-                                machines=machines, seed=seed)
+                                machines=machines, rng=seed)
     return {"cost": result.cost, "lower_bound": result.lower_bound,
             "verified": result.verified}
 

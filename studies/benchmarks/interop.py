@@ -112,7 +112,7 @@ def sobol_table(machine, t, poses, samples, seed) -> pd.DataFrame:
 
 def yield_table(machine, t, points, machines, seed) -> pd.DataFrame:
     """Score function against central differences for the ten largest items and groups."""
-    model = YieldModel(machine, points_per_axis=points)
+    model = YieldModel(machine, points=points)
     draws = model.draws(machines, rng=seed)
     start = time.perf_counter()
     score = yield_sensitivity(model, t, draws=draws)

@@ -64,7 +64,7 @@ def timed_allocation(machine, yield_target, machines, seed):
     tracemalloc.start()
     wall, cpu = time.perf_counter(), time.process_time()
     result = allocation.allocate_for_yield(machine, yield_target, profile="constant",
-                                           machines=machines, seed=seed)
+                                           machines=machines, rng=seed)
     seconds = (time.perf_counter() - wall, time.process_time() - cpu)
     peak = tracemalloc.get_traced_memory()[1]
     tracemalloc.stop()

@@ -35,13 +35,13 @@ def bracket_lines(machine, yield_target, machines, args) -> list[str]:
     """The lines of one machine at one sample size."""
     started = time.perf_counter()
     result = allocation.allocate_for_yield(machine, yield_target, profile="constant",
-                                           machines=machines, seed=args.seed,
+                                           machines=machines, rng=args.seed,
                                            convex_steps=1,
                                            convex_machines=args.convex_machines)
     searched = time.perf_counter() - started
     started = time.perf_counter()
     bound = log_concave_bound(result, machines=args.bound_machines, steps=1,
-                              confidence=args.confidence, seed=args.seed)
+                              confidence=args.confidence, rng=args.seed)
     bounded = time.perf_counter() - started
     initial = result.initial_cost
     v = result.verified_yield

@@ -62,10 +62,10 @@ def scale_at(worst, level, low, high) -> float:
 def ray_report(machine, yield_target, machines, seed, confidence) -> list[str]:
     """The lines of one machine."""
     result = allocation.allocate_for_yield(machine, yield_target, profile="constant",
-                                           machines=machines, seed=seed)
+                                           machines=machines, rng=seed)
     problem = result.problem
     lower, upper = np.asarray(problem.lower), np.asarray(problem.upper)
-    model = YieldModel(problem.machine, points_per_axis=result.points)
+    model = YieldModel(problem.machine, points=result.points)
     u = model.draws(machines, streams.yield_allocation_streams(seed + 2)[1])
 
     def allocation_at(s):

@@ -107,9 +107,9 @@ def scenario_report(machine, yield_target, machines, seed, confidence,
     started = time.perf_counter()
     result = allocation.allocate_for_yield(machine, yield_target, profile="constant",
                                            points=POINTS, machines=allocation_machines,
-                                           seed=seed)
+                                           rng=seed)
     searched = time.perf_counter() - started
-    model = YieldModel(result.problem.machine, points_per_axis=POINTS)
+    model = YieldModel(result.problem.machine, points=POINTS)
     draws = unit_draws(model, model.draws(machines,
                                           streams.yield_allocation_streams(seed + 2)[2]))
     poses = model.deciding_poses

@@ -251,7 +251,7 @@ def run_yield(args) -> int:
                     f"{machine.profile}, {args.machines:,} built machines per sample (design, "
                     f"calibration and verification), simulated {where}")
         result = allocate_for_yield(machine, args.yield_target, points=args.points,
-                                    bounds=bounds, machines=args.machines, seed=args.seed,
+                                    bounds=bounds, machines=args.machines, rng=args.seed,
                                     executor=client, convex_steps=args.convex_steps or 0,
                                     convex_machines=args.convex_machines)
     print(describe_yield(result))
@@ -260,7 +260,7 @@ def run_yield(args) -> int:
     if args.bound_machines is not None:
         options.say(f"the log-concave lower bound on {args.bound_machines:,} machines")
         bound = log_concave_bound(result, machines=args.bound_machines, steps=1,
-                                  seed=args.seed)
+                                  rng=args.seed)
         print(f"\n{bound.text(result.initial_cost)}: gap "
               f"{display.percentage_text(1 - bound.bound / result.cost, bound='upper')} "
               f"of the cost")

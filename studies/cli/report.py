@@ -104,7 +104,7 @@ def run(args) -> int:
         included.append("compensation")
         extra.append(guarded("compensation", compensate.report_builder(args, machine)))
     study = machine_study.run(machine, points=args.points, side=args.side, bounds=bounds,
-                              seed=args.seed, repeats=args.repeats, samples=args.samples,
+                              rng=args.seed, repeats=args.repeats, samples=args.samples,
                               progress=options.say, bar=options.progress_bar,
                               machines=args.machines, workspace=options.workspace(args),
                               rtol=args.rtol)

@@ -61,7 +61,7 @@ def run(args) -> int:
     sobol_rng, yield_rng = spawn(args.seed, 1)[0], sensitivity_stream(args.seed)
     options.say("Sobol indices on the exact chain")
     sobol = sobol_indices(machine, t, pose, samples=args.samples,
-                          points_per_axis=args.points, rng=sobol_rng)
+                          points=args.points, rng=sobol_rng)
     where = "at " + options.pose_text(machine, pose) if pose is not None else \
         f"at each output's worst pose of the {args.points}-point grid"
     print(f"{machine.name!r} {where}; {options.reading_text(machine)}")
@@ -69,7 +69,7 @@ def run(args) -> int:
     written = {"sobol.csv": sobol.to_frame()}
     if args.with_yield:
         options.say(f"d yield / d ln t on {args.machines} built machines")
-        model = YieldModel(machine, points_per_axis=args.points)
+        model = YieldModel(machine, points=args.points)
         result = yield_sensitivity(model, t, machines=args.machines, rng=yield_rng)
         print(f"\nmachine yield under profile {model.profile}, {model.workspace}")
         print(result.summary())

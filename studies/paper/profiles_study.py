@@ -109,7 +109,7 @@ def run_profiles_study(repeats=(20, 2000), seed: int = 2023, profiles=PROFILES,
     systematic = SystematicErrors(machine, (read_profile_csv(EXAMPLE_PROFILE, machine,
                                                              EXAMPLE_ERROR),))
     effect = pd.concat({label: systematic_effect(machine, t, systematic, repeats=longest,
-                                                 seed=seed)
+                                                 rng=seed)
                         for label, t in allocations.items()}, names=["allocation"])
     timings.update({f"{r.allocation}/{r.profile}/{r.repeats}": r.seconds
                     for r in comparison.itertuples()})

@@ -331,7 +331,7 @@ def write_outputs(study: Study, out: Path, log) -> None:
         atomic_write_bytes(out / name, png_bytes(fig, FIGURE_DPI), overwrite=True)
     write_report(study, frames, out / "report.md")
     log(f"the generic machine report into {out / MACHINE_REPORT}/")
-    generic = run_machine_study(study.machine, seed=study.seed, repeats=study.repeats)
+    generic = run_machine_study(study.machine, rng=study.seed, repeats=study.repeats)
     paper = Section("Comparison with the paper",
                     f"This is the report `precrel report --seed {study.seed}` writes for any "
                     f"machine (the optimum certified over the continuous workspace; the "

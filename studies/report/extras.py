@@ -110,8 +110,8 @@ def profiles(study, repeats: int = 200):
     own = study_profile(study)
     compared = sorted({*REPORT_PROFILES, own}, key=profile_length)
     comparison = profile_comparison(study.machine, allocations(study), compared,
-                                    repeats=(repeats,), seed=study.seed,
-                                    points_per_axis=study.points,
+                                    repeats=(repeats,), rng=study.seed,
+                                    points=study.points,
                                     distribution=study.machine.distribution)
     # wall times would make the same seed write different files
     comparison = with_study_yields(comparison.drop(columns="seconds"), study)

@@ -43,7 +43,7 @@ def tightening_table(result, machine, tolerances) -> pd.DataFrame:
 def sensitivity_section(machine, tolerances, *, label: str, points: int = 5,
                         machines: int = DEFAULT_MACHINES, rng=None) -> Section:
     """The ranked table "tighten this by 10 % → yield +x %, cost +y %" of one allocation."""
-    model = YieldModel(machine, points_per_axis=points)
+    model = YieldModel(machine, points=points)
     result = yield_sensitivity(model, tolerances, machines=machines, rng=rng)
     table = tightening_table(result, machine, tolerances)
     formats = {"yield change [%]": "{:+.3f}".format, "se [%]": "{:.3f}".format,

@@ -171,7 +171,7 @@ def as_measured(machine, identification, *, points: int = 5, poses=None,
 
 def _diagonal_poses(experiment) -> np.ndarray:
     """``(P, n_axes)``: the ``k``-th pose holds every axis at its ``k``-th grid point."""
-    return np.stack(experiment.points, axis=-1)
+    return np.stack(experiment.axis_points, axis=-1)
 
 
 def _judge(machine, identification, experiment, extra, draws, memory, rng) -> dict:
@@ -179,7 +179,7 @@ def _judge(machine, identification, experiment, extra, draws, memory, rng) -> di
     pose and output; the outputs' sums and sums of squares per pose."""
     n_axes, n_poses = len(machine.axes), experiment.n_poses + len(extra)
     sampled = np.concatenate([_diagonal_poses(experiment), extra])
-    count = len(experiment.points[0])
+    count = len(experiment.axis_points[0])
     out = {"holds_all": 0, "holds": np.zeros(6, dtype=np.int64),
            "inside": np.zeros((n_poses, 6), dtype=np.int64),
            "sum": np.zeros((n_poses, 6)), "squares": np.zeros((n_poses, 6))}

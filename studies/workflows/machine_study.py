@@ -25,6 +25,8 @@ from allocation.per_pose.continuous import DEFAULT_RTOL, WORKSPACE_CHOICES, chec
     solve_continuous
 from allocation.per_pose.result_files import gap_bound, written_tolerances
 from reliability.basics import checks as input_checks
+from reliability.basics.renamed import renamed
+from reliability.basics.streams import integer_seed
 from reliability.first_order.fosm import fosm
 from reliability.model.poses import workspace_grid
 from reliability.sampling.machine_yield import DEFAULT_MACHINES
@@ -93,8 +95,9 @@ class MachineStudy:
         return self.summary()
 
 
+@renamed("seed", "rng")
 def run(machine, *, points: int = 5, side: str = "two_sided", bounds=None,
-        seed: int = 0, repeats: int = 20, samples: int = 20_000, progress=None,
+        rng: int | None = 0, repeats: int = 20, samples: int = 20_000, progress=None,
         bar=None, machines: int = DEFAULT_MACHINES, workspace: str = "continuous",
         rtol: float = DEFAULT_RTOL) -> MachineStudy:
     """Run the study of ``machine``.
@@ -108,7 +111,7 @@ def run(machine, *, points: int = 5, side: str = "two_sided", bounds=None,
     bounds : (float, float), optional
         Tolerance box as factors of the initial allocation; default the machine file's
         ``[bounds]`` table, else [0.5, 1.5] (``summary.json`` names the source).
-    seed : int
+    rng : int or None
         Seed of the Monte-Carlo verification of each allocation
         (:func:`reliability.basics.streams.verification_streams`), as ``precrel verify --seed``.
         The optimum is verified (and its FOSM computed) exactly as written to
@@ -117,7 +120,10 @@ def run(machine, *, points: int = 5, side: str = "two_sided", bounds=None,
         ``precrel verify --tolerances allocation.csv --seed S`` prints the report's
         Monte-Carlo numbers (``--workspace grid`` under workspace 'grid'): each allocation is
         sampled at the worst poses of the study's workspace, certified over the continuous
-        strokes by default (:func:`reliability.sampling.verification.verify`).
+        strokes by default (:func:`reliability.sampling.verification.verify`). None draws a
+        fresh seed, recorded as the study's ``seed``; a Generator is refused
+        (InputTypeError naming ``rng``): the report's named streams derive from an integer
+        seed. ``seed=`` is the deprecated spelling (:mod:`reliability.basics.renamed`).
     repeats, samples : int
         Grid experiments, and random-pose / worst-pose samples, per allocation.
     progress : callable, optional
@@ -141,6 +147,7 @@ def run(machine, *, points: int = 5, side: str = "two_sided", bounds=None,
     holds the :class:`allocation.TargetUnreachableError` (what blocks, where).
     """
     input_checks.choice(workspace, "workspace", WORKSPACE_CHOICES)
+    seed = integer_seed(rng)
     if workspace == "continuous":
         check_continuous(machine, side)
     progress = progress or (lambda text: None)
@@ -196,7 +203,7 @@ def summary(study: MachineStudy) -> dict:
     return {
         **yield_summary(study),
         "machine": study.machine.name,
-        "points_per_axis": study.points,
+        "points_per_axis": study.points,  # the key summary.json has always had
         "side": study.side,
         "frame": study.machine.frame,
         "distribution": study.machine.distribution,

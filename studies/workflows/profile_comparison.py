@@ -15,7 +15,8 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-from reliability.basics.streams import profiles_stream
+from reliability.basics.renamed import renamed
+from reliability.basics.streams import integer_seed, profiles_stream
 from reliability.first_order.fosm import fosm
 from reliability.model.machine import OUTPUTS
 from reliability.model.poses import workspace_grid
@@ -49,10 +50,11 @@ def profile_length(spec) -> float:
     return model.length
 
 
+@renamed("points_per_axis", "points")
+@renamed("seed", "rng")
 def profile_comparison(machine, allocations: dict, profiles=PROFILES, repeats=(20, 2000),
-                       seed: int = 2023, keep=None, log=lambda message: None, *,
-                       points_per_axis: int = 5, distribution: str = "truncated"
-                       ) -> pd.DataFrame:
+                       rng: int | None = 2023, keep=None, log=lambda message: None, *,
+                       points: int = 5, distribution: str = "truncated") -> pd.DataFrame:
     """Yield, Table 9's spread and mean fractions for every allocation, profile and count.
 
     Parameters
@@ -64,14 +66,17 @@ def profile_comparison(machine, allocations: dict, profiles=PROFILES, repeats=(2
         Profile specifications (:func:`reliability.model.profiles.profile_model`).
     repeats : sequence of int
         Numbers of experiments; each count is its own run from the same seed.
-    seed : int
+    rng : int or None
         Every run draws from a fresh :func:`reliability.basics.streams.profiles_stream` of
-        ``seed`` (common random numbers across allocations, profiles and counts).
+        this integer seed (common random numbers across allocations, profiles and counts);
+        None draws a fresh seed. A Generator is refused (InputTypeError naming ``rng``):
+        the named stream derives from an integer seed. ``seed=`` is the deprecated
+        spelling (:mod:`reliability.basics.renamed`).
     keep : dict, optional
         Filled with ``(label, profile, repeats) → GridExperimentResult``.
     log : callable
-    points_per_axis : int
-        Grid points per axis.
+    points : int
+        Grid points per axis (``points_per_axis=`` is the deprecated spelling).
     distribution : {'truncated', 'normal'}
         The reading of a tolerance the experiments draw under.
 
@@ -80,9 +85,10 @@ def profile_comparison(machine, allocations: dict, profiles=PROFILES, repeats=(2
     pandas.DataFrame
         One row per (allocation, profile, repeats).
     """
+    seed = integer_seed(rng)
     rows = []
     for spec in profiles:
-        experiment = GridExperiment(machine, points_per_axis, profile=spec)
+        experiment = GridExperiment(machine, points, profile=spec)
         for label, t in allocations.items():
             for count in repeats:
                 start = time.perf_counter()
@@ -112,22 +118,26 @@ def _row(label, spec, result, seconds) -> dict:
     return row
 
 
+@renamed("points_per_axis", "points")
+@renamed("seed", "rng")
 def systematic_effect(machine, tolerances, systematic, *, repeats: int = 2000,
-                      seed: int = 2023, points_per_axis: int = 5) -> pd.DataFrame:
+                      rng=2023, points: int = 5) -> pd.DataFrame:
     """FOSM and Monte-Carlo reliability without and with a systematic error profile.
 
     Returns one row per output: the worst-pose and workspace-mean two-sided FOSM
     probability without and with the measured means over the grid, the largest output
     mean, and the grid experiment's mean fraction with its standard error, with the means
-    added.
+    added. ``rng`` (None, an int or a Generator) drives the grid experiment, on the
+    ``points``-point grid; ``seed=`` and ``points_per_axis=`` are their deprecated
+    spellings (:mod:`reliability.basics.renamed`).
     """
-    poses = workspace_grid(machine, points_per_axis)
+    poses = workspace_grid(machine, points)
     jacobian = machine.jacobian(poses)
     plain = fosm(machine, tolerances, poses, jacobian=jacobian, distribution="truncated")
     shifted = fosm(machine, tolerances, poses, jacobian=jacobian, distribution="truncated",
                    means=systematic.means(poses))
-    mc = GridExperiment(machine, points_per_axis, systematic=systematic).run(
-        tolerances, repeats=repeats, rng=seed, keep_values="none").reliability()
+    mc = GridExperiment(machine, points, systematic=systematic).run(
+        tolerances, repeats=repeats, rng=rng, keep_values="none").reliability()
     return pd.DataFrame({
         "limit": machine.limits,
         "worst_without": plain.worst("two_sided"), "worst_with": shifted.worst("two_sided"),

@@ -46,6 +46,7 @@ from allocation.per_pose.solve import TargetUnreachableError
 from reliability.basics.errors import InputError, InputTypeError
 from reliability.basics.files import SIGNIFICANT, probability_text, write_csv
 from reliability.basics.result_store import ResultStore, canonical_json, machine_fingerprint
+from reliability.basics.renamed import renamed
 from reliability.basics.streams import verification_streams
 from reliability.model.error_draws import DISTRIBUTIONS
 from reliability.model.machine import OUTPUTS
@@ -58,8 +59,10 @@ from reliability.sampling.machine_yield import machine_yield
 PAPER_MACHINE = "hobbing"
 INDEPENDENT = "independent"
 SIDES = ("one_sided", "two_sided")
+#: The former name of the spec key ``points``, still read (with a DeprecationWarning).
+OLD_POINTS_KEY = "points_per_axis"
 SPEC_KEYS = {"machines", "sides", "targets", "profiles", "seeds", "repeats",
-             "points_per_axis", "bounds", "catalogue", "distribution", "workspace"}
+             "points", "bounds", "catalogue", "distribution", "workspace", OLD_POINTS_KEY}
 RESULTS_FILE = "results.csv"
 TASKS_FOLDER = "tasks"
 
@@ -81,8 +84,8 @@ class SweepTask:
         Seed of the verification (:func:`reliability.basics.streams.verification_streams`).
     repeats : int
         Grid experiments of the verification.
-    points_per_axis : int
-        Grid of the allocation and of the verification.
+    points : int
+        Grid of the allocation and of the verification (points per axis).
     bounds : (float, float) or None
         Search box of the allocation, as factors of the initial allocation; None: the
         machine file's ``[bounds]``, else [0.5, 1.5].
@@ -101,7 +104,7 @@ class SweepTask:
     profile: str
     seed: int
     repeats: int
-    points_per_axis: int
+    points: int
     bounds: tuple[float, float] | None = None
     catalogue: str | None = None
     distribution: str | None = None
@@ -110,9 +113,11 @@ class SweepTask:
     def parameters(self, machine=None) -> dict:
         """The task's parameters as stored and hashed: the machine and the catalogue by
         their content (a task without a catalogue, a ``distribution`` of its own or a
-        workspace other than the grid hashes as before those keys existed)."""
+        workspace other than the grid hashes as before those keys existed; the grid is
+        stored under its former key ``points_per_axis``, so stored tasks still resume)."""
         machine = _load_machine(self.machine) if machine is None else machine
         parameters = dict(asdict(self), machine_fingerprint=machine_fingerprint(machine))
+        parameters[OLD_POINTS_KEY] = parameters.pop("points")
         del parameters["catalogue"]
         if self.distribution is None:
             del parameters["distribution"]
@@ -142,7 +147,7 @@ class SweepSpec:
     profiles: tuple[str, ...] = (INDEPENDENT,)
     seeds: tuple[int, ...] = (0,)
     repeats: tuple[int, ...] = (20,)
-    points_per_axis: int = 5
+    points: int = 5
     bounds: tuple[float, float] | None = None
     catalogue: str | None = None
     distribution: str | None = None
@@ -176,11 +181,13 @@ class SweepSpec:
 
     @classmethod
     def from_dict(cls, data, base: Path | None = None) -> "SweepSpec":
-        """A spec from a parsed TOML table; machine paths are relative to ``base``."""
+        """A spec from a parsed TOML table; machine paths are relative to ``base``. The
+        former key ``points_per_axis`` is read as ``points`` with a DeprecationWarning (as
+        the constructor's keyword; both given: InputTypeError)."""
         unknown = sorted(set(data) - SPEC_KEYS)
         if unknown:
             raise InputError(f"sweep spec: unknown key {unknown[0]!r}; expected some of "
-                             f"{sorted(SPEC_KEYS)}")
+                             f"{sorted(SPEC_KEYS - {OLD_POINTS_KEY})}")
         if "machines" not in data:
             raise InputError("sweep spec: 'machines' is missing (paths or \"hobbing\")")
         data = dict(data)
@@ -209,11 +216,14 @@ class SweepSpec:
     def tasks(self) -> list[SweepTask]:
         """Every combination, machines slowest and repeats fastest."""
         return [SweepTask(machine, side, float(target), profile, int(seed), int(repeats),
-                          int(self.points_per_axis), self.bounds, self.catalogue,
+                          int(self.points), self.bounds, self.catalogue,
                           self.distribution, self.workspace)
                 for machine, side, target, profile, seed, repeats in itertools.product(
                     self.machines, self.sides, self.targets, self.profiles, self.seeds,
                     self.repeats)]
+
+
+SweepSpec.__init__ = renamed(OLD_POINTS_KEY, "points")(SweepSpec.__init__)
 
 
 @dataclass(frozen=True, eq=False, repr=False)
@@ -288,14 +298,14 @@ def run_task(task: SweepTask, allocated: dict | None = None) -> dict:
                     "bounds_source": allocated["bounds_source"],
                     "relative_cost": None, "certified": False,
                     "fraction": [None] * len(OUTPUTS), "yield": None, **chosen}
-        experiment = _experiment(machine, task.target, task.points_per_axis, task.profile,
+        experiment = _experiment(machine, task.target, task.points, task.profile,
                                  task.distribution)
         grid_rng, _, _, yield_rng = verification_streams(task.seed)
         verified = experiment.run(allocated["tolerances"], repeats=task.repeats, rng=grid_rng,
                                   keep_values="none",
                                   distribution=experiment.machine.distribution)
         built = machine_yield(experiment.machine, allocated["tolerances"],
-                              profile=task.profile, points_per_axis=task.points_per_axis,
+                              profile=task.profile, points=task.points,
                               machines=task.repeats, rng=yield_rng)
     return {"status": "ok", "reason": "", "bounds_source": allocated["bounds_source"],
             "distribution": experiment.machine.distribution,
@@ -471,9 +481,9 @@ def _check_spec(spec: SweepSpec) -> None:
                 raise InputError(f"sweep spec: {name} entry {value!r} must be a "
                                  f"{'positive' if name == 'repeats' else 'non-negative'} "
                                  f"integer")
-    points = spec.points_per_axis
+    points = spec.points
     if isinstance(points, bool) or not isinstance(points, int) or points < 2:
-        raise InputError(f"sweep spec: points_per_axis {points!r} must be an integer >= 2")
+        raise InputError(f"sweep spec: points {points!r} must be an integer >= 2")
     if spec.catalogue is not None:
         if not isinstance(spec.catalogue, str):
             raise InputTypeError(f"sweep spec: catalogue {spec.catalogue!r} must be a path")
@@ -506,7 +516,7 @@ def _task_machine(machine: tuple[str, str], target: float, distribution: str | N
 def _allocation_key(task: SweepTask, fingerprint: str) -> tuple:
     """What a task's allocation depends on (tasks differing only in profile, seed or
     repeats share it)."""
-    key = (task.machine, fingerprint, task.side, task.target, task.points_per_axis,
+    key = (task.machine, fingerprint, task.side, task.target, task.points,
            task.bounds, task.distribution, task.workspace)
     if task.catalogue is None:
         return key

@@ -129,7 +129,7 @@ def _allocation_table(spaces, zone_problem, shown, points, machines, rng) -> pd.
     for label, t in shown.items():
         row = {"allocation": label, "cost": zone_problem.cost.total(t) / initial_cost}
         for name, m in spaces.items():
-            estimate = machine_yield(m, t, points_per_axis=points, machines=machines,
+            estimate = machine_yield(m, t, points=points, machines=machines,
                                      rng=draws)
             row.update({f"yield {name}": estimate.estimate,
                         f"yield {name} low": estimate.lower,
