@@ -132,7 +132,7 @@ def test_allocate_prints_no_digit_past_its_rule(tmp_path, name):
         unit, initial, allocated, change = row[-5], row[-4], row[-3], row[-2]
         for value in (initial, allocated):
             assert len(value.partition(".")[2]) <= DECIMALS[unit], row
-        assert re.fullmatch(r"-?\d+\.\d\d", change) and row[-1] == "%", row
+        assert re.fullmatch(r"[-+]?\d+\.\d\d", change) and row[-1] == "%", row
     table = out.split("requirements (elasticities")[1].split("\n\n")[0]
     for line in table.splitlines()[3:]:
         for number in NUMBER.finditer(" ".join(line.split()[3:])):

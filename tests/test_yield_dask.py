@@ -22,7 +22,7 @@ from studies.cli import allocate as allocate_command
 distributed = pytest.importorskip("distributed")
 
 MACHINE = str(Path(__file__).parent / "machines" / "mill3.toml")
-SMALL = {"points": 3, "machines": 100, "seed": 5, "rounds": 1, "naive_steps": 4,
+SMALL = {"points": 3, "machines": 100, "rng": 5, "rounds": 1, "naive_steps": 4,
          "restore_steps": 2, "shape_steps": 2, "profile": "independent"}
 #: A memory budget that splits the 100 machines into several blocks: two of the whole grid
 #: (every grid point decides under the independent profile), eight of the screened poses.
