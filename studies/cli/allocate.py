@@ -19,7 +19,7 @@ from allocation.per_pose.elasticity import requirement_table
 from allocation.per_pose.result_files import (DRAWING_RESOLUTION, allocation_to_csv,
                                      cost_shares_text, cost_units_text, drawing_check_text,
                                      drawing_to_csv, gap_text, nearly_free_text,
-                                     written_cost_text)
+                                     written_cost_text, written_tolerances)
 from allocation.machine_yield.yield_dual import log_concave_bound, not_log_concave
 from reliability.basics import display
 from reliability.basics.errors import InputError
@@ -224,7 +224,7 @@ def changes_text(result, top: int = 10) -> str:
     table = tolerance_table(problem.machine, problem.reference, result.tolerances)
     order = table["change"].abs().sort_values(ascending=False, kind="stable").index[:top]
     shown = shown_tolerance_table(problem.machine, problem.reference,
-                                  result.tolerances).loc[order]
+                                  written_tolerances(result)).loc[order]
     return (f"\nlargest changes from the initial allocation ({top} of {len(table)}; "
             f"tolerances in the machine file's units):\n{shown.to_string(index=False)}")
 

@@ -19,7 +19,7 @@ from allocation.per_pose.elasticity import requirement_table
 from allocation.per_pose.result_files import (DRAWING_FILE, MULTIPLIER_DIGITS, allocation_frame,
                                      cost_shares_text, cost_units_text, drawing_check_text,
                                      drawing_frame, gap_text, nearly_free_text,
-                                     written_cost_text)
+                                     written_cost_text, written_tolerances)
 from reliability.basics.display import (OUTPUT_UNITS, axis_units, error_units, in_units,
                                         output_people_units, percentage_text, pose_frame,
                                         shown_positions, tolerance_numbers,
@@ -263,7 +263,9 @@ def tolerance_table(machine, reference, tolerances) -> pd.DataFrame:
 
 
 def shown_tolerance_table(machine, reference, tolerances) -> pd.DataFrame:
-    """:func:`tolerance_table` as printed: the tolerances cut to 0.001 µm or 0.001 arcsec
+    """:func:`tolerance_table` as printed (of the tolerances as written to the allocation
+    file, :func:`~allocation.per_pose.result_files.written_tolerances`, so that an item on a
+    bound shows the bound): the tolerances cut to 0.001 µm or 0.001 arcsec
     in their unit (:func:`~reliability.basics.display.tolerance_numbers`), the change in
     per cent to 0.01 % with its sign (:func:`~reliability.basics.display.percentage_text`)."""
     table = tolerance_table(machine, reference, tolerances)
@@ -401,7 +403,8 @@ def allocation_section(study: MachineStudy) -> Section:
     optimum, machine = study.optimum, study.machine
     groups = groups_table(machine, study.problem.poses)
     detail = optimum.to_frame().reset_index()
-    people = shown_tolerance_table(machine, study.problem.reference, optimum.tolerances)
+    people = shown_tolerance_table(machine, study.problem.reference,
+                                   written_tolerances(optimum))
     people["status"] = detail["status"].to_numpy()
     requirements = requirement_table(optimum).reset_index()
     for column in ("dlncost/dln_limit", "dlncost/dln_target"):
