@@ -374,3 +374,23 @@ def test_the_python_example_of_the_documentation_runs(monkeypatch, tmp_path):
     result = namespace["result"]
     assert result.certified and result.price == pytest.approx(
         pd.read_csv(tmp_path / "choice.csv")["price"].sum())
+
+
+def test_choose_lists_the_blocking_rows_beside_out_as_positions(tmp_path, capsys):
+    """An unreachable target: the refusal names the worst row's pose, and
+    ``STEM.blocking.csv`` holds every blocked row (worst first, loads above 1) with its pose
+    as axis positions; a second run does not replace it without --overwrite."""
+    args = ["choose", MILL, "--catalogue", MILL_CATALOGUE, "--points", "3", "--target", "0.999",
+            "--out", str(tmp_path / "c.csv")]
+    assert cli.main(args) == 2
+    message = capsys.readouterr().err
+    blocking = pd.read_csv(tmp_path / "c.blocking.csv")
+    assert list(blocking.columns) == ["output", "Y_mm", "X_mm", "Z_mm", "load"]
+    assert (blocking["load"] > 1).all() and blocking["load"].is_monotonic_decreasing
+    first = blocking.iloc[0]
+    assert (f"meets {first['output']} at Y={first['Y_mm']:g} mm, X={first['X_mm']:g} mm, "
+            f"Z={first['Z_mm']:g} mm") in message
+    assert f"{len(blocking)} (output, pose) row(s) blocked" in message
+    assert "listed in" in message and not (tmp_path / "c.csv").exists()
+    assert cli.main(args) == 2
+    assert "c.blocking.csv exists; pass --overwrite" in capsys.readouterr().err

@@ -1,15 +1,21 @@
 """``precrel choose MACHINE.toml --catalogue CAT.toml --out choice.csv``: the certified
 cheapest choice of one catalogue class per component, and beside it the tolerances that
-follow from it (``choice.tolerances.csv``, or ``--tolerances-out``)."""
+follow from it (``choice.tolerances.csv``, or ``--tolerances-out``). When no choice can
+meet the targets, the rows that block it go beside ``--out`` instead
+(``choice.blocking.csv``: output, pose as axis positions, load)."""
 
 from __future__ import annotations
 
 import dataclasses
 
 import numpy as np
+import pandas as pd
 
-from allocation import AllocationProblem, solve_catalogue
+from allocation import AllocationProblem, CatalogueInfeasibleError, solve_catalogue
 from allocation.per_pose.result_files import allocation_to_csv
+from reliability.basics.display import axis_units, pose_frame
+from reliability.basics.errors import InputError
+from reliability.basics.files import write_csv
 from reliability.model.poses import workspace_grid
 from studies.report.writer import SIGNIFICANT
 
@@ -67,7 +73,11 @@ def run(args) -> int:
     problem = AllocationProblem.build(machine, workspace_grid(machine, args.points),
                                       side=args.side, reference=start)
     options.say(f"choosing among {catalogue.n_choices:,} combinations of classes (HiGHS)")
-    result = solve_catalogue(problem, catalogue)
+    try:
+        result = solve_catalogue(problem, catalogue)
+    except CatalogueInfeasibleError as error:
+        raise InputError(blocked_text(error, problem, options.beside(out, "blocking"),
+                                      args.overwrite)) from None
     print(result.summary())
     print(f"workspace: grid — the choice meets the targets at the {len(problem.poses)} poses "
           f"of the {args.points}-point grid (a catalogue choice is made on the grid only)")
@@ -76,3 +86,22 @@ def run(args) -> int:
     allocation_to_csv(result, tolerances_out, args.overwrite)  # all digits
     print(f"tolerances written to {tolerances_out}")
     return 0
+
+
+def blocked_text(error, problem, path, overwrite: bool) -> str:
+    """The refusal of an infeasible catalogue, its blocking rows written to ``path`` (output,
+    pose as axis positions, load) unless an earlier file is there without ``overwrite``."""
+    blocking = error.blocking
+    if blocking.empty:
+        return str(error)
+    machine = problem.machine
+    poses = problem.poses[blocking["pose"].to_numpy()]
+    table = pd.concat([blocking[["output"]].reset_index(drop=True),
+                       pose_frame(poses, machine.axes, axis_units(machine), style="csv"),
+                       blocking[["load"]].reset_index(drop=True)], axis=1)
+    if path.exists() and not overwrite:
+        where = f"not written: {path} exists; pass --overwrite"
+    else:
+        write_csv(table, path, overwrite, index=False, float_format=f"%.{SIGNIFICANT}g")
+        where = f"listed in {path}"
+    return str(error).replace("(see .blocking)", f"({where})")
