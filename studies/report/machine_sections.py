@@ -24,7 +24,7 @@ from reliability.basics.display import (OUTPUT_UNITS, axis_units, error_units, i
                                         output_people_units, percentage_text, pose_frame,
                                         shown_positions, tolerance_numbers,
                                         top_contributors, unit_symbol)
-from reliability.basics.files import SIGNIFICANT, as_written
+from reliability.basics.files import SIGNIFICANT, as_written, rounded_up
 from reliability.model.identifiability import EQUAL_RTOL, indistinguishable_groups
 from reliability.model.iso_names import plain_names
 from reliability.model.machine import OUTPUTS
@@ -322,7 +322,9 @@ def workspace_section(study: MachineStudy) -> Section:
                            table[[value, bound, "allowed", "excess", "gap", "certified",
                                   "calls"]]], axis=1)
         shown.insert(1, "unit", list(OUTPUT_UNITS))
-        tables["workspace_certificate.csv"] = shown
+        # the certified bound is written rounded up, so the file's bound still bounds
+        tables["workspace_certificate.csv"] = shown.assign(
+            **{bound: rounded_up(shown[bound].to_numpy(dtype=float), SIGNIFICANT)})
         text += ("\n\nThe certificate at the optimum (`allowed`: the σ the target allows; "
                  "`excess`: bound / allowed − 1; `gap`: the certificate's own bound / σ − 1):"
                  "\n\n" + markdown_table(shown, interval_formats(
