@@ -181,5 +181,9 @@ def test_a_report_whose_optional_sections_fail_is_written_and_says_why(failing_r
         assert heading in markdown
     assert "Not computed</strong>" in (out / "report.html").read_text()
     assert (out / "catalogue_blocking.csv").exists() and (out / "allocation.csv").exists()
+    assert "(listed in catalogue_blocking.csv)" in summary["not_computed"]["catalogue"]
+    blocking = pd.read_csv(out / "catalogue_blocking.csv")  # poses where they are, mm
+    assert list(blocking.columns) == ["output", "Y_mm", "X_mm", "Z_mm", "load"]
+    assert (blocking["load"] > 1).all()
     assert "section 'Component choice' not computed" in printed
     assert "section 'Acceptance tests' not computed" in printed

@@ -148,3 +148,14 @@ def test_tighten_lists_the_ten_that_buy_most_first(mill_study):
                 rf"{re.escape(name)} \(\d+ items: {re.escape(k[0])},", tighten))
         listed.append(ratios[key])
     assert listed == pytest.approx(ranked[:10], rel=1e-5)
+
+
+def test_with_positions_shows_a_pose_by_where_it_is_not_by_its_row():
+    from reliability.basics.display import with_positions
+    frame = pd.DataFrame({"output": ["dx", "ez"], "pose": [7, 3], "X": [-300.0, 0.0],
+                          "A": [math.pi / 4, -math.pi / 2], "load": [1.5, 1.2]})
+    shown = with_positions(frame, ("X", "A"), ("mm", "rad"))
+    assert list(shown.columns) == ["output", "X_mm", "A_deg", "load"]
+    np.testing.assert_allclose(shown["A_deg"], [45.0, -90.0])
+    np.testing.assert_array_equal(shown["X_mm"], [-300.0, 0.0])
+    assert list(frame.columns) == ["output", "pose", "X", "A", "load"]  # left as it was

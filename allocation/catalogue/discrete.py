@@ -76,8 +76,9 @@ class CatalogueInfeasibleError(InfeasibleAllocationError):
     ----------
     blocking : DataFrame
         Rows (output, pose) that exceed their limit even with every component at its
-        tightest class, worst first (empty when every row alone can be met but no single
-        choice meets them all).
+        tightest class, worst first, with the pose's axis positions (mm, rad) and the load
+        (1 = what the requirement allows); empty when every row alone can be met but no
+        single choice meets them all.
     """
 
     def __init__(self, message: str, blocking: pd.DataFrame):
@@ -361,13 +362,16 @@ class _Model:
             return
         blocked = blocked[np.argsort(-least[blocked], kind="stable")]
         frame = pd.DataFrame({"output": np.array(OUTPUTS)[self.rows.output[blocked]],
-                              "pose": self.rows.pose[blocked], "load": least[blocked]})
+                              "pose": self.rows.pose[blocked]})
+        for i, axis in enumerate(self.problem.machine.axes):
+            frame[axis] = self.problem.poses[frame["pose"].to_numpy(), i]
+        frame["load"] = least[blocked]
         first = frame.iloc[0]
         raise CatalogueInfeasibleError(
             f"no choice of classes meets {first['output']} at "
             f"{_pose_text(self.problem, int(first['pose']))}: even the tightest classes "
             f"leave its load at {first['load']:.4g} (1 = what the requirement allows); "
-            f"{len(frame)} (output, pose) row(s) blocked in all (see .blocking)", frame)
+            f"{len(frame)} (output, pose) row(s) blocked in all", frame)
 
     def solve(self):
         """``(x, milp result, details)`` by row generation (module docstring): solve with

@@ -85,6 +85,17 @@ def pose_frame(poses, axes, units, *, style: str = "bracket") -> pd.DataFrame:
                          for i, (axis, unit) in enumerate(zip(axes, shown_units))})
 
 
+def with_positions(frame: pd.DataFrame, axes, units) -> pd.DataFrame:
+    """``frame`` with its axis columns (model units: mm, rad) replaced, after its first
+    column, by the positions people read (``X_mm``, ``A_deg``, …; :func:`pose_frame`), and
+    without a ``pose`` column of row numbers: a pose is shown by where it is."""
+    shown = pose_frame(frame[list(axes)].to_numpy(dtype=float), axes, units, style="csv")
+    out = frame.drop(columns=[*axes, *(["pose"] if "pose" in frame else [])])
+    for i, column in enumerate(shown):
+        out.insert(1 + i, column, shown[column].to_numpy())
+    return out
+
+
 def people_units(units) -> tuple[str, str]:
     """The ``(length, angle)`` units tables for people use: the machine file's stated
     units (``machine.cost_coefficients.units``), mm and rad when it states none."""

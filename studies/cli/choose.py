@@ -9,11 +9,10 @@ from __future__ import annotations
 import dataclasses
 
 import numpy as np
-import pandas as pd
 
 from allocation import AllocationProblem, CatalogueInfeasibleError, solve_catalogue
 from allocation.per_pose.result_files import allocation_to_csv
-from reliability.basics.display import axis_units, pose_frame
+from reliability.basics.display import axis_units, with_positions
 from reliability.basics.errors import InputError
 from reliability.basics.files import write_csv
 from reliability.model.poses import workspace_grid
@@ -91,17 +90,11 @@ def run(args) -> int:
 def blocked_text(error, problem, path, overwrite: bool) -> str:
     """The refusal of an infeasible catalogue, its blocking rows written to ``path`` (output,
     pose as axis positions, load) unless an earlier file is there without ``overwrite``."""
-    blocking = error.blocking
-    if blocking.empty:
+    if error.blocking.empty:
         return str(error)
     machine = problem.machine
-    poses = problem.poses[blocking["pose"].to_numpy()]
-    table = pd.concat([blocking[["output"]].reset_index(drop=True),
-                       pose_frame(poses, machine.axes, axis_units(machine), style="csv"),
-                       blocking[["load"]].reset_index(drop=True)], axis=1)
+    table = with_positions(error.blocking, machine.axes, axis_units(machine))
     if path.exists() and not overwrite:
-        where = f"not written: {path} exists; pass --overwrite"
-    else:
-        write_csv(table, path, overwrite, index=False, float_format=f"%.{SIGNIFICANT}g")
-        where = f"listed in {path}"
-    return str(error).replace("(see .blocking)", f"({where})")
+        return f"{error} (not written: {path} exists; pass --overwrite)"
+    write_csv(table, path, overwrite, index=False, float_format=f"%.{SIGNIFICANT}g")
+    return f"{error} (listed in {path})"

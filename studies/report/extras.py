@@ -28,6 +28,7 @@ import numpy as np
 import pandas as pd
 
 from allocation import AllocationProblem, InfeasibleAllocationError, solve_catalogue
+from reliability.basics.display import axis_units, with_positions
 from reliability.basics.errors import InputError, InputTypeError
 from reliability.basics.streams import (catalogue_stream, compensated_acceptance_stream,
                                         rare_stream, system_stream)
@@ -190,18 +191,21 @@ def guarded(name: str, build):
         try:
             return build(study)
         except SECTION_FAILURES as error:
-            return not_computed_section(name, error)
+            return not_computed_section(name, error, study.machine)
     return make
 
 
-def not_computed_section(name: str, error: Exception) -> Section:
+def not_computed_section(name: str, error: Exception, machine) -> Section:
     """The section ``name`` (a key of :data:`TITLES`) that could not be computed: its
-    heading, the reason, the blocking rows when the error has them (``NAME_blocking.csv``),
-    and ``summary.json``'s ``not_computed`` entry ``{name: reason}``."""
+    heading, the reason, the blocking rows when the error has them (``NAME_blocking.csv``,
+    poses as ``machine``'s axis positions), and ``summary.json``'s ``not_computed`` entry
+    ``{name: reason}``."""
     blocking = getattr(error, "blocking", None)
-    tables = {} if blocking is None or blocking.empty else {f"{name}_blocking.csv": blocking}
-    reason = str(error).replace("(see .blocking)", f"(see {name}_blocking.csv)" if tables
-                                else "").strip()
+    tables = {} if blocking is None or blocking.empty else {
+        f"{name}_blocking.csv": with_positions(blocking, machine.axes, axis_units(machine))}
+    reason = " ".join(str(error).split())
+    if tables:
+        reason += f" (listed in {name}_blocking.csv)"
     asked = f" (asked for by {OPTIONS[name]})" if name in OPTIONS else ""
     text = (f"**Not computed**{asked}: {reason}\n\nThe rest of the report does not depend on "
             f"this section.")

@@ -23,7 +23,7 @@ from allocation.per_pose.result_files import (DRAWING_FILE, MULTIPLIER_DIGITS, a
 from reliability.basics.display import (OUTPUT_UNITS, axis_units, error_units, in_units,
                                         output_people_units, percentage_text, pose_frame,
                                         shown_positions, tolerance_numbers,
-                                        top_contributors, unit_symbol)
+                                        top_contributors, unit_symbol, with_positions)
 from reliability.basics.files import SIGNIFICANT, as_written, rounded_up
 from reliability.model.identifiability import EQUAL_RTOL, indistinguishable_groups
 from reliability.model.iso_names import plain_names
@@ -143,7 +143,7 @@ def unreachable_text(study: MachineStudy) -> str:
 def unreachable_section(study: MachineStudy) -> Section:
     """What blocks the targets: every blocked (output, pose), worst first."""
     machine = study.machine
-    blocking = _shown_poses(machine, study.unreachable.blocking)
+    blocking = shown_poses(machine, study.unreachable.blocking)
     text = (f"{unreachable_text(study)[2:]}\n\nBlocked requirements with every tolerance "
             f"at the box's lower bound (σ in mm or rad, the output's unit; poses in mm and "
             f"degrees), worst first; {len(blocking)} in all, the first 20 shown:\n\n"
@@ -503,7 +503,7 @@ def verification_section(study: MachineStudy) -> Section:
                       for name, check in study.checks.items()}, names=["allocation"])
     random = pd.concat({name: check.random_poses.set_index("output")
                         for name, check in study.checks.items()}, names=["allocation"])
-    worst = pd.concat({name: _shown_poses(machine, check.worst_poses).set_index("output")
+    worst = pd.concat({name: shown_poses(machine, check.worst_poses).set_index("output")
                        for name, check in study.checks.items()}, names=["allocation"])
     repeats = pd.concat(
         [pd.DataFrame(check.grid.fractions, columns=list(OUTPUTS))
@@ -554,14 +554,9 @@ def pose_columns_of(machine) -> list[str]:
                            axis_units(machine), style="csv").columns)
 
 
-def _shown_poses(machine, frame: pd.DataFrame) -> pd.DataFrame:
-    """``frame`` with its axis columns (model units) replaced by ``X_mm``, ``A_deg``, …"""
-    shown = pose_frame(frame[list(machine.axes)].to_numpy(), machine.axes,
-                       axis_units(machine), style="csv")
-    out = frame.drop(columns=list(machine.axes))
-    for i, column in enumerate(shown):
-        out.insert(1 + i, column, shown[column].to_numpy())
-    return out
+def shown_poses(machine, frame: pd.DataFrame) -> pd.DataFrame:
+    """:func:`~reliability.basics.display.with_positions` for ``machine``'s axes."""
+    return with_positions(frame, machine.axes, axis_units(machine))
 
 
 def _reading(distribution: str) -> str:
