@@ -199,6 +199,28 @@ def test_report_overwrite_keeps_unrelated_files_and_numbers(report_dir, capsys):
         assert (report_dir / name).read_bytes() == data, name
 
 
+def test_a_report_rewritten_holds_one_report_and_the_user_s_files(tmp_path):
+    """--overwrite removes what the earlier report wrote (its summary.json's ``files``) and
+    this one does not; a file the report never wrote stays, and so do an earlier report's
+    files when its summary.json lists none (0.3.0) or lists a path instead of a name."""
+    from studies.report.section import Section
+    from studies.report.writer import write_report
+    table = pd.DataFrame({"a": [1.0]})
+    first = [Section("One", "t", tables={"one.csv": table}),
+             Section("Two", "t", tables={"two.csv": table})]
+    write_report(tmp_path, first, {}, title="T")
+    (tmp_path / "notes.txt").write_text("mine")
+    write_report(tmp_path, first[:1], {}, title="T", overwrite=True)
+    assert sorted(p.name for p in tmp_path.iterdir()) == [
+        "notes.txt", "one.csv", "report.html", "report.md", "summary.json"]
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    summary["files"] = ["../notes.txt", "notes.txt/"]
+    (tmp_path / "summary.json").write_text(json.dumps(summary))
+    (tmp_path / "old.csv").write_text("a\n1\n")  # a 0.3.0 report's table, unlisted
+    write_report(tmp_path, first[:1], {}, title="T", overwrite=True)
+    assert (tmp_path / "notes.txt").read_text() == "mine" and (tmp_path / "old.csv").exists()
+
+
 def test_rounded_keeps_six_significant_digits():
     assert rounded({"a": 0.1234567891, "b": [2.0e-5 / 3], "c": np.float64(1e12 / 7),
                     "d": np.bool_(True), "e": np.int64(3)}) == {
@@ -232,7 +254,8 @@ def test_writer_takes_extra_sections(tmp_path):
                                          "summary.json"}
     assert (tmp_path / "extra.csv").read_text() == "a\n0.333333\n"
     assert json.loads((tmp_path / "summary.json").read_text()) == {
-        "machine": "m", "extra_key": 0.666667}
+        "machine": "m", "extra_key": 0.666667,
+        "files": ["extra.csv", "report.md", "report.html", "summary.json"]}
     assert "## Extra" in (tmp_path / "report.md").read_text()
 
 

@@ -3,7 +3,9 @@
 The folder receives every section's tables as CSV and figures as PNG, ``report.md``,
 ``report.html`` (self-contained: figures embedded as base64 PNG, no network access
 needed) and ``summary.json`` (the sections' summary entries merged,
-:func:`merged_summary`). Numbers in the CSV,
+:func:`merged_summary`, and under ``files`` the names of every file the report wrote, so
+that a report rewritten in the same folder removes what the earlier one wrote and this one
+does not). Numbers in the CSV,
 markdown and JSON files are written to :data:`SIGNIFICANT` significant digits, so that a
 rerun with the same seed, on this or another computer, gives the same files.
 """
@@ -58,8 +60,9 @@ def write_report(out, sections, summary: dict, *, title: str, overwrite: bool = 
     title : str
         Heading of the report.
     overwrite : bool
-        Replace files of an earlier report; files the report does not write are never
-        touched.
+        Replace an earlier report: its files are replaced, and those it wrote (its
+        ``summary.json`` lists them under ``files``) that this report does not write are
+        removed, so the folder holds one report. Other files are never touched.
 
     Raises
     ------
@@ -78,13 +81,30 @@ def write_report(out, sections, summary: dict, *, title: str, overwrite: bool = 
         if not out.exists():
             staging.rename(out)
         else:
+            stale = earlier_report_files(out) - set(names)
             for name in names:
                 (staging / name).replace(out / name)
             staging.rmdir()
+            for name in sorted(stale):
+                (out / name).unlink(missing_ok=True)
     finally:
         if staging.exists():
             shutil.rmtree(staging)
     return [out / name for name in names]
+
+
+def earlier_report_files(out: Path) -> set[str]:
+    """The files an earlier report in ``out`` wrote, as its ``summary.json`` lists them
+    (``files``); empty when there is none, or it lists none (a report of 0.3.0 or earlier),
+    or it is not a report's summary. Only plain file names count, never a path."""
+    try:
+        listed = json.loads((out / "summary.json").read_text()).get("files", [])
+    except (OSError, ValueError, AttributeError):
+        return set()
+    if not isinstance(listed, list):
+        return set()
+    return {name for name in listed if isinstance(name, str) and name == Path(name).name
+            and name not in ("", ".", "..")}
 
 
 def _assemble(folder: Path, sections, summary: dict, title: str) -> list[str]:
@@ -100,10 +120,12 @@ def _assemble(folder: Path, sections, summary: dict, title: str) -> list[str]:
             images[name] = png_bytes(figure)
             atomic_write_bytes(folder / name, images[name])
             names.append(name)
+    names += ["report.md", "report.html", "summary.json"]
+    merged["files"] = names
     atomic_write_text(folder / "report.md", render_markdown(title, sections))
     atomic_write_text(folder / "report.html", render_html(title, sections, images))
     atomic_write_text(folder / "summary.json", json.dumps(rounded(merged), indent=2) + "\n")
-    return names + ["report.md", "report.html", "summary.json"]
+    return names
 
 
 def merged_summary(summary: dict, sections) -> dict:
