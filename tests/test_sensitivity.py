@@ -84,6 +84,11 @@ def test_precrel_sensitivity_writes_both_files(tmp_path, capsys):
     frame = pd.read_csv(out / "yield_sensitivity.csv")
     assert list(frame.columns) == ["error", "dyield_dlnt", "se"]
     assert "d yield / d ln t" in capsys.readouterr().out
+    (out / "notes.txt").write_text("mine")
+    # rewritten without --yield-gradient: the folder holds this run's files only
+    assert main(["sensitivity", MILL, "--pose", "Y=200,X=0,Z=-100", "--points", "2",
+                 "--sobol-samples", "100", "--out", str(out), "--overwrite"]) == 0
+    assert sorted(p.name for p in out.iterdir()) == ["notes.txt", "sobol.csv"]
 
 
 @pytest.mark.parametrize("pose, message", [("Y=200,X=0", "missing axes Z"),

@@ -78,6 +78,8 @@ def run(args) -> int:
         out.mkdir(exist_ok=True)
         for name, frame in written.items():
             write_csv(frame, out / name, overwrite=args.overwrite, index=False)
+        for name in set(OUTPUT_FILES) - set(written):  # an earlier run's, not this one's
+            (out / name).unlink(missing_ok=True)
         print(f"\n{', '.join(written)} written to {out}/")
     return 0
 
