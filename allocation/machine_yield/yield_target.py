@@ -106,7 +106,7 @@ from reliability.basics.errors import InputError
 from reliability.basics.renamed import renamed
 from reliability.basics.threads import one_blas_thread
 from reliability.basics.saved_fields import (Array, Flag, Integer, Mapping, Nested, Number,
-                                            Text, Texts, read_fields, write_fields)
+                                            Record, Text, Texts, read_fields, write_fields)
 from reliability.basics.saved_results import load_payload, save_payload
 from reliability.basics.statistics import ProportionEstimate, all_within_share
 from reliability.basics.display import interval_text, percentage_text
@@ -474,37 +474,17 @@ class SavedProportion:
         return ProportionEstimate(**values)
 
 
-class SavedChainBound:
-    """The payload writer and reader of a :class:`~allocation.machine_yield.yield_bound.ChainBound`."""
-
-    FIELDS = (Number("bound", positive=True), Array("tolerances", (None,), positive=True),
-              Array("poses", (None,), dtype=int, low=0), Integer("rows", low=0))
-
-    @staticmethod
-    def payload(bound) -> dict:
-        return write_fields(bound, SavedChainBound.FIELDS)
-
-    @staticmethod
-    def from_payload(data) -> ChainBound:
-        return ChainBound(**read_fields(data, SavedChainBound.FIELDS))
-
-
-class SavedNaive:
-    """The payload writer and reader of a :class:`NaiveAllocation`."""
-
-    FIELDS = (Number("target", low=0.0, high=1.0), Number("toward_lower", low=0.0, high=1.0),
-              Array("tolerances", (None,), positive=True), Number("cost", positive=True),
-              Number("search_cost", positive=True),
-              *(Nested(key, SavedProportion)
-                for key in ("design_yield", "calibration_yield", "verified_yield")))
-
-    @staticmethod
-    def payload(naive) -> dict:
-        return write_fields(naive, SavedNaive.FIELDS)
-
-    @staticmethod
-    def from_payload(data) -> NaiveAllocation:
-        return NaiveAllocation(**read_fields(data, SavedNaive.FIELDS))
+#: The fields of a :class:`~allocation.machine_yield.yield_bound.ChainBound` saved with a
+#: yield allocation.
+CHAIN_BOUND_FIELDS = (Number("bound", positive=True),
+                      Array("tolerances", (None,), positive=True),
+                      Array("poses", (None,), dtype=int, low=0), Integer("rows", low=0))
+#: The fields of a :class:`NaiveAllocation` saved with a yield allocation.
+NAIVE_FIELDS = (Number("target", low=0.0, high=1.0), Number("toward_lower", low=0.0, high=1.0),
+                Array("tolerances", (None,), positive=True), Number("cost", positive=True),
+                Number("search_cost", positive=True),
+                *(Nested(key, SavedProportion)
+                  for key in ("design_yield", "calibration_yield", "verified_yield")))
 
 
 SAVED_FORMAT = "precrel.yield_allocation"
@@ -520,8 +500,8 @@ SAVED_FIELDS = (
     Nested("design_yield", SavedProportion), Flag("calibrated"),
     Nested("calibration_yield", SavedProportion), Nested("verified_yield", SavedProportion),
     Number("lower_bound", positive=True), Number("row_bound", positive=True),
-    Nested("chain_bound", SavedChainBound, optional=True),
-    Array("lower_bound_tolerances", (None,), positive=True), Nested("naive", SavedNaive),
+    Record("chain_bound", CHAIN_BOUND_FIELDS, ChainBound, optional=True),
+    Array("lower_bound_tolerances", (None,), positive=True), Record("naive", NAIVE_FIELDS, NaiveAllocation),
     Text("profile"), Text("distribution", ("normal", "truncated")), Integer("points", low=2),
     Integer("machines", low=1), Integer("seed"), Integer("evaluations", low=0),
     Mapping("seconds"))

@@ -50,8 +50,8 @@ import numpy as np
 import pandas as pd
 from scipy.optimize import minimize, nnls
 
-from reliability.basics.saved_fields import (Array, Flag, Nested, Number, Text, load_fields,
-                                            read_fields, save_fields, write_fields)
+from reliability.basics.saved_fields import (Array, Flag, Number, Record, Text, load_fields,
+                                            save_fields)
 
 __all__ = [
     "ConvexSolution",
@@ -117,15 +117,6 @@ class KktResiduals:
     stationarity: float
     primal_feasibility: float
     complementary_slackness: float
-
-    def payload(self) -> dict:
-        """The three residuals, JSON-ready (saved inside a :class:`ConvexSolution`)."""
-        return write_fields(self, KKT_FIELDS)
-
-    @classmethod
-    def from_payload(cls, data) -> "KktResiduals":
-        """The residuals :meth:`payload` wrote, read through ``data`` and checked."""
-        return cls(**read_fields(data, KKT_FIELDS))
 
 
 KKT_FIELDS = (Number("stationarity", low=0.0), Number("primal_feasibility", low=0.0),
@@ -236,7 +227,7 @@ class ConvexSolution:
 SAVED_FORMAT = "precrel.convex_solution"
 SAVED_FIELDS = (Array("u", ("n",), positive=True), Array("t", ("n",), positive=True),
                 Number("fun"), Array("multipliers", (None,), low=0.0), Number("dual_bound"),
-                Number("duality_gap"), Number("relative_gap"), Nested("kkt", KktResiduals),
+                Number("duality_gap"), Number("relative_gap"), Record("kkt", KKT_FIELDS, KktResiduals),
                 *(Array(key, (None,), dtype=int, low=0)
                   for key in ("active", "at_lower", "at_upper", "locked")),
                 Flag("success"), Text("message"))

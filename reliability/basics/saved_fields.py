@@ -203,6 +203,21 @@ class Nested(Field):
         return self.kind.from_payload(data.table(self.name))
 
 
+class Record(Field):
+    """One object (e.g. a bound or a solver's residuals) saved as its ``fields`` and rebuilt
+    by ``build(**values)``."""
+
+    def __init__(self, name, fields, build, optional=False):
+        super().__init__(name, optional)
+        self.fields, self.build = tuple(fields), build
+
+    def write(self, value):
+        return write_fields(value, self.fields)
+
+    def read(self, data, dims):
+        return self.build(**read_fields(data.table(self.name), self.fields))
+
+
 class Records(Field):
     """A tuple of objects (e.g. a machine's axes), each saved as its ``fields`` and rebuilt
     by ``build(**values)``."""
