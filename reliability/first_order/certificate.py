@@ -58,10 +58,12 @@ from scipy.optimize import minimize
 from ..basics import checks
 from ..basics.chunks import chunks
 from ..basics.errors import InputError
-from ..basics.ties import TIE_RTOL, worst_rows
+from ..basics.ties import SEARCH_RTOL, TIE_RTOL, worst_rows
 from ..model.error_draws import DISTRIBUTIONS
 from ..model.kinematics import jacobian, output_variance
 from ..model.machine import OUTPUTS
+from .canonical_maxima import (POLISH_OPTIONS, NearCandidates, representatives,
+                               snap_positions)
 from .fosm import error_sigma
 from .pose_expansion import interval_tree, jacobian_expansion, point_tree, variance_expansion
 from .zone_bound import ZoneConstraints, hessian_enclosure
@@ -193,10 +195,9 @@ def _certify(machine, model, direct, rtol, max_calls, memory, reading, shared,
     tied, bound, calls = branch_and_bound(model, low, high, rtol, max_calls, memory, zone)
     if zone is None:
         tied[:, model.fixed] = low[model.fixed]  # axes the spread does not depend on
-    tied = _onto_ends(tied, low, high)
-    poses = model.expansion.pose(np.unique(tied, axis=0))
+    poses = _snapped_poses(machine, model, _onto_ends(tied, low, high), zone)
     values = direct(poses)
-    choice = worst_rows(values, poses)
+    choice = worst_rows(values, poses, rtol=SEARCH_RTOL)
     value = float(values[choice])
     bound = max(model.spread(bound), value)
     row = dict(zip(machine.axes, poses[choice]))
@@ -204,6 +205,19 @@ def _certify(machine, model, direct, rtol, max_calls, memory, reading, shared,
                 "certified": bool(bound <= value * (1 + rtol)), "calls": int(calls),
                 "seconds": time.perf_counter() - started})
     return row
+
+
+def _snapped_poses(machine, model, points, zone):
+    """The poses of local ``points``, each rounded to the resolution of the strokes
+    (:func:`reliability.first_order.canonical_maxima.snap_positions`) where the rounded pose
+    stays in the work zone, so that the same maximum reads the same on every computer."""
+    poses = model.expansion.pose(np.unique(points, axis=0))
+    low = np.array([axis.stroke[0] for axis in machine.axis_specs], dtype=float)
+    high = np.array([axis.stroke[1] for axis in machine.axis_specs], dtype=float)
+    snapped = snap_positions(poses, low, high)
+    if zone is not None:
+        snapped = np.where(zone.contains(snapped)[:, None], snapped, poses)
+    return np.unique(snapped, axis=0)
 
 
 def _onto_ends(points, low, high):
@@ -235,7 +249,10 @@ def branch_and_bound(model, low, high, rtol, max_calls, memory=None, zone=None):
     Returns
     -------
     tied : ndarray (n_tied, n_axes)
-        Candidates within :data:`reliability.basics.ties.TIE_RTOL` of the best function value.
+        The local maxima polished from every region of near-best candidates
+        (:mod:`reliability.first_order.canonical_maxima`) within
+        :data:`reliability.basics.ties.SEARCH_RTOL` (in the spread) of the best, so that
+        symmetric twins are all there whatever order the boxes were visited in.
     bound : float
         Upper bound of the function over the whole box (over its poses in the zone).
     calls : int
@@ -245,6 +262,8 @@ def branch_and_bound(model, low, high, rtol, max_calls, memory=None, zone=None):
     boundary = _ZoneBoundary.for_model(model, zone, low, high, inside)
     tied, best = model.start(low, high, inside, boundary.search)
     tied, best = boundary.update(tied, best)
+    near = NearCandidates(2 * (model.closing_factor(rtol) - 1), len(low))
+    near.add(tied, model.values(tied), best)
     limit = model.closing_factor(rtol) * (1 - CLOSING_MARGIN)
     box_low, box_high = low[None, :], high[None, :]
     closed_bound = -np.inf
@@ -267,6 +286,7 @@ def branch_and_bound(model, low, high, rtol, max_calls, memory=None, zone=None):
         tied = np.unique(np.vstack([tied[model.values(tied) >= best * (1 - TIE_RTOL)],
                                     points[values >= best * (1 - TIE_RTOL)]]), axis=0)
         tied, best = boundary.update(tied, best)
+        near.add(points[np.isfinite(values)], values[np.isfinite(values)], best)
         done = bound <= best * limit
         if done.any():
             closed_bound = max(closed_bound, bound[done].max())
@@ -287,12 +307,21 @@ def branch_and_bound(model, low, high, rtol, max_calls, memory=None, zone=None):
                                      memory)[0]
             closed_bound = max(closed_bound, bound.max())
             calls += len(box_low)
-    polished = boundary.search(tied[:1])  # the last digits of the best candidate
-    polished = polished[inside(polished)]
-    top = float(model.values(polished).max()) if len(polished) else -np.inf
-    if top > best * (1 + TIE_RTOL):
-        tied, best = polished, top
+    tied, best = _polished_maxima(model, boundary, inside, tied, near, high - low)
     return tied, max(closed_bound, best), calls
+
+
+def _polished_maxima(model, boundary, inside, tied, near, span):
+    """The local maxima polished from one near-best candidate of each region
+    (:func:`reliability.first_order.canonical_maxima.representatives`), beside the tied
+    candidates: those within :data:`reliability.basics.ties.SEARCH_RTOL` (in the spread) of
+    the best, and the best value."""
+    regions = representatives(near.points, near.values, span)
+    polished = boundary.search(np.vstack([tied[:1], regions]))
+    candidates = np.vstack([tied, regions, polished[inside(polished)]])
+    values = model.values(candidates)
+    best = float(values.max())
+    return candidates[values >= best / model.closing_factor(SEARCH_RTOL)], best
 
 
 class _ZoneBoundary:
@@ -608,7 +637,8 @@ class _SigmaModel(_Model):
             return -tree[()][0] / scale, -gradient / scale
 
         return np.array([np.clip(minimize(negative, x, jac=True, method="L-BFGS-B",
-                                          bounds=list(zip(low, high))).x, low, high)
+                                          bounds=list(zip(low, high)),
+                                          options=POLISH_OPTIONS).x, low, high)
                          for x in starts])
 
     def boxes(self, low, high):

@@ -26,14 +26,12 @@ from ..basics.ties import SEARCH_RTOL, worst_rows
 from ..model.kinematics import jacobian_and_derivative
 from ..model.machine import OUTPUTS
 from ..model.work_zone import inside_zone
+from .canonical_maxima import POLISH_OPTIONS, snap_positions
 from .certificate import certified_worst
 from .fosm import error_sigma, one_sided_probability, pose_sigma, two_sided_probability
 
 __all__ = ["certified_worst", "continuous_worst", "searched_worst", "snap_to_resolution",
            "worst_first"]
-
-#: Resolution of a searched pose, as a fraction of each axis' stroke.
-POSE_RESOLUTION = 1e-4
 
 
 def continuous_worst(machine, tolerances, grid, *, k: float = 3.0, starts: int = 3,
@@ -66,7 +64,8 @@ def continuous_worst(machine, tolerances, grid, *, k: float = 3.0, starts: int =
     pandas.DataFrame
         Per output: ``grid_beta`` and ``beta`` (continuous), the two-sided and one-sided
         probabilities at each, and the continuous worst pose (one column per axis),
-        rounded to :data:`POSE_RESOLUTION` of each stroke (:func:`snap_to_resolution`);
+        rounded to :data:`reliability.first_order.canonical_maxima.POSE_RESOLUTION` of each
+        stroke (:func:`snap_to_resolution`);
         poses whose σ is within :data:`reliability.basics.ties.SEARCH_RTOL` of the largest are
         tied and the first in lexicographic order is reported
         (:func:`reliability.basics.ties.worst_rows`). The search is local, so ``beta`` is an
@@ -90,11 +89,13 @@ def searched_worst(machine, tolerances, grid, *, k: float = 3.0,
     machine's correlation, if any) with its analytic gradient
     (:func:`reliability.model.kinematics.jacobian_and_derivative`, in ``machine.frame``)
     over the strokes, from the ``starts`` poses of ``grid`` where the output is largest
-    (chosen by the tie rule, :func:`worst_first`). The poses found are rounded to
-    :data:`POSE_RESOLUTION` of each stroke (:func:`snap_to_resolution`), σ is evaluated
-    there, and the reported pose is, among the worst grid pose and the poses found, the
-    first in lexicographic order among those within
-    :data:`reliability.basics.ties.SEARCH_RTOL` of the largest σ
+    (chosen by the tie rule, :func:`worst_first`), with stopping tolerances far below
+    the resolution (:data:`reliability.first_order.canonical_maxima.POLISH_OPTIONS`). The
+    poses found are rounded to
+    :data:`reliability.first_order.canonical_maxima.POSE_RESOLUTION` of each stroke
+    (:func:`snap_to_resolution`), σ is evaluated there, and the reported pose is, among
+    the worst grid pose and the poses found, the first in lexicographic order among those
+    within :data:`reliability.basics.ties.SEARCH_RTOL` of the largest σ
     (:func:`reliability.basics.ties.worst_rows`), so that the same inputs give the same pose
     on every computer and under every SciPy version that finds the same maximum. On a machine
     with a work zone, poses found outside it are dropped. Local: it
@@ -162,7 +163,8 @@ def searched_worst(machine, tolerances, grid, *, k: float = 3.0,
             value, gradient = _negative_sigma_and_gradient(machine, q, sigma_x, o)
             return value / scale[o], gradient / scale[o]
 
-        found = [minimize(negative, start, jac=True, method="L-BFGS-B", bounds=bounds).x
+        found = [minimize(negative, start, jac=True, method="L-BFGS-B", bounds=bounds,
+                          options=POLISH_OPTIONS).x
                  for start in grid[worst_first(grid_sigma[:, o], grid, starts)]]
         found = snap_to_resolution(machine, np.array(found))
         found = found[inside_zone(machine, found)]
@@ -191,7 +193,8 @@ def worst_first(values, poses, count: int) -> list[int]:
 
 
 def snap_to_resolution(machine, poses) -> np.ndarray:
-    """Poses found by a search, rounded to :data:`POSE_RESOLUTION` of each stroke's span.
+    """Poses found by a search, rounded to
+    :data:`reliability.first_order.canonical_maxima.POSE_RESOLUTION` of each stroke's span.
 
     A local search fixes the position of a smooth maximum only to about the square root of
     its tolerance, so the digits beyond this resolution differ between computers; σ at the
@@ -199,9 +202,7 @@ def snap_to_resolution(machine, poses) -> np.ndarray:
     """
     low = np.array([axis.stroke[0] for axis in machine.axis_specs])
     high = np.array([axis.stroke[1] for axis in machine.axis_specs])
-    step = POSE_RESOLUTION * (high - low)
-    safe = np.where(step > 0, step, 1.0)
-    return np.clip(low + np.round((poses - low) / safe) * safe, low, high)
+    return snap_positions(poses, low, high)
 
 
 def _negative_sigma_and_gradient(machine, q, sigma_x, output: int):
