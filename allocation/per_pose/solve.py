@@ -344,6 +344,8 @@ def _active_rows(problem, t, tol: float = 1e-6) -> pd.DataFrame:
 # ----- workspace-mean reading ----------------------------------------------------------
 MEAN_TOLERANCE = 1e-10  # shortfall of the mean probability that counts as violated
 MAX_CUTS_ROUNDS = 200
+#: Slack of a mean constraint within which it is active at the end (tangent cut added).
+MEAN_TANGENT = 1e-7
 
 
 def _solve_mean(problem) -> AllocationResult:
@@ -364,11 +366,15 @@ def _solve_mean(problem) -> AllocationResult:
     at_lower = model.slack(lo)
     if np.any(at_lower < 0):
         raise _unreachable_mean(problem, at_lower)
-    u, cuts, relaxed = hi.copy(), [], None
+    u, cuts, relaxed, tangent = hi.copy(), [], None, False
     for rounds in range(1, MAX_CUTS_ROUNDS + 1):
         shortfall = model.slack(u) < -MEAN_TOLERANCE
         if not shortfall.any():
-            break
+            if tangent or relaxed is None:
+                break
+            # the cuts met at u were taken elsewhere: one more round with the tangents at
+            # u itself, so that u is stationary for the mean constraints, not the cuts
+            shortfall, tangent = model.slack(u) <= MEAN_TANGENT, True
         cuts.extend(model.cut(lo, u, output) for output in np.flatnonzero(shortfall))
         relaxed = solve_convex_allocation(w, np.array(cuts), lo, hi)
         u = relaxed.u
