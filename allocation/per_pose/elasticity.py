@@ -33,9 +33,10 @@ from reliability.model.machine import OUTPUTS
 
 from ..solvers.dual_face import dual_face
 
-#: An elasticity range narrower than this is one number (the dual face holds to about
-#: 1e-7 of the cost; three significant digits are printed).
-UNIQUE_WIDTH = 1e-5
+#: An elasticity range narrower than this times (1 + |its largest end|) is one number: the
+#: dual face is imposed to 1e-6 (:data:`allocation.solvers.dual_face.SLACK_FLOOR`), which
+#: widens a determined range to about 1e-5; three significant digits are printed.
+UNIQUE_WIDTH = 1e-4
 #: Columns of :attr:`AllocationResult.requirements`.
 REQUIREMENT_COLUMNS = ("binding_rows", "multiplier", "multiplier_min", "multiplier_max",
                        "elasticity", "elasticity_relax", "elasticity_tighten", "bound_with",
@@ -72,11 +73,15 @@ def requirement_multipliers(problem, solution) -> pd.DataFrame:
     to_elasticity = -scale / solution.fun
     width = UNIQUE_WIDTH / scale * solution.fun  # UNIQUE_WIDTH in multiplier units
 
+    def narrow(low, high):
+        return bool(np.isfinite(high)
+                    and high - low <= width * (1.0 + scale * high / solution.fun))
+
     def members(outputs):
         return np.isin(output, outputs)
 
     ranges = np.array([face.sum_range(members([o])) for o in range(len(OUTPUTS))])
-    loose = np.flatnonzero(ranges[:, 1] - ranges[:, 0] > width)
+    loose = np.flatnonzero([not narrow(low, high) for low, high in ranges])
     groups = _groups(face, members, ranges, loose, width)
     frame = pd.DataFrame({"binding_rows": np.bincount(output, minlength=len(OUTPUTS)),
                           "multiplier_min": ranges[:, 0], "multiplier_max": ranges[:, 1]},
@@ -94,16 +99,18 @@ def requirement_multipliers(problem, solution) -> pd.DataFrame:
         names = [OUTPUTS[o] for o in group]
         frame.loc[names, "bound_with"] = "+".join(names) if len(group) > 1 else ""
         frame.loc[names, "group_elasticity"] = \
-            to_elasticity * 0.5 * (low + high) + 0.0 if high - low <= width else np.nan
+            to_elasticity * 0.5 * (low + high) + 0.0 if narrow(low, high) else np.nan
     return frame[list(REQUIREMENT_COLUMNS)]
 
 
 def _groups(face, members, ranges, loose, width) -> list[list[int]]:
     """The non-unique outputs joined into groups: two outputs are joined when the range of
-    their summed multipliers is narrower than the two ranges together (they trade)."""
+    their summed multipliers is narrower than the two ranges together (they trade). An
+    output that cannot be tightened at all (an infinite range) stays alone."""
     parent = {o: o for o in loose}
-    for i, a in enumerate(loose):
-        for b in loose[i + 1:]:
+    finite = [o for o in loose if np.isfinite(ranges[o, 1])]
+    for i, a in enumerate(finite):
+        for b in finite[i + 1:]:
             low, high = face.sum_range(members([a, b]))
             spread = ranges[a, 1] - ranges[a, 0] + ranges[b, 1] - ranges[b, 0]
             if high - low < spread - width:

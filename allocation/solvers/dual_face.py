@@ -26,7 +26,8 @@ whole group's multiplier. A range of zero width is the unique derivative.
 (F1) holds only to the accuracy of ``u*`` (about 1e-7 relative), so it is imposed with a
 slack ``eps``: the smallest slack that admits a solution (an LP), times
 :data:`SLACK_FACTOR`, and at least :data:`SLACK_FLOOR`. Ranges narrower than about
-``eps`` times the conditioning are the same number.
+``eps`` times the conditioning are the same number
+(:data:`allocation.per_pose.elasticity.UNIQUE_WIDTH`).
 """
 
 from __future__ import annotations
@@ -40,8 +41,10 @@ __all__ = ["DualFace", "dual_face"]
 
 #: The slack of (F1) is this multiple of the smallest slack that admits a solution …
 SLACK_FACTOR = 4.0
-#: … and at least this (relative to the right-hand side of (F1), which is 1 after scaling).
-SLACK_FLOOR = 1e-9
+#: … and at least this (relative to the right-hand side of (F1), which is 1 after scaling):
+#: ten times the feasibility tolerance of the LP solver (HiGHS, 1e-7), about what ``u*``
+#: fixes (1e-7 relative).
+SLACK_FLOOR = 1e-6
 
 
 @dataclass(frozen=True)
