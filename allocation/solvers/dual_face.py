@@ -45,6 +45,8 @@ SLACK_FACTOR = 4.0
 #: ten times the feasibility tolerance of the LP solver (HiGHS, 1e-7), about what ``u*``
 #: fixes (1e-7 relative).
 SLACK_FLOOR = 1e-6
+#: Times the slack is widened tenfold when the LP solver fails on the face.
+SLACK_RETRIES = 2
 
 
 @dataclass(frozen=True)
@@ -82,7 +84,8 @@ class DualFace:
         tuple of float
             The smallest and largest group total, in the units of ``lam``; the largest is
             ``inf`` when the group's rows involve only locked items or items at their
-            lower bound (tightening them cannot be met at any cost).
+            lower bound (tightening them cannot be met at any cost); NaN when the LP
+            solver fails even on a widened face.
         """
         members = np.asarray(members, dtype=bool)
         if not members.any():
@@ -91,18 +94,23 @@ class DualFace:
         c[: len(self.rows)] = members
         low = self._optimum(c)
         high = -self._optimum(-c)
-        return self.fun * low, self.fun * max(high, low)
+        return self.fun * low, self.fun * (high if np.isnan(high) else max(high, low))
 
     def _optimum(self, c) -> float:
+        """``min c·x`` over the face; should the LP solver fail on the thin slab (its
+        tolerances are absolute), the slack is widened by 10 up to :data:`SLACK_RETRIES`
+        times, and NaN (not computed) returned if it still fails."""
         n = self.matrix.shape[0]
         a_ub = np.vstack([self.matrix, -self.matrix])
-        b_ub = np.r_[np.full(n, 1.0 + self.slack), np.full(n, -(1.0 - self.slack))]
-        result = linprog(c, A_ub=a_ub, b_ub=b_ub, bounds=(0, None), method="highs")
-        if result.status == 3:  # a row on locked or lower-bound items only: no tightening
-            return -np.inf
-        if result.status != 0:  # the slack admits a solution by construction
-            raise RuntimeError(f"dual face LP failed: {result.message}")
-        return float(result.fun)
+        for retry in range(SLACK_RETRIES + 1):
+            slack = self.slack * 10.0 ** retry
+            b_ub = np.r_[np.full(n, 1.0 + slack), np.full(n, -(1.0 - slack))]
+            result = linprog(c, A_ub=a_ub, b_ub=b_ub, bounds=(0, None), method="highs")
+            if result.status == 3:  # a row on locked or lower-bound items only
+                return -np.inf
+            if result.status == 0:
+                return float(result.fun)
+        return np.nan
 
 
 def dual_face(weights, constraints, u, lower, upper, active, *, power=1, tol=1e-7):
@@ -141,7 +149,8 @@ def dual_face(weights, constraints, u, lower, upper, active, *, power=1, tol=1e-
 
 def _slack(matrix) -> float:
     """:data:`SLACK_FACTOR` times the smallest ``eps`` with ``|matrix x - 1| <= eps``,
-    ``x >= 0`` solvable (an LP in ``(x, eps)``), at least :data:`SLACK_FLOOR`."""
+    ``x >= 0`` solvable (an LP in ``(x, eps)``), at least :data:`SLACK_FLOOR` (the floor
+    alone when that LP fails: :meth:`DualFace.sum_range` then widens it)."""
     n, m = matrix.shape
     if n == 0:
         return SLACK_FLOOR
@@ -150,6 +159,5 @@ def _slack(matrix) -> float:
     b_ub = np.r_[np.ones(n), -np.ones(n)]
     c = np.r_[np.zeros(m), 1.0]
     result = linprog(c, A_ub=a_ub, b_ub=b_ub, bounds=(0, None), method="highs")
-    if result.status != 0:
-        raise RuntimeError(f"dual face slack LP failed: {result.message}")
-    return max(SLACK_FLOOR, SLACK_FACTOR * float(result.fun))
+    found = float(result.fun) if result.status == 0 else 0.0  # failed: the retries widen
+    return max(SLACK_FLOOR, SLACK_FACTOR * found)
