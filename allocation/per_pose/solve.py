@@ -140,10 +140,12 @@ class AllocationResult:
     certificate : dict
         Exact: ``dual_bound``, ``relative_gap``, KKT residuals. GWO: ``violation``.
     active : DataFrame
-        Binding constraints: output, pose index and positions (the exact solver: rows
-        active at the optimum, whatever their multiplier; no per-row multiplier is given,
-        since where several binding rows are alike the split of λ among them is not
-        unique).
+        Binding constraints: output, pose index and positions (the exact solver: every
+        row active at the optimum), and for the exact solver the multiplier λ that
+        certifies the dual bound and its ``elasticity = −2λ/F``. These per-row values are
+        the solver's own split: where several binding rows are alike any split is
+        optimal, so they are part of the certificate, not results (docs/non-unique.md);
+        :attr:`requirements` gives what the problem determines.
     history : DataFrame or None
         GWO convergence (best cost and violation per iteration).
     requirements : DataFrame or None
@@ -260,6 +262,9 @@ def solve_exact(problem, *, gap_tol: float = 1e-6) -> AllocationResult:
     except InfeasibleAllocationError as exc:
         raise unreachable_worst(problem, exc.rows, exc.loads) from None
     active = _row_frame(problem, solution.active)
+    active["multiplier"] = solution.multipliers[solution.active]
+    scale = 2.0 / problem.variable_power  # rows scale as 1/I² (FOSM) or 1/I (stack)
+    active["elasticity"] = -scale * active["multiplier"] / solution.fun
     certificate = {"dual_bound": solution.dual_bound, "duality_gap": solution.duality_gap,
                    "relative_gap": solution.relative_gap,
                    "stationarity": solution.kkt.stationarity,

@@ -37,7 +37,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import linprog
 
-__all__ = ["DualFace", "dual_face"]
+__all__ = ["DualFace", "dual_face", "stationarity_face"]
 
 #: The slack of (F1) is this multiple of the smallest slack that admits a solution …
 SLACK_FACTOR = 4.0
@@ -87,11 +87,28 @@ class DualFace:
             lower bound (tightening them cannot be met at any cost); NaN when the LP
             solver fails even on a widened face.
         """
-        members = np.asarray(members, dtype=bool)
-        if not members.any():
-            return 0.0, 0.0
+        return self.range(np.asarray(members, dtype=bool).astype(float))
+
+    def range(self, coefficients) -> tuple[float, float]:
+        """``[min, max]`` of ``sum_r c_r lam_r`` over the face (any linear form of the
+        multipliers of the active rows, e.g. a derivative by the envelope theorem; for
+        a parameter of the constraints the two ends are the derivatives of the optimal
+        cost from below and from above).
+
+        Parameters
+        ----------
+        coefficients : array_like, shape (len(rows),)
+            ``c_r`` per active row.
+
+        Returns
+        -------
+        tuple of float
+            As :meth:`sum_range`.
+        """
         c = np.zeros(self.matrix.shape[1])
-        c[: len(self.rows)] = members
+        c[: len(self.rows)] = coefficients
+        if not c.any():
+            return 0.0, 0.0
         low = self._optimum(c)
         high = -self._optimum(-c)
         return self.fun * low, self.fun * (high if np.isnan(high) else max(high, low))
@@ -144,7 +161,27 @@ def dual_face(weights, constraints, u, lower, upper, active, *, power=1, tol=1e-
     at_upper = u[items] >= hi[items] * (1.0 - tol)
     matrix = np.hstack([fun * G[np.ix_(rows, items)].T * scale[:, None],
                         -identity[:, at_lower], identity[:, at_upper]])
-    return DualFace(rows=rows, matrix=matrix, slack=_slack(matrix), fun=fun)
+    return stationarity_face(matrix, rows, fun)
+
+
+def stationarity_face(matrix, rows, fun) -> DualFace:
+    """The face of any problem whose scaled stationarity equations are ``matrix x = 1``,
+    ``x >= 0``, the first ``len(rows)`` variables being ``lam_r / fun`` of the active
+    ``rows`` (e.g. the correlated allocation's, :mod:`allocation.per_pose.correlated`).
+
+    Parameters
+    ----------
+    matrix : array_like, shape (n_equations, n_variables)
+    rows : array_like of int
+    fun : float
+
+    Returns
+    -------
+    DualFace
+    """
+    matrix = np.asarray(matrix, dtype=float)
+    return DualFace(rows=np.asarray(rows, dtype=int), matrix=matrix, slack=_slack(matrix),
+                    fun=float(fun))
 
 
 def _slack(matrix) -> float:

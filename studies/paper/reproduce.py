@@ -215,10 +215,10 @@ def _shown_poses(study: Study, frame: pd.DataFrame) -> pd.DataFrame:
 
 
 def _binding_rows(study: Study, active: pd.DataFrame) -> pd.DataFrame:
-    """The binding (output, pose) rows (the result holds no individual multipliers: where
+    """The binding (output, pose) rows without their individual multipliers: where
     several rows are alike the split of λ among them is not unique, so only the per-output
-    ranges of ``exact_requirements.csv`` are results)."""
-    return _shown_poses(study, active)
+    ranges (``exact_requirements.csv``) are results."""
+    return _shown_poses(study, active.drop(columns=["multiplier", "elasticity"]))
 
 
 def _solver_digits(requirements: pd.DataFrame) -> pd.DataFrame:
