@@ -6,7 +6,7 @@ multiplier is then reported as its range over all optimal multipliers (docs/non-
 Expected values here come from closed forms worked out by hand, not from the code.
 """
 
-from dataclasses import replace
+from dataclasses import fields, replace
 
 import numpy as np
 import pytest
@@ -144,3 +144,30 @@ def test_case_study_groups_and_one_sided_values(hobbing_problem):
     unique = frame[frame["bound_with"] == ""]
     np.testing.assert_allclose(unique["elasticity_relax"], unique["elasticity_tighten"],
                                atol=1e-5)
+
+
+# ----- identification: directions no reading informs -----------------------------------
+def _reordered(measurements, order):
+    columns = {f.name: getattr(measurements, f.name) for f in fields(measurements)}
+    return replace(measurements, **{k: v[order] for k, v in columns.items()
+                                    if isinstance(v, np.ndarray) and len(v) == len(order)})
+
+
+def test_uninformed_errors_keep_the_prior_mean_in_any_reading_order(mill3):
+    """Two laser runs on the mill inform 4 of its 30 error directions; the others keep
+    the prior, mean 0 exactly (not the 1e-17 mm a solve leaves), whatever the order."""
+    from test_measured_machine import mill_plan
+
+    import reliability
+    from reliability.measured.simulated_measurements import simulate_measurements
+
+    measurements = simulate_measurements(mill3, mill_plan(mill3), rng=0).measurements
+    first = reliability.identify(mill3, measurements).errors
+    order = np.random.default_rng(5).permutation(len(measurements.value))
+    again = reliability.identify(mill3, _reordered(measurements, order)).errors
+    uninformed = np.isclose(first["posterior_sd"], first["prior_sd"], rtol=1e-9)
+    assert uninformed.sum() > 0
+    assert (first["posterior_mean"][uninformed] == 0.0).all()
+    assert (again["posterior_mean"][uninformed] == 0.0).all()
+    np.testing.assert_allclose(first["posterior_mean"], again["posterior_mean"], rtol=1e-9,
+                               atol=1e-12 * first["prior_sd"].max())
