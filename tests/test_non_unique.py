@@ -66,14 +66,24 @@ def test_ranges_do_not_depend_on_the_row_order(order):
 
 
 def test_a_tiny_perturbation_flips_the_solver_but_not_the_range():
-    # two identical rows; 1e-13 more load on one makes the solver put λ on the other
-    w, G = np.array([3.0]), np.array([[2.0], [2.0]])
-    first = face_of(w, G * np.array([[1 + 1e-13], [1.0]]), 0.01, 100.0)
-    second = face_of(w, G * np.array([[1.0], [1 + 1e-13]]), 0.01, 100.0)
-    for members in ([True, False], [False, True], [True, True]):
-        assert first[1].sum_range(members) == pytest.approx(second[1].sum_range(members),
-                                                            rel=RTOL, abs=RTOL * 6.0)
-    assert first[1].sum_range([True, False])[1] == pytest.approx(6.0, rel=RTOL)
+    # three identical rows a u <= 1 (one variable): λ1 + λ2 + λ3 = w a, any split. Row 0
+    # (group A) 1e-13 lighter or heavier changes which rows the solver loads, so the
+    # solver's A total jumps; the ranges do not: A and B = rows 1, 2 each in [0, w a],
+    # together w a
+    w, a = np.array([3.0]), 2.0
+    G = np.full((3, 1), a)
+    group_a = np.array([True, False, False])
+    totals, ranges = [], []
+    for factor in (1 - 1e-13, 1 + 1e-13):
+        perturbed = G * np.array([[factor], [1.0], [1.0]])
+        solution, face = face_of(w, perturbed, 0.01, 100.0)
+        totals.append(solution.multipliers[group_a].sum())
+        ranges.append([face.sum_range(group_a), face.sum_range(~group_a),
+                       face.sum_range(np.ones(3, dtype=bool))])
+    assert abs(totals[0] - totals[1]) > 0.1 * w[0] * a  # the solver's split flipped
+    np.testing.assert_allclose(ranges[0], ranges[1], rtol=RTOL, atol=RTOL * w[0] * a)
+    expected = [(0.0, w[0] * a), (0.0, w[0] * a), (w[0] * a, w[0] * a)]
+    np.testing.assert_allclose(ranges[0], expected, rtol=RTOL, atol=RTOL * w[0] * a)
 
 
 def test_a_row_on_items_at_their_lower_bound_cannot_be_tightened():
@@ -171,3 +181,31 @@ def test_uninformed_errors_keep_the_prior_mean_in_any_reading_order(mill3):
     assert (again["posterior_mean"][uninformed] == 0.0).all()
     np.testing.assert_allclose(first["posterior_mean"], again["posterior_mean"], rtol=1e-9,
                                atol=1e-12 * first["prior_sd"].max())
+
+
+@pytest.fixture(scope="module")
+def hobbing_continuous(hobbing):
+    """The machine report's optimum: two-sided, the grid refined until the targets hold
+    over the continuous workspace, where dx and dz bind at poses with M 180° apart."""
+    from allocation.per_pose.continuous import solve_continuous
+    from reliability.model.poses import workspace_grid
+
+    problem = AllocationProblem.build(hobbing, workspace_grid(hobbing, 5), side="two_sided")
+    return solve_continuous(problem, rtol=1e-3).result
+
+
+def test_case_study_dx_dz_table_does_not_depend_on_the_row_order(hobbing_continuous):
+    result = hobbing_continuous
+    frame = result.requirements
+    assert frame.loc["dx", "bound_with"] == frame.loc["dz", "bound_with"] == "dx+dz"
+    # relaxing dx alone saves nothing (dz holds the alike rows); the pair has one value
+    assert frame.loc["dx", "elasticity_relax"] == pytest.approx(0.0, abs=1e-5)
+    assert np.isfinite(frame.loc["dx", "group_elasticity"])
+    order = np.random.default_rng(7).permutation(len(result.problem.rows.pose))
+    again = _permuted(result.problem, order).solve_exact()
+    one, two = requirement_table(result), requirement_table(again)
+    numbers = one.columns[one.dtypes.map(lambda d: d.kind) == "f"]
+    np.testing.assert_allclose(one[numbers].to_numpy(), two[numbers].to_numpy(),
+                               rtol=1e-5, atol=1e-6)
+    assert one["bound_with"].tolist() == two["bound_with"].tolist()
+    assert requirement_text(result).equals(requirement_text(again))
