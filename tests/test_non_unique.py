@@ -110,8 +110,9 @@ def _permuted(problem, order):
 
 
 def test_case_study_table_does_not_depend_on_the_row_order(hobbing_problem):
-    """The hobbing machine's ex and ez bind at alike rows (the same poses): their sums
-    are not determined, their ranges and joint elasticity are, in any row order."""
+    """The hobbing machine's ex and ez bind at equal rows (the grid poses with A = 0):
+    their sums are not determined, their ranges and joint elasticity are, in any row
+    order."""
     base = hobbing_problem.solve_exact()
     order = np.random.default_rng(2023).permutation(len(hobbing_problem.rows.pose))
     again = _permuted(hobbing_problem, order).solve_exact()
@@ -186,7 +187,8 @@ def test_uninformed_errors_keep_the_prior_mean_in_any_reading_order(mill3):
 @pytest.fixture(scope="module")
 def hobbing_continuous(hobbing):
     """The machine report's optimum: two-sided, the grid refined until the targets hold
-    over the continuous workspace, where dx and dz bind at poses with M 180° apart."""
+    over the continuous workspace, where the row of dx at one pose equals that of dz at
+    the pose with M turned by 90°."""
     from allocation.per_pose.continuous import solve_continuous
     from reliability.model.poses import workspace_grid
 
