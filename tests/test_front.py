@@ -52,7 +52,7 @@ def test_each_point_matches_an_independent_solve(hobbing, grid, front):
         result = problem.solve_exact()
         row = front[front["target"] == target].iloc[0]
         assert row["cost"] == pytest.approx(result.cost, rel=1e-6)
-        binding = result.requirements.index[result.requirements["multiplier"] > 0]
+        binding = result.requirements.index[result.requirements["binding_rows"] > 0]
         assert row["binding"] == ",".join(binding)
 
 

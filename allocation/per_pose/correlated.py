@@ -33,7 +33,10 @@ How it is solved and certified (the structure of :mod:`allocation.solvers.convex
 
 The derivative of the optimal cost with respect to one correlation coefficient follows
 from the multipliers (envelope theorem): ``dF*/dρ_ab = Σ_r λ_r ∂h_r/∂ρ_ab
-= Σ_r λ_r 2 a_ra a_rb t_a t_b`` (:meth:`CorrelatedAllocation.sensitivity`).
+= Σ_r λ_r 2 a_ra a_rb t_a t_b`` (:meth:`CorrelatedAllocation.sensitivity`). Where binding
+rows have linearly dependent gradients λ is not unique; the least and largest value of
+that sum over all optimal λ are the derivatives from below and from above
+(:meth:`CorrelatedAllocation.sensitivity_range`, :mod:`allocation.solvers.dual_face`).
 """
 
 from __future__ import annotations
@@ -59,6 +62,8 @@ from reliability.model.iso_names import iso_names
 from reliability.model.machine import OUTPUTS
 
 from ..solvers.convex import ROW_ADD_TOLERANCE, ROWS_PER_ROUND, largest_fraction
+from ..solvers.dual_face import stationarity_face
+from .elasticity import UNIQUE_WIDTH
 from .problem import AllocationProblem
 
 ACTIVE_TOLERANCE = 1e-6  # a row with load ≥ 1 − this gets a multiplier
@@ -87,7 +92,9 @@ class CorrelatedAllocation:
     certified : bool
         ``relative_gap ≤ gap_tol`` and feasible.
     active : DataFrame
-        Binding rows: output, pose index and positions, multiplier λ.
+        Binding rows: output, pose index and positions, and the solver's multiplier λ
+        (one optimal λ: where binding rows have dependent gradients the split is not
+        unique, and :meth:`sensitivity_range` works on all of them).
     correlation : ndarray (n_errors, n_errors)
     rows : dict
         Row counts after each screening step.
@@ -107,12 +114,31 @@ class CorrelatedAllocation:
     rows: dict
     message: str
     _forms: np.ndarray = dataclasses.field(repr=False)
+    _face: np.ndarray | None = dataclasses.field(repr=False, default=None)
 
     def sensitivity(self, index_a: int, index_b: int) -> float:
-        """``dF*/dρ_ab``: change of the optimal cost per unit of one correlation."""
-        lam = self.active["multiplier"].to_numpy()
+        """``dF*/dρ_ab``: change of the optimal cost per unit of one correlation; NaN where
+        the problem does not determine it (binding rows with dependent gradients, so that
+        the cost has a kink in ρ_ab: :meth:`sensitivity_range` gives both sides)."""
+        low, high = self.sensitivity_range(index_a, index_b)
+        scale = UNIQUE_WIDTH * (self.cost + abs(high))
+        return 0.5 * (low + high) if high - low <= scale else float("nan")
+
+    def sensitivity_range(self, index_a: int, index_b: int) -> tuple[float, float]:
+        """``dF*/dρ_ab`` from below and from above: the least and the largest
+        ``Σ_r λ_r ∂h_r/∂ρ_ab`` over all optimal multipliers
+        (:meth:`allocation.solvers.dual_face.DualFace.range`); equal where the derivative
+        exists. A file saved before the face was kept gives the solver's multipliers'
+        value twice."""
         a = self._forms * self.tolerances
-        return float(np.sum(lam * 2.0 * a[:, index_a] * a[:, index_b]))
+        derivative = 2.0 * a[:, index_a] * a[:, index_b]  # ∂h_r/∂ρ_ab
+        if self._face is None:
+            value = float(np.sum(self.active["multiplier"].to_numpy() * derivative))
+            return value, value
+        if self._face.size == 0:
+            return 0.0, 0.0
+        face = stationarity_face(self._face, np.arange(len(derivative)), self.cost)
+        return face.range(derivative)
 
     def to_frame(self) -> pd.DataFrame:
         """One row per error: its ISO 230-1 symbol and tolerance (mm or rad)."""
@@ -126,11 +152,13 @@ class CorrelatedAllocation:
                 f"{len(self.active)} binding row(s)")
 
     def save(self, path, overwrite: bool = False):
-        """Save as JSON (:data:`SAVED_FIELDS` and ``forms``, the binding rows' linear forms
-        :meth:`sensitivity` reads; tag :data:`SAVED_FORMAT`). An existing file is kept
+        """Save as JSON (:data:`SAVED_FIELDS`, ``forms``, the binding rows' linear forms,
+        and ``face``, the stationarity equations :meth:`sensitivity_range` reads; tag
+        :data:`SAVED_FORMAT`). An existing file is kept
         unless ``overwrite``. Returns the path."""
         payload = write_fields(self, SAVED_FIELDS)
         payload["forms"] = self._forms
+        payload["face"] = self._face
         return save_payload(path, SAVED_FORMAT, payload, overwrite)
 
     @classmethod
@@ -150,7 +178,12 @@ class CorrelatedAllocation:
         if not np.isclose(values["relative_gap"], gap, rtol=1e-9, atol=1e-15):
             raise data.error("relative_gap", "is not (cost - dual_bound) / cost")
         forms = data.array("forms", (len(values["active"]), len(values["names"])))
-        return cls(**values, _forms=forms)
+        face = data.array("face", (None, None)) if data.data.get("face") is not None \
+            else None
+        if face is not None and face.size and face.shape[1] < len(forms):
+            raise data.error("face", f"has {face.shape[1]} columns, fewer than the "
+                                     f"{len(forms)} binding rows")
+        return cls(**values, _forms=forms, _face=face)
 
 
 SAVED_FORMAT = "precrel.correlated_allocation"
@@ -217,6 +250,7 @@ def solve_correlated(machine, poses=None, *, correlation=None, side: str = "two_
                          f"{load.max():.6g} > 1")
     active = np.flatnonzero(load >= 1.0 - ACTIVE_TOLERANCE)
     lam = _multipliers(w, rows, t, lo, hi, active)
+    face = _stationarity_matrix(w, rows, t, lo, hi, active)
     fun = float(np.sum(w / t ** 2))  # Eq. (28)
     bound, stationarity = _certificate(w, rows, t, lo, hi, active, lam, load)
     gap = (fun - bound) / fun
@@ -233,7 +267,7 @@ def solve_correlated(machine, poses=None, *, correlation=None, side: str = "two_
         relative_gap=gap, stationarity=stationarity, primal_feasibility=feasibility,
         certified=certified, active=frame, correlation=R, rows=rows.counts,
         message=f"{message}; {verdict}: relative duality gap {gap:.3g}",
-        _forms=rows.forms[active])
+        _forms=rows.forms[active], _face=face)
 
 
 @dataclass(frozen=True, eq=False)
@@ -395,23 +429,32 @@ def _at_bounds(t, lo, hi, tol=1e-7):
 
 
 def _multipliers(w, rows, t, lo, hi, active) -> np.ndarray:
-    """λ ≥ 0 of the active rows by NNLS on the scaled stationarity equations.
+    """λ ≥ 0 of the active rows by NNLS on the scaled stationarity equations
+    (:func:`_stationarity_matrix`); one optimal λ where alike rows let it split."""
+    matrix = _stationarity_matrix(w, rows, t, lo, hi, active)
+    if matrix.size == 0:
+        return np.zeros(active.size)
+    solution, _ = nnls(matrix, np.ones(len(matrix)), maxiter=50 * matrix.shape[1])
+    return np.sum(w / t ** 2) * solution[:active.size]
+
+
+def _stationarity_matrix(w, rows, t, lo, hi, active) -> np.ndarray:
+    """The scaled stationarity equations ``matrix x = 1``, ``x ≥ 0``.
 
     For every free item ``i``: ``Σ_r λ_r g_ri t_i³ / (2 w_i) − μ_lo + μ_hi = 1`` with
-    ``g_r = ∇ load_r``, bound multipliers only for items at a bound; ``λ`` is scaled by
-    ``F(t)`` so that the columns are O(1).
+    ``g_r = ∇ load_r``, bound multipliers only for items at a bound; the first
+    ``len(active)`` unknowns are ``λ / F(t)`` so that the columns are O(1). Empty when
+    no row is active or no item free.
     """
     items = np.flatnonzero(lo < hi)
     if active.size == 0 or items.size == 0:
-        return np.zeros(active.size)
+        return np.zeros((0, 0))
     fun = np.sum(w / t ** 2)
     scale = t[items] ** 3 / (2.0 * w[items])
     at_lower, at_upper = (mask[items] for mask in _at_bounds(t, lo, hi))
     identity = np.eye(items.size)
-    matrix = np.hstack([fun * rows.gradient(t, active)[:, items].T * scale[:, None],
-                        -identity[:, at_lower], identity[:, at_upper]])
-    solution, _ = nnls(matrix, np.ones(items.size), maxiter=50 * matrix.shape[1])
-    return fun * solution[:active.size]
+    return np.hstack([fun * rows.gradient(t, active)[:, items].T * scale[:, None],
+                      -identity[:, at_lower], identity[:, at_upper]])
 
 
 def _certificate(w, rows, t, lo, hi, active, lam, load):

@@ -150,12 +150,13 @@ def _reference_cost(problem) -> float:
 
 
 def _record(problem, solution, target, z) -> dict:
-    binding_rows = solution.active[solution.multipliers[solution.active] > 0]
+    outputs = np.unique(problem.rows.output[solution.active])  # active rows, not λ > 0:
+    # where outputs bind together their λ split, and so λ > 0, is not unique
     return {"target": float(target), "required_index": float(z), "cost": solution.fun,
             "relative_cost": solution.fun / _reference_cost(problem),
             "dual_bound": solution.dual_bound, "relative_gap": solution.relative_gap,
             "certified": bool(solution.success), "feasible": True,
-            "binding": ",".join(OUTPUTS[o] for o in np.unique(problem.rows.output[binding_rows]))}
+            "binding": ",".join(OUTPUTS[o] for o in outputs)}
 
 
 def _infeasible_record(target, z) -> dict:
@@ -171,7 +172,7 @@ def _stack(machine, fosm_problem, build_options, gap_tol) -> dict:
         result = solve_exact(problem, gap_tol=gap_tol)
     except TargetUnreachableError as exc:
         return {"error": str(exc)}
-    binding = result.requirements.index[result.requirements["multiplier"] > 0]
+    binding = result.requirements.index[result.requirements["binding_rows"] > 0]
     return {"cost": result.cost, "relative_cost": result.cost / _reference_cost(problem),
             "relative_gap": result.certificate["relative_gap"],
             "certified": result.certificate["certified"], "binding": ",".join(binding),

@@ -30,7 +30,7 @@ import pandas as pd
 
 from reliability.basics.display import (UNIT_SCALES, axis_units, error_units, number_text,
                                         percent_number, percentage_text, pose_columns,
-                                        ratio_columns, tolerance_numbers, unit_symbol)
+                                        tolerance_numbers, unit_symbol)
 from reliability.basics.errors import InputError, InputTypeError
 from reliability.basics.files import SIGNIFICANT, as_written, rounded_down, write_csv
 from reliability.basics.saved_results import check_count, encode_frame, load_payload, save_payload
@@ -38,6 +38,7 @@ from reliability.model.iso_names import plain_names
 from reliability.model.machine import OUTPUTS
 
 from ..cost.cost import GROUPS, CostModel
+from .elasticity import limit_texts
 
 KIND = "precrel.allocation_result"
 METHODS = ("exact", "gwo", "compensated")
@@ -218,11 +219,15 @@ def _status_line(result) -> str:
 def _binding_lines(result, context) -> list[str]:
     if result.requirements is not None:
         binding = result.requirements[result.requirements["binding_rows"] > 0]
-        table = binding[["binding_rows", "elasticity"]].rename(
-            columns={"elasticity": "dlncost/dln_limit"})
+        table = pd.DataFrame({"binding_rows": binding["binding_rows"],
+                              "dlncost/dln_limit": limit_texts(binding)})
+        if "bound_with" in binding:
+            table["bound_with"] = binding["bound_with"]
         head = ["What binds: requirements with binding rows (dlncost/dln_limit: relaxing a "
-                "limit by 1 % changes the cost by about this many %; negative, a saving)",
-                ratio_columns(table).to_string()]
+                "limit by 1 % changes the cost by about this many %; negative, a saving; "
+                "two values where outputs bind together and only their joint change is "
+                "determined, docs/non-unique.md)",
+                table.to_string()]
     else:
         outputs = sorted(set(result.active["output"])) if len(result.active) else []
         head = [f"What binds: {', '.join(outputs) if outputs else 'no reliability target'}"]

@@ -29,6 +29,7 @@ from reliability.model.machine import OUTPUTS
 
 from ..solvers.convex import InfeasibleAllocationError, largest_fraction, solve_convex_allocation
 from ..solvers.gwo import grey_wolf
+from .elasticity import requirement_multipliers
 from .result_files import (NEARLY_FREE_SHARE, allocation_from_payload, allocation_payload,
                            allocation_summary, allocation_to_csv, load_allocation,
                            save_allocation)
@@ -139,19 +140,26 @@ class AllocationResult:
     certificate : dict
         Exact: ``dual_bound``, ``relative_gap``, KKT residuals. GWO: ``violation``.
     active : DataFrame
-        Binding constraints: output, pose index and positions, multiplier λ and the
-        elasticity ``d ln F / d ln I = −2λ/F`` (relative cost change per relative change
-        of the limit; negative: a looser limit is cheaper).
-        Where several binding rows are alike the split of λ among them is not unique;
-        :attr:`requirements` gives the per-output totals, which are what a designer needs.
+        Binding constraints: output, pose index and positions (the exact solver: every
+        row active at the optimum), and for the exact solver the multiplier λ that
+        certifies the dual bound and its ``elasticity = −2λ/F``. These per-row values are
+        the solver's own split: where several binding rows are alike any split is
+        optimal, so they are part of the certificate, not results (docs/non-unique.md);
+        :attr:`requirements` gives what the problem determines.
     history : DataFrame or None
         GWO convergence (best cost and violation per iteration).
     requirements : DataFrame or None
-        Exact solver: per output, the number of binding rows, the summed multiplier and
-        the elasticity ``d ln F / d ln I = −2Σλ/F``: relaxing that output's limit I by
-        1 % changes the cost by about ``elasticity`` % (negative, a saving; the rows scale
-        as 1/I²; for the stack, whose rows scale as 1/I, it is ``−Σλ/F``). The toolkit
-        uses this one sign everywhere it prints an elasticity.
+        Exact solver: per output, the number of binding rows and what the cost does when
+        the limit I moves (:func:`allocation.per_pose.elasticity.requirement_multipliers`):
+        ``multiplier_min``/``multiplier_max``, the range of the summed multiplier Σλ over
+        all optimal multipliers; ``elasticity_relax`` and ``elasticity_tighten``, the
+        one-sided ``d ln F / d ln I`` (``−2 min Σλ/F`` and ``−2 max Σλ/F``; relaxing I by
+        1 % changes the cost by about ``elasticity_relax`` %, a saving); ``multiplier`` and
+        ``elasticity`` where the two agree, NaN where the problem does not determine them
+        (outputs binding together at symmetric poses: ``bound_with`` names them,
+        ``group_elasticity`` is relaxing them together). For the stack, whose rows scale
+        as 1/I, the factor 2 is 1. The toolkit uses this one sign everywhere it prints
+        an elasticity.
 
     ``summary()`` (and ``repr``) prints the cost relative to the reference allocation and
     what binds, opening with "NOT FEASIBLE" when the allocation misses a target;
@@ -267,18 +275,7 @@ def solve_exact(problem, *, gap_tol: float = 1e-6) -> AllocationResult:
                             cost=float(problem.cost.total(solution.t)),
                             feasible=problem.meets_targets(solution.t),
                             certificate=certificate, active=active,
-                            requirements=_requirements(active, solution.fun, scale))
-
-
-def _requirements(active: pd.DataFrame, cost: float, scale: float = 2.0) -> pd.DataFrame:
-    """Per-output totals of the binding rows' multipliers (marginal cost of a limit);
-    ``scale`` is 2 where the rows scale as 1/I² and 1 where they scale as 1/I."""
-    grouped = active.groupby("output")["multiplier"]
-    frame = pd.DataFrame({"binding_rows": grouped.size(), "multiplier": grouped.sum()})
-    frame = frame.reindex(OUTPUTS, fill_value=0)
-    frame["elasticity"] = -scale * frame["multiplier"] / cost
-    frame.index.name = "output"
-    return frame
+                            requirements=requirement_multipliers(problem, solution))
 
 
 def solve_gwo(problem, *, n_wolves: int = 100, n_iterations: int = 500, rng=None,

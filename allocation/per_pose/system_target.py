@@ -145,10 +145,9 @@ def _result(problem, best, output_target, check, lower, bonferroni, certified):
     t = np.asarray(best.t)
     cost = float(problem.cost.total(t))
     bound = float(lower.dual_bound)
-    binding = best.active[best.multipliers[best.active] > 0]
+    binding = best.active  # every active row: which carry λ > 0 is not unique
     active = pd.DataFrame({"output": np.array(OUTPUTS)[problem.rows.output[binding]],
-                           "pose": problem.rows.pose[binding],
-                           "multiplier": np.asarray(best.multipliers)[binding]})
+                           "pose": problem.rows.pose[binding]})
     certificate = {"lower_bound": bound, "gap": cost - bound,
                    "relative_gap": (cost - bound) / cost,
                    "output_target": float(output_target),

@@ -33,6 +33,7 @@ from scipy import stats
 from ..acceptance.iso_tests import tool_point
 from ..basics import streams
 from ..basics.chunks import chunks, jacobian_bytes
+from ..basics.display import ZERO_RESOLUTION
 from ..basics.errors import InputError
 from ..model.error_draws import psd_factor
 from .measurement_files import QUANTITIES, Measurements
@@ -152,7 +153,8 @@ class Identification:
         """The ``errors.csv`` table: ``error, prior_sd, posterior_mean, posterior_sd, lower,
         upper`` (mm, rad), the interval the 95 % posterior interval; under ``gp`` a motion
         error's row is its mean over the stroke."""
-        mean, sd = self.mean, np.sqrt(np.diag(self.covariance))
+        sd = np.sqrt(np.diag(self.covariance))
+        mean = _prior_where_uninformed(self.mean, self.prior_sd)
         return pd.DataFrame({"error": self.machine.error_names, "prior_sd": self.prior_sd,
                              "posterior_mean": mean, "posterior_sd": sd,
                              "lower": mean - Z95 * sd, "upper": mean + Z95 * sd})
@@ -172,6 +174,7 @@ class Identification:
         positions = self.positions[a]
         prior, mean, sd = self.coefficients.profile_moments(a, positions, self.theta,
                                                             self.theta_covariance)
+        mean = _prior_where_uninformed(mean, prior)
         axis = self.machine.axis_specs[a]
         shown = np.degrees(positions) if axis.kind == "rotary" else positions
         names = np.array(self.machine.error_names[6 * a:6 * a + 6])
@@ -501,6 +504,9 @@ def _identification(machine, measurements, setups, coefficients, fit, fitted, it
                               "value": measurements.value, "fitted": fitted,
                               "normalised": (measurements.value - fitted) / measurements.u})
     rank, condition, null = _seen_directions(fit.information)
+    # no reading informs the null directions: there the posterior mean is the prior's, 0
+    # exactly, not the rounding a solve leaves (which differs between computers)
+    theta = fit.theta - null @ (null.T @ fit.theta)
     if item_blocks is None:
         combinations = combination_texts(machine.error_names,
                                          null * coefficients.prior_sd[:, None])
@@ -513,8 +519,8 @@ def _identification(machine, measurements, setups, coefficients, fit, fitted, it
     covariance = rows @ fit.covariance @ rows.T
     prior, sd = np.sqrt(np.sum(rows ** 2, axis=1)), np.sqrt(np.diag(covariance))
     return Identification(
-        machine=machine, prior_sd=prior, mean=rows @ fit.theta, covariance=covariance,
-        coefficients=coefficients, theta=fit.theta, theta_covariance=fit.covariance,
+        machine=machine, prior_sd=prior, mean=rows @ theta, covariance=covariance,
+        coefficients=coefficients, theta=theta, theta_covariance=fit.covariance,
         positions=distinct_positions(measurements),
         setup=pd.DataFrame({"setup": setups.names, "estimate": fit.setup_mean,
                             "sd": np.sqrt(np.diag(fit.setup_covariance))}),
@@ -523,6 +529,14 @@ def _identification(machine, measurements, setups, coefficients, fit, fitted, it
         residuals=residuals,
         chi2=float(np.sum(residuals["normalised"] ** 2) + np.sum(fit.theta ** 2)),
         dof=len(measurements) - len(setups.names), **status)
+
+
+def _prior_where_uninformed(mean, prior_sd) -> np.ndarray:
+    """Posterior means zero to rounding (within :data:`~reliability.basics.display.
+    ZERO_RESOLUTION` of the prior σ) as the prior mean, 0: an error no reading informs
+    has no other mean, and its rounding (1e-17 mm) would print as digits."""
+    mean = np.asarray(mean, dtype=float)
+    return np.where(np.abs(mean) <= ZERO_RESOLUTION * np.asarray(prior_sd), 0.0, mean)
 
 
 def _seen_directions(information) -> tuple[int, float, np.ndarray]:

@@ -15,7 +15,7 @@ import pandas as pd
 
 from allocation import AllocationProblem, allocate_for_yield
 from allocation.per_pose.continuous import check_continuous, solve_continuous
-from allocation.per_pose.elasticity import requirement_table
+from allocation.per_pose.elasticity import requirement_text
 from allocation.per_pose.result_files import (DRAWING_RESOLUTION, allocation_to_csv,
                                      cost_shares_text, cost_units_text, drawing_check_text,
                                      drawing_to_csv, gap_text, nearly_free_text,
@@ -350,7 +350,7 @@ def describe(result, workspace: str) -> str:
         lines.append(nearly_free_text(result))
     if result.requirements is not None:
         lines += ["", "requirements (elasticities from the Lagrange multipliers):",
-                  display.ratio_columns(requirement_table(result)).to_string()]
+                  requirement_text(result).to_string()]
     elif len(result.active):
         lines += ["", "binding (output, pose) constraints: "
                   + ", ".join(sorted(set(result.active["output"])))]

@@ -9,6 +9,7 @@ import numpy as np
 import pandas as pd
 
 from allocation.per_pose.result_files import gap_text
+from reliability.basics.display import significant_text
 from reliability.basics.files import atomic_write_text
 from studies.report.markdown import format_cell, markdown_table
 
@@ -75,10 +76,15 @@ def _allocation(study, tables) -> str:
     lines += ["", "Marginal cost of each requirement at the exact optima (`elasticity` = "
               "d ln cost / d ln limit: relaxing that output's limit by 1 % changes the cost "
               "by about this many %, negative for a saving; summed over its binding "
-              "(output, pose) rows):", ""]
+              "(output, pose) rows; `–` where outputs bind together at alike rows and only "
+              "the one-sided values `elasticity_relax`, `elasticity_tighten` and the "
+              "group's `group_elasticity` are determined, docs/non-unique.md):", ""]
     requirements = tables["exact_requirements.csv"].reset_index()
-    lines.append(markdown_table(requirements, {"multiplier": "{:.4g}".format,
-                                               "elasticity": "{:.3f}".format}, index=False))
+    shown = ["side", "output", "binding_rows", "elasticity", "elasticity_relax",
+             "elasticity_tighten", "bound_with", "group_elasticity"]
+    number = lambda value: "–" if np.isnan(value) else significant_text(value)  # noqa: E731
+    lines.append(markdown_table(requirements[shown], dict.fromkeys(shown[3:6] + shown[7:],
+                                                                   number), index=False))
     paper_worst = study.fosm["paper"].worst("one_sided")
     lines += ["", f"The paper's Table 6 allocation reaches a worst-pose one-sided FOSM "
               f"reliability of {', '.join(PERCENT(p) for p in paper_worst)} "

@@ -217,14 +217,15 @@ def _shown_poses(study: Study, frame: pd.DataFrame) -> pd.DataFrame:
 def _binding_rows(study: Study, active: pd.DataFrame) -> pd.DataFrame:
     """The binding (output, pose) rows without their individual multipliers: where
     several rows are alike the split of λ among them is not unique, so only the per-output
-    sums (``exact_requirements.csv``) are results."""
+    ranges (``exact_requirements.csv``) are results."""
     return _shown_poses(study, active.drop(columns=["multiplier", "elasticity"]))
 
 
 def _solver_digits(requirements: pd.DataFrame) -> pd.DataFrame:
-    """Multipliers and elasticities to :data:`MULTIPLIER_DIGITS` significant digits, what
-    the dual solve fixes."""
-    columns = ["multiplier", "elasticity"]
+    """Multipliers and elasticities (every float column) to :data:`MULTIPLIER_DIGITS`
+    significant digits, what the dual solve fixes."""
+    columns = requirements.columns[[kind == "f" for kind in requirements.dtypes.map(
+        lambda d: d.kind)]]
     return requirements.assign(**{c: as_written(requirements[c], MULTIPLIER_DIGITS)
                                   for c in columns})
 

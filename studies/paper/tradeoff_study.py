@@ -63,7 +63,7 @@ def stack_numbers(machine):
     result = problem.solve_exact()
     reference = problem.cost.total(table4)
     status = result.to_frame()["status"].value_counts().to_dict()
-    binding = result.requirements.index[result.requirements["multiplier"] > 0]
+    binding = result.requirements.index[result.requirements["binding_rows"] > 0]
     print(f"   box {BOUNDS} × Table 4: cost {result.cost:.6g} = "
           f"{result.cost / reference:.4f} × Table 4 (certified "
           f"{result.certificate['certified']}, relative duality gap "

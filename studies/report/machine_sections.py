@@ -15,7 +15,7 @@ import pandas as pd
 from matplotlib.figure import Figure
 from scipy.stats import norm
 
-from allocation.per_pose.elasticity import requirement_table
+from allocation.per_pose.elasticity import requirement_table, requirement_text
 from allocation.per_pose.result_files import (DRAWING_FILE, MULTIPLIER_DIGITS, allocation_frame,
                                      cost_shares_text, cost_units_text, drawing_check_text,
                                      drawing_frame, gap_text, nearly_free_text,
@@ -409,7 +409,7 @@ def allocation_section(study: MachineStudy) -> Section:
                                    written_tolerances(optimum))
     people["status"] = detail["status"].to_numpy()
     requirements = requirement_table(optimum).reset_index()
-    for column in ("dlncost/dln_limit", "dlncost/dln_target"):
+    for column in requirements.columns[requirements.columns.str.startswith("dlncost/")]:
         requirements[column] = as_written(requirements[column], MULTIPLIER_DIGITS)
     info = summary(study)
     text = (f"The cheapest allocation (cost model Eq. 28, k1 = k2 = k3 = 1) meeting every "
@@ -421,8 +421,14 @@ def allocation_section(study: MachineStudy) -> Section:
             f"Which requirements bind, and what they cost: `dlncost/dln_limit` is the "
             f"relative cost change per relative change of the limit (from the Lagrange "
             f"multipliers; {MULTIPLIER_DIGITS} significant digits, what the dual solve "
-            f"fixes), `dlncost/dln_target` the same for the target probability.\n\n"
-            f"{markdown_table(requirements, index=False)}\n\n"
+            f"fixes), `dlncost/dln_target` the same for the target probability. Where "
+            f"outputs bind together (equal or dependent constraint gradients, e.g. at "
+            f"symmetric poses) only "
+            f"their joint change is determined: such an output shows the cost's change when "
+            f"its limit alone is relaxed and when it is tightened, `bound_with` names the "
+            f"group and `dlncost/dln_group_limit` gives relaxing the group's limits together "
+            f"(docs/non-unique.md; all in `requirements_elasticity.csv`).\n\n"
+            f"{markdown_table(requirement_text(optimum).reset_index(), index=False)}\n\n"
             f"Allocation in the machine file's units (`change` = allocated / initial − 1; "
             f"`status` says which bound holds; `allocation.csv` and `allocation_detail.csv` "
             f"hold mm and rad):\n\n"
