@@ -147,14 +147,7 @@ def circular_values(angles, radial, radius: float) -> dict[str, float]:
         ``G_plus`` and/or ``G_minus`` (each direction given), ``G`` and ``H`` (both
         given), ``F_max``, ``F_min`` (mm).
     """
-    if not angles or set(angles) - set(DIRECTIONS) or set(angles) != set(radial):
-        raise InputError(f"angles and radial must be given for the same directions among "
-                         f"{DIRECTIONS}; got {sorted(angles)} and {sorted(radial)}")
-    if not np.isfinite(radius) or radius <= 0:
-        raise InputError(f"radius must be a finite number > 0 mm; got {radius!r}")
-    paths = {d: _path(angles[d], radial[d], radius) for d in DIRECTIONS if d in angles}
-    centre = least_squares_centre(np.concatenate(list(paths.values())))
-    distance = {d: np.linalg.norm(p - centre, axis=-1) for d, p in paths.items()}
+    paths, distance = _paths_about_common_centre(angles, radial, radius)
     every = np.concatenate(list(distance.values()))
     out = {f"G_{name}": float(circular_deviation(paths[d]))
            for d, name in zip(DIRECTIONS, ("plus", "minus")) if d in paths}
@@ -167,6 +160,27 @@ def circular_values(angles, radial, radius: float) -> dict[str, float]:
         out["H"] = float(np.abs(distance["+"] - minus).max())
     out["F_max"], out["F_min"] = float(every.max() - radius), float(every.min() - radius)
     return {quantity: out[quantity] for quantity in CIRCULAR_QUANTITIES if quantity in out}
+
+
+def radial_deviations(angles, radial, radius: float) -> dict[str, np.ndarray]:
+    """ISO 230-4 radial deviation ``F_j = |p_j − c| − r`` of every reading, by direction,
+    ``c`` the least-squares centre of every path given (mm; arguments as
+    :func:`circular_values`)."""
+    _, distance = _paths_about_common_centre(angles, radial, radius)
+    return {d: values - radius for d, values in distance.items()}
+
+
+def _paths_about_common_centre(angles, radial, radius):
+    """Each direction's path ``p_j`` and its distances ``|p_j − c|`` from the least-squares
+    centre of all of them."""
+    if not angles or set(angles) - set(DIRECTIONS) or set(angles) != set(radial):
+        raise InputError(f"angles and radial must be given for the same directions among "
+                         f"{DIRECTIONS}; got {sorted(angles)} and {sorted(radial)}")
+    if not np.isfinite(radius) or radius <= 0:
+        raise InputError(f"radius must be a finite number > 0 mm; got {radius!r}")
+    paths = {d: _path(angles[d], radial[d], radius) for d in DIRECTIONS if d in angles}
+    centre = least_squares_centre(np.concatenate(list(paths.values())))
+    return paths, {d: np.linalg.norm(p - centre, axis=-1) for d, p in paths.items()}
 
 
 def _path(angles, radial, radius) -> np.ndarray:

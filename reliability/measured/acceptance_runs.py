@@ -32,7 +32,7 @@ import pandas as pd
 
 from ..acceptance.evaluation import (DIRECTIONS, ISO_CYCLES, MIN_CYCLES, TARGET_COLUMNS,
                                      circular_values, positioning_table, positioning_values,
-                                     rotary_values)
+                                     radial_deviations, rotary_values)
 from ..basics.errors import InputError
 from .measurement_files import (CENTRE_COLUMNS, FIXED_COLUMNS, QUANTITIES, RUN_COLUMNS,
                                 column_numbers, measurements_from_frame, refuse_cell)
@@ -86,6 +86,10 @@ class CircularRun:
     def values(self) -> dict[str, float]:
         """:func:`reliability.acceptance.evaluation.circular_values`."""
         return circular_values(self.angles, self.radial, self.radius)
+
+    def deviations(self) -> dict[str, np.ndarray]:
+        """:func:`reliability.acceptance.evaluation.radial_deviations` (mm), by direction."""
+        return radial_deviations(self.angles, self.radial, self.radius)
 
 
 @dataclass(frozen=True, eq=False)
