@@ -51,6 +51,10 @@ class Measurements:
         Ballbar centres (mm, workpiece frame) on ``radial`` readings, NaN elsewhere.
     value, u : ndarray (N,)
         Reading and its whole standard uncertainty (mm or rad).
+    cycle, direction : ndarray (N,) or None
+        Of readings of acceptance runs (:data:`RUN_COLUMNS`): the cycle (0 on other
+        readings) and the direction ``+``/``-`` (blank on other readings); None when no
+        reading has them. Written by :meth:`to_frame`; identification does not use them.
     """
 
     run: np.ndarray
@@ -59,6 +63,8 @@ class Measurements:
     centre: np.ndarray
     value: np.ndarray
     u: np.ndarray
+    cycle: np.ndarray | None = None
+    direction: np.ndarray | None = None
 
     def __len__(self) -> int:
         return len(self.value)
@@ -69,7 +75,8 @@ class Measurements:
         return tuple(pd.unique(self.run))
 
     def to_frame(self, machine) -> pd.DataFrame:
-        """The file's table: rotary positions in degrees, blank centres off ``radial`` rows."""
+        """The file's table: rotary positions in degrees, blank centres off ``radial`` rows,
+        ``cycle`` and ``direction`` when the readings have them."""
         table = {"run": self.run}
         for index, name in enumerate(pose_columns(machine)):
             positions = self.poses[:, index]
@@ -79,6 +86,9 @@ class Measurements:
             table[name] = self.centre[:, index]
         table["value"] = self.value
         table["u"] = self.u
+        if self.cycle is not None:
+            table["cycle"] = np.where(self.cycle > 0, self.cycle.astype(object), "")
+            table["direction"] = self.direction
         return pd.DataFrame(table)
 
 

@@ -72,11 +72,16 @@ def run(args) -> int:
     for sentence in runs.left_out:
         print(f"  left out: {sentence}")
     if tests is not None:
-        options.say(f"{len(tests)} tests on {args.machines} predicted machines")
+        options.say(f"predicting {args.machines} machines through the tests of {args.tests} "
+                    f"that have a run")
         table, result, matched = evaluate_against_design(
             runs, machine, tests, tolerances, machines=args.machines,
             rng=acceptance_stream(args.seed))
         _print_design(args, table, result, matched)
+        unmatched = [test.name for test in tests if test not in matched]
+        if unmatched:
+            print(f"  tests without a run of their name (not evaluated): "
+                  f"{', '.join(unmatched)}")
     else:
         print(f"\n{_printed(table).to_string(index=False)}")
     _write(out, args.overwrite, runs, table)
