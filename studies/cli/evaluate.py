@@ -67,8 +67,9 @@ def run(args) -> int:
     runs = read_acceptance_runs(args.runs, machine)
     options.print_warnings(runs.warnings)
     table = runs.evaluation_frame()
-    print(f"Acceptance runs of {args.runs}: {len(runs.runs)} runs; values in µm "
-          f"(3 significant digits; every digit in {TABLE_FILE}, mm)")
+    count = f"{len(runs.runs)} run{'s' if len(runs.runs) > 1 else ''}"
+    print(f"Acceptance runs of {args.runs}: {count}; values in µm to 3 significant digits "
+          f"({TABLE_FILE}: mm, {SIGNIFICANT} significant digits)")
     for sentence in runs.left_out:
         print(f"  left out: {sentence}")
     if tests is not None:
