@@ -273,3 +273,14 @@ def test_the_percentile_of_a_machine_drawn_from_the_design_is_uniform(swivel):
     for key, column in zip(keys, percentiles.T):
         assert stats.kstest(column, "uniform").pvalue > 1e-3, key
         assert abs(column.mean() - 0.5) < 4 * np.sqrt(1 / 12 / 200), key
+
+
+def test_with_a_machine_the_runs_are_checked_against_it(swivel):
+    rows = [dict(r, Z_mm=250.0, C_deg=0.0, B_deg=0.0) for r in _positioning_rows(cycles=2)]
+    assert acceptance_runs_from_frame(pd.DataFrame(rows).astype(str), "runs.csv", swivel).runs
+    wrong = [dict(r, quantity="dy") for r in rows]
+    with pytest.raises(InputError, match=r"row 1, column 'quantity'.*travels along dx"):
+        acceptance_runs_from_frame(pd.DataFrame(wrong).astype(str), "runs.csv", swivel)
+    outside = [dict(r, X_mm=r["X_mm"] * 5) for r in rows]
+    with pytest.raises(InputError, match="column 'X_mm'.*outside the stroke"):
+        acceptance_runs_from_frame(pd.DataFrame(outside).astype(str), "runs.csv", swivel)

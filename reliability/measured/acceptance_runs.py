@@ -33,6 +33,7 @@ import pandas as pd
 from ..acceptance.evaluation import (DIRECTIONS, ISO_CYCLES, MIN_CYCLES, TARGET_COLUMNS,
                                      circular_values, positioning_table, positioning_values,
                                      radial_deviations, rotary_values)
+from ..acceptance.iso_tests import tool_point
 from ..basics.errors import InputError
 from .measurement_files import (CENTRE_COLUMNS, FIXED_COLUMNS, QUANTITIES, RUN_COLUMNS,
                                 column_numbers, measurements_from_frame, refuse_cell)
@@ -164,8 +165,8 @@ def acceptance_runs_from_frame(table: pd.DataFrame, source: str = "runs",
     axes = _axis_columns(table, source)
     if table.empty:
         raise InputError(f"{source}: no readings")
-    if machine is not None:
-        measurements_from_frame(table, machine, source)
+    travel = None if machine is None else \
+        _travel(machine, measurements_from_frame(table, machine, source).poses)
     for column in ("run", "quantity"):
         blank = np.flatnonzero(table[column].to_numpy() == "")
         if blank.size:
@@ -174,7 +175,7 @@ def acceptance_runs_from_frame(table: pd.DataFrame, source: str = "runs",
     if unknown.size:
         refuse_cell(source, unknown[0], "quantity", f"unknown quantity "
                     f"{table['quantity'].iloc[unknown[0]]!r}; use one of {', '.join(QUANTITIES)}")
-    readings = _Readings(table, source, axes)
+    readings = _Readings(table, source, axes, travel)
     runs, left_out, warnings = [], [], []
     for name in pd.unique(table["run"]):
         rows = np.flatnonzero(table["run"].to_numpy() == name)
@@ -219,8 +220,8 @@ def _axis_columns(table, source) -> dict[str, tuple[str, str]]:
 class _Readings:
     """The file's numbers, parsed once, and each run built from its rows."""
 
-    def __init__(self, table, source, axes):
-        self.source, self.axes = source, axes
+    def __init__(self, table, source, axes, travel=None):
+        self.source, self.axes, self.travel = source, axes, travel
         self.quantity = table["quantity"].to_numpy()
         self.value = column_numbers(table, "value", source)
         self.poses = {column: column_numbers(table, column, source) for column in axes}
@@ -273,6 +274,9 @@ class _Readings:
                         f"{what} moves {len(moving)} axes "
                         f"({', '.join(moving) or 'none'}); it moves one linear axis")
         column = moving[0]
+        if self.axes[column][1] != "mm":
+            self.refuse(rows[0], column, f"{what} moves a rotary axis; it moves a linear one")
+        self._check_direction(what, rows, column, quantity)
         cycle = self._cycles(rows)
         targets, target = np.unique(np.round(self.poses[column][rows] / POSITION_RESOLUTION),
                                     return_inverse=True)
@@ -297,6 +301,18 @@ class _Readings:
                             f"for {ISO_CYCLES} (its s and R rest on few readings)")
         positions = targets * POSITION_RESOLUTION
         return PositioningRun(name, self.axes[column][0], quantity, positions, deviations)
+
+    def _check_direction(self, what, rows, column, quantity):
+        """With a machine: the quantity read is the moving axis' direction of travel."""
+        if self.travel is None:
+            return
+        along = self.travel[self.axes[column][0]][rows[0]]
+        if abs(along[TRANSLATIONS.index(quantity)]) < 1.0 - 1e-9:
+            expected = [q for q, v in zip(TRANSLATIONS, along) if abs(v) > 1.0 - 1e-9]
+            self.refuse(rows[0], "quantity", f"{what} reads {quantity!r}, but axis "
+                                             f"{self.axes[column][0]!r} travels along "
+                                             f"{expected[0] if expected else along.round(6)} "
+                                             f"of the workpiece frame here")
 
     def _one_quantity(self, name, rows) -> str:
         read = pd.unique(self.quantity[rows])
@@ -396,6 +412,18 @@ class _Readings:
                                                    f"needs two readings or more")
             deviations[str(quantity)] = self.value[chosen]
         return RotaryRun(name, self.axes[rotary[0]][0], deviations)
+
+
+def _travel(machine, poses) -> dict[str, np.ndarray]:
+    """Per linear axis ``(N, 3)``: the tool point's displacement in the workpiece frame per
+    mm of the axis at each reading's pose (its direction of travel)."""
+    out = {}
+    for index, axis in enumerate(machine.axis_specs):
+        if axis.kind == "linear":
+            step = poses.copy()
+            step[:, index] += 1.0
+            out[axis.name] = tool_point(machine, step) - tool_point(machine, poses)
+    return out
 
 
 def _fitted_circle(points) -> tuple[np.ndarray, float]:
