@@ -6,6 +6,7 @@ machine drawn from the design uniform among the predicted machines."""
 from __future__ import annotations
 
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pandas as pd
@@ -22,6 +23,7 @@ from reliability.measured.acceptance_runs import acceptance_runs_from_frame
 from reliability.measured.plans import read_plan
 from reliability.measured.simulated_measurements import simulate_measurements
 from studies.cli.program import main
+from studies.report.extras import evaluation_builder, guarded
 from studies.workflows.acceptance_evaluation import evaluate_against_design
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -284,3 +286,27 @@ def test_with_a_machine_the_runs_are_checked_against_it(swivel):
     outside = [dict(r, X_mm=r["X_mm"] * 5) for r in rows]
     with pytest.raises(InputError, match="column 'X_mm'.*outside the stroke"):
         acceptance_runs_from_frame(pd.DataFrame(outside).astype(str), "runs.csv", swivel)
+
+
+def test_the_report_section_shows_the_evaluation_table(swivel, tmp_path):
+    """``report --measurements meas.csv --tests`` adds "Acceptance as measured": the table
+    ``evaluate --machine --tests`` writes, with the same numbers for the same machines,
+    seed and profile."""
+    readings = tmp_path / "meas.csv"
+    assert main(["measure", str(SWIVEL), "--plan", str(SWIVEL_PLAN), "--out",
+                 str(readings)]) == 0
+    assert main(["evaluate", str(readings), "--machine", str(SWIVEL), "--tests",
+                 str(SWIVEL_TESTS), "--machines", "100", "--seed", "4", "--out",
+                 str(tmp_path / "ev")]) == 0
+    check = SimpleNamespace(machine_yield=SimpleNamespace(profile=swivel.profile))
+    study = SimpleNamespace(machine=swivel, machines=100, seed=4, checks={"initial": check})
+    section = guarded("evaluation", evaluation_builder(readings, read_tests(SWIVEL_TESTS,
+                                                                           swivel)))(study)
+    assert section.title == "Acceptance as measured"
+    written = pd.read_csv(tmp_path / "ev" / "evaluation.csv")
+    shown = section.tables["evaluation.csv"]
+    np.testing.assert_allclose(shown["percentile"].to_numpy(dtype=float),
+                               written["percentile"].to_numpy(dtype=float), equal_nan=True)
+    assert set(section.figures) == {"evaluation_circle_xy_r150.png",
+                                    "evaluation_position_X.png"}
+    assert section.summary["evaluation"]["position_X"] in (True, False)

@@ -41,8 +41,9 @@ actual path is ``p_j = (r + v_j)(cos θ_j, sin θ_j)`` about the ballbar's centr
   centred on the least-squares centre of both paths; ``F_max`` and ``F_min`` its largest and
   smallest (signed) values.
 
-**ISO 10791-6 (accuracy of five-axis kinematics), a rotary axis turning with the tool point
-held**: the range (max − min) of the tool point's deviation in x, y and z of the workpiece
+**ISO 10791-6:2014 (test conditions for machining centres, accuracy of speeds and
+interpolations), its tests of a rotary axis turning while the linear axes hold the tool
+point**: the range (max − min) of the tool point's deviation in x, y and z of the workpiece
 frame over the sweep, ``range_x``, ``range_y``, ``range_z``; an instrument zero per direction
 does not change a range. The prediction computes the same ranges
 (:mod:`reliability.acceptance.prediction`).

@@ -158,6 +158,16 @@ def read_acceptance_runs(path, machine=None) -> AcceptanceRuns:
     return acceptance_runs_from_frame(table, str(path), machine)
 
 
+def has_run_columns(path) -> bool:
+    """Whether the measurement file at ``path`` has a ``cycle`` or ``direction`` column (it
+    may hold acceptance runs); only its header is read."""
+    try:
+        header = pd.read_csv(path, nrows=0).columns
+    except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError):
+        return False
+    return bool(set(RUN_COLUMNS) & set(header))
+
+
 def acceptance_runs_from_frame(table: pd.DataFrame, source: str = "runs",
                                machine=None) -> AcceptanceRuns:
     """:func:`read_acceptance_runs` on a table already read (strings or numbers)."""

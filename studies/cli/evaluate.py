@@ -4,8 +4,6 @@ limits, pass or fail, and where it sits among the machines the design predicted.
 
 from __future__ import annotations
 
-import re
-
 import pandas as pd
 
 from reliability.acceptance.acceptance_result import profile_note
@@ -13,17 +11,16 @@ from reliability.acceptance.prediction import path_profile
 from reliability.basics.errors import InputError
 from reliability.basics.files import SIGNIFICANT, write_csv
 from reliability.basics.streams import acceptance_stream
-from reliability.measured.acceptance_runs import (CircularRun, PositioningRun,
-                                                  read_acceptance_runs)
-from studies.report.evaluation_plots import circle_figure, positioning_figure
+from reliability.measured.acceptance_runs import read_acceptance_runs
+from studies.report.evaluation_plots import FIGURE_PREFIX, run_figures
 from studies.workflows.acceptance_evaluation import (evaluate_against_design,
-                                                     verdicts_by_test, worst_sentences)
+                                                     printed_table, verdicts_by_test,
+                                                     worst_sentences)
 
 from . import options
 
 #: The table files written into ``--out DIR``; figures are ``evaluation_<run>.png``.
 TABLE_FILE, POSITIONS_FILE = "evaluation.csv", "positions.csv"
-FIGURE_PREFIX = "evaluation_"
 
 
 def add_parser(subparsers):
@@ -84,7 +81,7 @@ def run(args) -> int:
             print(f"  tests without a run of their name (not evaluated): "
                   f"{', '.join(unmatched)}")
     else:
-        print(f"\n{_printed(table).to_string(index=False)}")
+        print(f"\n{printed_table(table).to_string(index=False)}")
     _write(out, args.overwrite, runs, table)
     return 0
 
@@ -106,32 +103,13 @@ def _print_design(args, table, result, tests) -> None:
           f"(the acceptance prediction's stream, seed {args.seed}; "
           f"{profile_note(result.profile)}); percentile: the share of predicted machines "
           f"whose value is <= the measured one\n")
-    print(_printed(table).to_string(index=False))
+    print(printed_table(table).to_string(index=False))
     print()
     for row in verdicts_by_test(table, tests).itertuples():
         verdict = "no limit" if pd.isna(row.passes) else "passes" if row.passes else "FAILS"
         print(f"  {row.test}: {verdict}")
     for sentence in worst_sentences(table, result, tests):
         print(f"  {sentence}")
-
-
-def _printed(table) -> pd.DataFrame:
-    """The table for people: values, limits and predictions in µm, percentiles in %."""
-    shown = table[["run", "standard", "quantity"]].copy()
-    shown["value µm"] = [f"{1000 * v:.3g}" for v in table["value"]]
-    if "limit" in table:
-        shown["limit µm"] = [_um(v) for v in table["limit"]]
-        shown["passes"] = ["-" if pd.isna(v) else "yes" if v else "NO"
-                           for v in table["passes"]]
-        shown["predicted mean µm"] = [_um(v) for v in table["predicted_mean"]]
-        shown["predicted q95 µm"] = [_um(v) for v in table["predicted_q95"]]
-        shown["percentile"] = ["-" if pd.isna(v) else f"{100 * v:.1f} %"
-                               for v in table["percentile"]]
-    return shown
-
-
-def _um(value) -> str:
-    return "-" if pd.isna(value) else f"{1000 * value:.3g}"
 
 
 def _write(out, overwrite, runs, table) -> None:
@@ -147,11 +125,7 @@ def _write(out, overwrite, runs, table) -> None:
     if len(positions):
         written.append(write_csv(positions, out / POSITIONS_FILE, overwrite=overwrite,
                                  index=False, float_format=f"%.{SIGNIFICANT}g"))
-    for run in runs.runs:
-        figure = positioning_figure(run) if isinstance(run, PositioningRun) else \
-            circle_figure(run) if isinstance(run, CircularRun) else None
-        if figure is not None:
-            path = out / f"{FIGURE_PREFIX}{re.sub(r'[^A-Za-z0-9_.-]', '_', run.name)}.png"
-            figure.savefig(path, dpi=120)
-            written.append(path)
+    for name, figure in run_figures(runs).items():
+        figure.savefig(out / name, dpi=120)
+        written.append(out / name)
     print(f"\nwritten {', '.join(p.name for p in written)} into {out}")

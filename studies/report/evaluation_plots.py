@@ -7,12 +7,28 @@ shown.
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
 from matplotlib.figure import Figure
 
 UM = 1000.0
+#: Figures are named ``evaluation_<run>.png`` (characters other than letters, digits,
+#: ``_ . -`` in the run's name as ``_``).
+FIGURE_PREFIX = "evaluation_"
 COLOURS = {"+": "tab:blue", "-": "tab:orange"}
 NAMES = {"+": "+ direction (↑)", "-": "− direction (↓)"}
+
+
+def run_figures(runs) -> dict[str, Figure]:
+    """File name -> figure of every positioning run and circle of ``runs``
+    (:class:`~reliability.measured.acceptance_runs.AcceptanceRuns`), in file order."""
+    out = {}
+    for run in runs.runs:
+        draw = {"positioning": positioning_figure, "circular": circle_figure}.get(run.kind)
+        if draw is not None:
+            out[f"{FIGURE_PREFIX}{re.sub(r'[^A-Za-z0-9_.-]', '_', run.name)}.png"] = draw(run)
+    return out
 
 
 def positioning_figure(run) -> Figure:

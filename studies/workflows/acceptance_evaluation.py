@@ -153,3 +153,23 @@ def worst_sentences(table, result, tests) -> list[str]:
         sentences.append(f"{test.name}: among the worst {100 * (1 - WORST_SHARE):.0f} % of "
                          f"the predicted machines: {'; '.join(parts)}.")
     return sentences
+
+
+def printed_table(table) -> pd.DataFrame:
+    """``evaluation.csv`` for people: values, limits and predictions in µm to three
+    significant digits, verdicts as yes/NO, percentiles in % to 0.1 %."""
+    shown = table[["run", "standard", "quantity"]].copy()
+    shown["value µm"] = [f"{1000 * v:.3g}" for v in table["value"]]
+    if "limit" in table:
+        shown["limit µm"] = [_um(v) for v in table["limit"]]
+        shown["passes"] = ["-" if pd.isna(v) else "yes" if v else "NO"
+                           for v in table["passes"]]
+        shown["predicted mean µm"] = [_um(v) for v in table["predicted_mean"]]
+        shown["predicted q95 µm"] = [_um(v) for v in table["predicted_q95"]]
+        shown["percentile"] = ["-" if pd.isna(v) else f"{100 * v:.1f} %"
+                               for v in table["percentile"]]
+    return shown
+
+
+def _um(value) -> str:
+    return "-" if pd.isna(value) else f"{1000 * value:.3g}"
