@@ -148,7 +148,7 @@ def worst_sentences(table, result, tests) -> list[str]:
                             if row.quantity in MEASURED_AS.get(q, (q,)))
             drivers = result.top_drivers(test.name, quantity) or "no single item"
             parts.append(f"{row.quantity} = {1000 * row.value:.3g} µm is at or above "
-                         f"{100 * row.percentile:.0f} % of the predicted machines (driven at "
+                         f"{100 * row.percentile:.1f} % of the predicted machines (driven at "
                          f"design time by {drivers})")
         sentences.append(f"{test.name}: among the worst {100 * (1 - WORST_SHARE):.0f} % of "
                          f"the predicted machines: {'; '.join(parts)}.")
