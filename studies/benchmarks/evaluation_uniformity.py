@@ -7,12 +7,13 @@ does (the runs of ``docs/examples/swivel5_acceptance_plan.toml``), evaluates eac
 ``tests/acceptance_tests/swivel5.toml`` among ``--predicted`` machines of the acceptance
 prediction (``acceptance_stream(0)``). Prints per result the mean percentile with its
 standard error (1/√12/√n), its z against 1/2 and the Kolmogorov–Smirnov p-value against the
-uniform.
+uniform. ``--profile gp:300`` draws and predicts under a profile along travel.
 """
 
 from __future__ import annotations
 
 import argparse
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -32,9 +33,12 @@ TESTS = ROOT / "tests" / "acceptance_tests" / "swivel5.toml"
 PLAN = ROOT / "docs" / "examples" / "swivel5_acceptance_plan.toml"
 
 
-def percentiles(machines: int, predicted: int, seed: int):
-    """``(keys, (machines, len(keys)))``: each drawn machine's percentile per result."""
+def percentiles(machines: int, predicted: int, seed: int, profile: str | None = None):
+    """``(keys, (machines, len(keys)))``: each drawn machine's percentile per result, the
+    machines drawn and predicted under ``profile`` (the machine file's by default)."""
     machine = reliability.load_machine(MACHINE)
+    if profile is not None:
+        machine = replace(machine, profile=profile)
     plan, tests = read_plan(PLAN, machine), read_tests(TESTS, machine)
     rng = np.random.default_rng(seed)
     rows, result, keys = [], None, None
@@ -57,11 +61,14 @@ def main(argv=None) -> None:
     parser.add_argument("--machines", type=int, default=200)
     parser.add_argument("--predicted", type=int, default=2000)
     parser.add_argument("--seed", type=int, default=2026)
+    parser.add_argument("--profile", default=None,
+                        help="error profile along travel (default: the machine file's)")
     args = parser.parse_args(argv)
-    keys, values = percentiles(args.machines, args.predicted, args.seed)
+    keys, values = percentiles(args.machines, args.predicted, args.seed, args.profile)
     error = np.sqrt(1.0 / 12.0 / args.machines)
-    print(f"{args.machines} machines drawn (seed {args.seed}), each among {args.predicted} "
-          f"predicted machines; mean percentile ± its standard error {error:.4f}")
+    print(f"{args.machines} machines drawn (seed {args.seed}, profile "
+          f"{args.profile or 'of the machine file'}), each among {args.predicted} predicted "
+          f"machines; mean percentile ± its standard error {error:.4f}")
     for (run, quantity), column in zip(keys, values.T):
         z = (column.mean() - 0.5) / error
         print(f"  {run} {quantity}: mean {column.mean():.3f} (z {z:+.1f}), KS p "
