@@ -81,14 +81,13 @@ def _approach_effects(plan, layout, rng) -> np.ndarray:
     """``(N,)`` each positioning run's reversal (±B/2 by direction) and repeatability (σ_R
     per approach) along its axis' travel; zero on other readings."""
     effect = np.zeros(len(layout.u))
-    starts = np.cumsum([0] + [len(run.poses) * len(run.quantities) * max(1, run.cycles)
-                              * max(1, len(run.directions)) for run in plan])
-    for run, start, end in zip(plan, starts[:-1], starts[1:]):
+    for run in plan:
         if run.approach is None:
             continue
+        chosen = np.flatnonzero(layout.run == run.name)   # run names are unique in a plan
         sigma, reversal, sign = run.approach
-        half = np.where(layout.direction[start:end] == "+", 0.5, -0.5) * reversal
-        effect[start:end] = sign * (half + sigma * rng.standard_normal(end - start))
+        half = np.where(layout.direction[chosen] == "+", 0.5, -0.5) * reversal
+        effect[chosen] = sign * (half + sigma * rng.standard_normal(len(chosen)))
     return effect
 
 
