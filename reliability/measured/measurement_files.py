@@ -5,9 +5,8 @@ Columns: ``run``; one pose column per axis, ``<axis>_mm`` (linear) or ``<axis>_d
 ``cx_mm cy_mm cz_mm`` (a ballbar's centre in the workpiece frame, on ``radial`` rows only);
 ``value`` and ``u`` (mm for ``dx dy dz radial``, rad for ``ex ey ez``); optionally ``cycle``
 and ``direction`` of acceptance runs (:mod:`reliability.measured.acceptance_runs`). Every
-refusal names
-the file, the row (data rows counted from 1, the header apart) and the column, and comes
-before any work.
+refusal names the file, the row (data rows counted from 1, the header apart) and the
+column, and comes before any work.
 """
 
 from __future__ import annotations
