@@ -135,7 +135,7 @@ def _positioning_rows(cycles=3, name="px"):
 
 
 def _read(rows):
-    return acceptance_runs_from_frame(pd.DataFrame(rows).astype(str), "runs.csv")
+    return acceptance_runs_from_frame(pd.DataFrame(rows).astype(object).fillna(""), "runs.csv")
 
 
 def test_a_run_file_gives_the_hand_computed_values_and_a_warning_below_five_cycles():
@@ -194,8 +194,14 @@ def test_an_axis_in_two_units_and_a_circle_that_is_no_circle_are_refused():
                "value": 0.0, "u": 1e-4, "direction": "+"} for a in theta]
     with pytest.raises(InputError, match="do not lie on a circle"):
         _read(circle)
-    unlabelled = [dict(r, Y_mm=100 * np.sin(a), direction="") for r, a in zip(circle, theta)]
-    _refused(unlabelled, row=1, column="direction", words="missing direction")
+    round_ = [dict(r, Y_mm=100 * np.sin(a)) for r, a in zip(circle, theta)]
+    partly = [dict(r, direction="" if i == 3 else "+") for i, r in enumerate(round_)]
+    _refused(partly, row=4, column="direction", words="missing direction")
+    unlabelled = [dict(r, direction="") for r in round_]
+    with pytest.raises(InputError, match="no acceptance run"):
+        _read(unlabelled)
+    runs = _read(_positioning_rows() + unlabelled)
+    assert "run 'c' reads radial without direction" in runs.left_out[0]
 
 
 # ------------------------------------------------------------------------------ commands

@@ -16,7 +16,7 @@ columns). Each run is one of:
   ``dz`` of the tool point (the linear axes follow it).
 
 Runs that are none of these (a line run read for identification, without ``cycle`` and
-``direction``) are listed as left out. Every refusal names the file, the row (data rows
+``direction``; a ballbar run without ``direction``) are listed as left out. Every refusal names the file, the row (data rows
 counted from 1) and the column, before any work: a missing cycle or direction, a cycle
 counted twice, a target read in fewer cycles than the others or than ISO 230-2's two, units
 mixed in one column or one run, a circle whose positions are not a circle.
@@ -190,9 +190,9 @@ def acceptance_runs_from_frame(table: pd.DataFrame, source: str = "runs",
     for name in pd.unique(table["run"]):
         rows = np.flatnonzero(table["run"].to_numpy() == name)
         run = readings.run(name, rows, warnings)
-        if run is None:
+        if isinstance(run, str):
             left_out.append(f"run {name!r} reads {', '.join(pd.unique(readings.quantity[rows]))}"
-                            f" without cycle and direction: not an acceptance run")
+                            f" without {run}: not an acceptance run")
         else:
             runs.append(run)
     if not runs:
@@ -257,16 +257,16 @@ class _Readings:
         return out
 
     def run(self, name, rows, warnings):
-        """The run of ``rows``, or None for a run that is no acceptance run."""
+        """The run of ``rows``; for a run that is no acceptance run, what it lacks."""
         moving = self.moving(rows)
         rotary = [c for c in moving if self.axes[c][1] == "deg"]
+        labelled = np.any(self.cycle[rows] != "") or np.any(self.direction[rows] != "")
         if np.any(self.quantity[rows] == "radial"):
-            return self._circular(name, rows, moving, rotary)
+            return self._circular(name, rows, moving, rotary) if labelled else "direction"
         if rotary:
             return self._rotary(name, rows, rotary)
-        if np.any(self.cycle[rows] != "") or np.any(self.direction[rows] != ""):
-            return self._positioning(name, rows, moving, warnings)
-        return None
+        return self._positioning(name, rows, moving, warnings) if labelled else \
+            "cycle and direction"
 
     def _needed(self, rows, column, what):
         blank = rows[getattr(self, column)[rows] == ""]
