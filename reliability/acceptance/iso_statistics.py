@@ -22,21 +22,41 @@ TARGET_SHIFT = 0.2
 def circular_deviation(points, iterations: int = 2) -> np.ndarray:
     """ISO 230-4 circular deviation ``G``: radial range about the least-squares circle centre.
 
-    The centre and radius minimise ``Σ (|p_j − c| − ρ)²`` (ISO 230-4, the least-squares
-    circle); found by Gauss–Newton steps from the centroid, which converge in one or two
-    steps for a path within micrometres of a circle.
-
     Parameters
     ----------
     points : array_like
         ``(..., P, 2)`` actual path in the plane of the test (mm).
+    iterations : int
+        Gauss–Newton steps of :func:`least_squares_centre`.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``(...)`` G = max_j |p_j − c| − min_j |p_j − c| (mm).
+    """
+    p = np.asarray(points, dtype=float)
+    radial = np.linalg.norm(p - least_squares_centre(p, iterations), axis=-1)
+    return radial.max(axis=-1) - radial.min(axis=-1)
+
+
+def least_squares_centre(points, iterations: int = 2) -> np.ndarray:
+    """Centre of the least-squares circle of a path (ISO 230-4).
+
+    The centre and radius minimise ``Σ (|p_j − c| − ρ)²``; found by Gauss–Newton steps from
+    the centroid, which converge in one or two steps for a path within micrometres of a
+    circle.
+
+    Parameters
+    ----------
+    points : array_like
+        ``(..., P, 2)`` path in the plane of the test (mm).
     iterations : int
         Gauss–Newton steps.
 
     Returns
     -------
     numpy.ndarray
-        ``(...)`` G = max_j |p_j − c| − min_j |p_j − c| (mm).
+        ``(..., 1, 2)`` the centre c (mm).
     """
     p = np.asarray(points, dtype=float)
     centre = p.mean(axis=-2, keepdims=True)
@@ -51,8 +71,7 @@ def circular_deviation(points, iterations: int = 2) -> np.ndarray:
         step = np.linalg.solve(normal, right[..., None])[..., 0]
         # distance ≈ ρ + u·Δc  →  the centre moves by Δc, ρ is step[..., 2]
         centre = centre + step[..., None, :2]
-    radial = np.linalg.norm(p - centre, axis=-1)
-    return radial.max(axis=-1) - radial.min(axis=-1)
+    return centre
 
 
 def positioning_statistics(deviations) -> dict[str, np.ndarray]:

@@ -3,9 +3,10 @@
 Columns: ``run``; one pose column per axis, ``<axis>_mm`` (linear) or ``<axis>_deg``
 (rotary); ``quantity`` (``dx dy dz ex ey ez`` in the workpiece frame, or ``radial``);
 ``cx_mm cy_mm cz_mm`` (a ballbar's centre in the workpiece frame, on ``radial`` rows only);
-``value`` and ``u`` (mm for ``dx dy dz radial``, rad for ``ex ey ez``). Every refusal names
-the file, the row (data rows counted from 1, the header apart) and the column, and comes
-before any work.
+``value`` and ``u`` (mm for ``dx dy dz radial``, rad for ``ex ey ez``); optionally ``cycle``
+and ``direction`` of acceptance runs (:mod:`reliability.measured.acceptance_runs`). Every
+refusal names the file, the row (data rows counted from 1, the header apart) and the
+column, and comes before any work.
 """
 
 from __future__ import annotations
@@ -26,6 +27,9 @@ QUANTITIES = ("dx", "dy", "dz", "ex", "ey", "ez", "radial")
 CENTRE_COLUMNS = ("cx_mm", "cy_mm", "cz_mm")
 #: Columns every file has besides the pose columns.
 FIXED_COLUMNS = ("run", "quantity", "value", "u")
+#: Optional columns of acceptance runs (``precrel evaluate``): the cycle (1, 2, ...) and the
+#: direction (``+``/``-``) of approach or travel; identification reads past them.
+RUN_COLUMNS = ("cycle", "direction")
 #: Significant digits of the numbers a measurement file is written with.
 WRITTEN_DIGITS = 12
 
@@ -46,6 +50,10 @@ class Measurements:
         Ballbar centres (mm, workpiece frame) on ``radial`` readings, NaN elsewhere.
     value, u : ndarray (N,)
         Reading and its whole standard uncertainty (mm or rad).
+    cycle, direction : ndarray (N,) or None
+        Of readings of acceptance runs (:data:`RUN_COLUMNS`): the cycle (0 on other
+        readings) and the direction ``+``/``-`` (blank on other readings); None when no
+        reading has them. Written by :meth:`to_frame`; identification does not use them.
     """
 
     run: np.ndarray
@@ -54,6 +62,8 @@ class Measurements:
     centre: np.ndarray
     value: np.ndarray
     u: np.ndarray
+    cycle: np.ndarray | None = None
+    direction: np.ndarray | None = None
 
     def __len__(self) -> int:
         return len(self.value)
@@ -64,7 +74,8 @@ class Measurements:
         return tuple(pd.unique(self.run))
 
     def to_frame(self, machine) -> pd.DataFrame:
-        """The file's table: rotary positions in degrees, blank centres off ``radial`` rows."""
+        """The file's table: rotary positions in degrees, blank centres off ``radial`` rows,
+        ``cycle`` and ``direction`` when the readings have them."""
         table = {"run": self.run}
         for index, name in enumerate(pose_columns(machine)):
             positions = self.poses[:, index]
@@ -74,6 +85,9 @@ class Measurements:
             table[name] = self.centre[:, index]
         table["value"] = self.value
         table["u"] = self.u
+        if self.cycle is not None:
+            table["cycle"] = np.where(self.cycle > 0, self.cycle.astype(object), "")
+            table["direction"] = self.direction
         return pd.DataFrame(table)
 
 
@@ -131,19 +145,20 @@ def measurements_from_frame(table: pd.DataFrame, machine, source: str = "measure
         run=table["run"].to_numpy(), quantity=quantity,
         poses=_poses(table, machine, source),
         centre=_centres(table, radial, source),
-        value=_numbers(table, "value", source),
+        value=column_numbers(table, "value", source),
         u=_uncertainties(table, source))
     _check_runs(measurements, source)
     return measurements
 
 
-def _refuse(source, row, column, text):
+def refuse_cell(source, row, column, text):
+    """Raise an InputError naming the file, the data row (counted from 1) and the column."""
     raise InputError(f"{source}: row {row + 1}, column {column!r}: {text}")
 
 
 def _check_columns(table, machine, source) -> None:
     axes = pose_columns(machine)
-    known = set(FIXED_COLUMNS) | set(axes) | set(CENTRE_COLUMNS)
+    known = set(FIXED_COLUMNS) | set(axes) | set(CENTRE_COLUMNS) | set(RUN_COLUMNS)
     for column in table.columns:
         if column not in known:
             what = "unknown axis" if column.endswith(("_mm", "_deg")) else "unknown column"
@@ -164,40 +179,42 @@ def _check_columns(table, machine, source) -> None:
 def _check_names(table, column, source) -> None:
     empty = np.flatnonzero(table[column].to_numpy() == "")
     if empty.size:
-        _refuse(source, empty[0], column, "expected a name; got a blank")
+        refuse_cell(source, empty[0], column, "expected a name; got a blank")
 
 
 def _check_quantities(quantity, source) -> None:
     unknown = np.flatnonzero(~np.isin(quantity, QUANTITIES))
     if unknown.size:
-        _refuse(source, unknown[0], "quantity", f"unknown quantity {quantity[unknown[0]]!r}; "
+        refuse_cell(source, unknown[0], "quantity", f"unknown quantity {quantity[unknown[0]]!r}; "
                                                 f"use one of {', '.join(QUANTITIES)}")
 
 
-def _numbers(table, column, source, rows=None) -> np.ndarray:
-    """Finite numbers of ``column`` on ``rows`` (all rows by default), NaN elsewhere."""
+def column_numbers(table, column, source, rows=None) -> np.ndarray:
+    """Finite numbers of ``column`` of a table of strings on ``rows`` (all rows by default),
+    NaN elsewhere; a blank or a non-number is refused naming the row and the column."""
     text = table[column]
     rows = np.ones(len(table), dtype=bool) if rows is None else rows
     values = pd.to_numeric(text.where(rows, "nan"), errors="coerce").to_numpy(dtype=float)
     bad = np.flatnonzero(rows & ~np.isfinite(values))
     if bad.size:
         got = text.iloc[bad[0]]
-        _refuse(source, bad[0], column, f"expected a finite number; got "
+        refuse_cell(source, bad[0], column, f"expected a finite number; got "
                                         f"{got!r}" if got else "expected a number; got a blank")
     return values
 
 
 def _uncertainties(table, source) -> np.ndarray:
-    u = _numbers(table, "u", source)
+    u = column_numbers(table, "u", source)
     small = np.flatnonzero(u <= 0)
     if small.size:
-        _refuse(source, small[0], "u", f"the standard uncertainty must be > 0; got {u[small[0]]:g}")
+        refuse_cell(source, small[0], "u",
+                    f"the standard uncertainty must be > 0; got {u[small[0]]:g}")
     return u
 
 
 def _poses(table, machine, source) -> np.ndarray:
     columns = pose_columns(machine)
-    poses = np.column_stack([_numbers(table, column, source) for column in columns])
+    poses = np.column_stack([column_numbers(table, column, source) for column in columns])
     for index, (axis, column) in enumerate(zip(machine.axis_specs, columns)):
         if axis.kind == "rotary":
             poses[:, index] = np.radians(poses[:, index])
@@ -209,7 +226,7 @@ def _poses(table, machine, source) -> np.ndarray:
         if outside.size:
             unit = (lambda v: f"{v:g} mm") if axis.kind == "linear" else \
                 (lambda v: f"{math.degrees(v):.6g}°")
-            _refuse(source, outside[0], column,
+            refuse_cell(source, outside[0], column,
                     f"position {unit(poses[outside[0], index])} lies outside the stroke "
                     f"[{unit(low)}, {unit(high)}] of axis {axis.name!r}")
     return poses
@@ -218,12 +235,12 @@ def _poses(table, machine, source) -> np.ndarray:
 def _centres(table, radial, source) -> np.ndarray:
     if not np.any(radial) and not set(CENTRE_COLUMNS) & set(table.columns):
         return np.full((len(table), 3), np.nan)
-    centre = np.column_stack([_numbers(table, column, source, rows=radial)
+    centre = np.column_stack([column_numbers(table, column, source, rows=radial)
                               for column in CENTRE_COLUMNS])
     for column in CENTRE_COLUMNS:
         given = np.flatnonzero(~radial & (table[column].to_numpy() != ""))
         if given.size:
-            _refuse(source, given[0], column, "a centre belongs on radial rows only; leave it "
+            refuse_cell(source, given[0], column, "a centre belongs on radial rows only; leave it "
                                               "blank here")
     return centre
 
@@ -236,13 +253,13 @@ def _check_runs(measurements, source) -> None:
         lambda q: (q == "radial").any() and (q != "radial").any())
     if mixed.any():
         row = int(np.flatnonzero(mixed.to_numpy() & ~radial.to_numpy())[0])
-        _refuse(source, row, "quantity", f"run {measurements.run[row]!r} mixes radial readings "
+        refuse_cell(source, row, "quantity", f"run {measurements.run[row]!r} mixes radial readings "
                                          f"with others; a ballbar run reads radial only")
     counts = frame.groupby(["run", "quantity"])["row"].transform("size").to_numpy()
     single = np.flatnonzero(counts == 1)
     if single.size:
         row = int(single[0])
-        _refuse(source, row, "quantity", f"run {measurements.run[row]!r} reads "
+        refuse_cell(source, row, "quantity", f"run {measurements.run[row]!r} reads "
                                          f"{measurements.quantity[row]!r} only once; its "
                                          f"set-up needs two readings or more")
     _check_fixed_centres(measurements, np.flatnonzero(radial.to_numpy()), source)
@@ -256,6 +273,6 @@ def _check_fixed_centres(measurements, rows, source) -> None:
     moved = np.abs(measurements.centre[rows] - first) > 1e-9 * (1.0 + np.abs(first))
     if moved.any():
         row, column = np.argwhere(moved)[0]
-        _refuse(source, int(rows[row]), CENTRE_COLUMNS[column],
+        refuse_cell(source, int(rows[row]), CENTRE_COLUMNS[column],
                 f"run {measurements.run[rows[row]]!r} moves its centre; one ballbar run "
                 f"has one centre")

@@ -1,9 +1,13 @@
 """Measurement plans: a test file (docs/acceptance.md) whose tests carry ``u`` (mm) and
 ``u_angle`` (rad), plus ``kind = "line"`` runs; each test is one run (docs/measurements.md).
 
-A circular test reads ``radial`` about its centre, a positioning test the quantity along
-its axis, a rotary test ``dx dy dz``; a line run reads its ``quantities`` at its ``targets``
-(ISO 230-2 spacing by default) along ``axis`` with the other axes at ``line``.
+A circular test reads ``radial`` about its centre (once, unlabelled, or in each direction of
+travel its ``directions`` key lists, ``["+", "-"]``), a positioning test the quantity along
+its axis at every target in each of its ``runs`` cycles (ISO 230-2's 5 by default) in both
+directions of approach, a rotary test ``dx dy dz``; a line run reads its ``quantities`` at
+its ``targets`` (ISO 230-2 spacing by default) along ``axis`` with the other axes at
+``line``. Readings of positioning runs and of circles with ``directions`` carry their cycle
+and direction (the acceptance runs of ``precrel evaluate``).
 """
 
 from __future__ import annotations
@@ -26,8 +30,11 @@ ANGLES = ("ex", "ey", "ez")
 #: Keys a plan adds to every test, and the keys of a line run.
 UNCERTAINTY_KEYS = ("u", "u_angle")
 #: What a run costs, read by the planning of measurements (reliability.measured.planning).
-PLAN_KEYS = (*UNCERTAINTY_KEYS, "cost")
-LINE_KEYS = ("name", "kind", "axis", "line", "targets", "quantities", *PLAN_KEYS)
+PLAN_KEYS = (*UNCERTAINTY_KEYS, "cost", "directions")
+#: Directions of approach (positioning) or travel (circular): ``+`` along the axis, ``-``.
+DIRECTIONS = ("+", "-")
+LINE_KEYS = ("name", "kind", "axis", "line", "targets", "quantities", *UNCERTAINTY_KEYS,
+             "cost")
 
 
 @dataclass(frozen=True, eq=False)
@@ -44,6 +51,15 @@ class PlannedRun:
         Standard uncertainty of each quantity (mm or rad).
     centre : ndarray (3,) or None
         The ballbar's centre (mm, workpiece frame) of a ``radial`` run.
+    cycles : int
+        Cycles of an acceptance run (a positioning test's ``runs``, 1 for a circle read in
+        labelled directions); 0: a run read once, without cycle and direction.
+    directions : tuple of str
+        Of an acceptance run: ``+`` and/or ``-`` (:data:`DIRECTIONS`), read in each cycle.
+    approach : tuple of float or None
+        Of a positioning run: its axis' ``(repeatability σ, reversal B)`` (mm) and the sign
+        of its travel along the quantity read, drawn into each approach by
+        :func:`reliability.measured.simulated_measurements.simulate_measurements`.
     """
 
     name: str
@@ -51,6 +67,9 @@ class PlannedRun:
     quantities: tuple[str, ...]
     u: np.ndarray
     centre: np.ndarray | None = None
+    cycles: int = 0
+    directions: tuple[str, ...] = ()
+    approach: tuple[float, float, float] | None = None
 
 
 def read_plan(path, machine) -> tuple[PlannedRun, ...]:
@@ -83,16 +102,35 @@ def parse_plan(data: Mapping, machine, source: str = "plan") -> tuple[PlannedRun
 
 def _test_run(test, entry, machine, where) -> PlannedRun:
     path = build_path(machine, test)
+    if "directions" in entry and test.kind != "circular":
+        raise InputError(f"{where}: key 'directions' belongs to circular tests (a "
+                         f"positioning test reads both directions in each of its runs)")
     if test.kind == "circular":
+        directions = _directions(entry, where)
         return PlannedRun(test.name, path.poses, ("radial",),
                           np.array([_uncertainty(entry, "u", where)]),
-                          tool_point(machine, path.poses).mean(axis=0))
+                          tool_point(machine, path.poses).mean(axis=0),
+                          cycles=1 if directions else 0, directions=directions)
     if test.kind == "positioning":
         along = int(np.argmax(np.abs(path.directions[0])))
+        axis = machine.axis_specs[machine.axes.index(test.axis)]
         return PlannedRun(test.name, path.poses, (TRANSLATIONS[along],),
-                          np.array([_uncertainty(entry, "u", where)]))
+                          np.array([_uncertainty(entry, "u", where)]), cycles=test.runs,
+                          directions=DIRECTIONS,
+                          approach=(axis.repeatability, axis.reversal,
+                                    float(np.sign(path.directions[0][along]))))
     return PlannedRun(test.name, path.poses, TRANSLATIONS,
                       np.full(3, _uncertainty(entry, "u", where)))
+
+
+def _directions(entry, where) -> tuple[str, ...]:
+    """A circle's ``directions``: distinct ``+``/``-``, or none (one unlabelled turn)."""
+    value = entry.get("directions", [])
+    if not isinstance(value, list) or any(d not in DIRECTIONS for d in value) or \
+            len(set(value)) != len(value):
+        raise InputError(f"{where}, key 'directions': expected a list of distinct "
+                         f"directions of travel among {DIRECTIONS}; got {value!r}")
+    return tuple(value)
 
 
 def _line_run(entry, machine, where) -> PlannedRun:
@@ -134,16 +172,39 @@ def _uncertainty(entry, key, where) -> float:
 
 def planned_readings(plan) -> Measurements:
     """Every reading of the plan's runs, value 0: its run, pose, quantity, nominal ballbar
-    centre (NaN off ``radial`` readings) and ``u``; where, what and how well each is read."""
-    parts = {"run": [], "poses": [], "quantity": [], "centre": [], "u": []}
+    centre (NaN off ``radial`` readings) and ``u``; where, what and how well each is read.
+
+    An acceptance run is read in every cycle and direction, cycle by cycle, each direction
+    in its order of travel (``-`` from the last pose back); then the readings carry their
+    ``cycle`` and ``direction`` (0 and blank on other runs)."""
+    parts = {"run": [], "poses": [], "quantity": [], "centre": [], "u": [], "cycle": [],
+             "direction": []}
     for run in plan:
-        count = len(run.poses) * len(run.quantities)
+        poses, cycle, direction = _order_of_reading(run)
+        count = len(poses) * len(run.quantities)
         parts["run"].append(np.full(count, run.name, dtype=object))
-        parts["poses"].append(np.repeat(run.poses, len(run.quantities), axis=0))
-        parts["quantity"].append(np.tile(np.array(run.quantities, dtype=object),
-                                         len(run.poses)))
+        parts["poses"].append(np.repeat(poses, len(run.quantities), axis=0))
+        parts["quantity"].append(np.tile(np.array(run.quantities, dtype=object), len(poses)))
         centre = np.full(3, np.nan) if run.centre is None else run.centre
         parts["centre"].append(np.repeat(centre[None, :], count, axis=0))
-        parts["u"].append(np.tile(run.u, len(run.poses)))
+        parts["u"].append(np.tile(run.u, len(poses)))
+        parts["cycle"].append(np.repeat(cycle, len(run.quantities)))
+        parts["direction"].append(np.repeat(direction, len(run.quantities)))
     joined = {key: np.concatenate(values) for key, values in parts.items()}
+    if not any(run.directions for run in plan):
+        joined["cycle"] = joined["direction"] = None
     return Measurements(value=np.zeros(len(joined["u"])), **joined)
+
+
+def _order_of_reading(run):
+    """The run's poses in the order read, with each one's cycle and direction."""
+    if not run.directions:
+        return run.poses, np.zeros(len(run.poses), dtype=int), \
+            np.full(len(run.poses), "", dtype=object)
+    sweeps = [run.poses if d == "+" else run.poses[::-1] for d in run.directions]
+    one_cycle = np.concatenate(sweeps)
+    count = len(one_cycle)
+    direction = np.concatenate([np.full(len(run.poses), d, dtype=object)
+                                for d in run.directions])
+    return np.tile(one_cycle, (run.cycles, 1)), np.repeat(np.arange(1, run.cycles + 1), count), \
+        np.tile(direction, run.cycles)

@@ -4,7 +4,11 @@ The machine's errors are drawn under the study's profile along travel and readin
 tolerance (σ = t/3, normal or truncated at ±t), at every position of every axis the plan
 visits; every run gets its own set-up (an instrument zero per quantity, a ballbar centre
 off its nominal place); each reading is the exact workpiece-frame deviation (or the
-ballbar's length change) plus its zero and noise of standard deviation ``u``.
+ballbar's length change) plus its zero and noise of standard deviation ``u``. A positioning
+run's readings also carry its axis' reversal and repeatability, as the acceptance prediction
+draws them (:mod:`reliability.acceptance.prediction`): ``+B/2`` approaching in the ``+``
+direction, ``−B/2`` in the ``−`` direction, and a fresh ``σ_R`` normal per approach, along
+the axis' travel (drawn last, so plans without positioning runs read as before).
 """
 
 from __future__ import annotations
@@ -67,9 +71,24 @@ def simulate_measurements(machine, plan, tolerances=None, *, profile="constant",
     value = _exact_readings(machine, layout, exact)
     setup, setup_truth = _draw_setups(machine, layout, rng)
     value = value + setup + layout.u * rng.standard_normal(len(value))
+    value = value + _approach_effects(plan, layout, rng)
     measurements = replace(layout, value=value)
     return SimulatedMachine(measurements, pd.concat([truth, setup_truth], ignore_index=True),
                             errors)
+
+
+def _approach_effects(plan, layout, rng) -> np.ndarray:
+    """``(N,)`` each positioning run's reversal (±B/2 by direction) and repeatability (σ_R
+    per approach) along its axis' travel; zero on other readings."""
+    effect = np.zeros(len(layout.u))
+    for run in plan:
+        if run.approach is None:
+            continue
+        chosen = np.flatnonzero(layout.run == run.name)   # run names are unique in a plan
+        sigma, reversal, sign = run.approach
+        half = np.where(layout.direction[chosen] == "+", 0.5, -0.5) * reversal
+        effect[chosen] = sign * (half + sigma * rng.standard_normal(len(chosen)))
+    return effect
 
 
 def _draw_errors(machine, poses, tolerances, profile, rng) -> tuple[np.ndarray, pd.DataFrame]:

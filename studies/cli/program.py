@@ -22,6 +22,7 @@ COMMANDS += ("measure",)
 COMMANDS += ("identify",)
 COMMANDS += ("plan",)
 COMMANDS += ("compensate",)
+COMMANDS += ("evaluate",)
 PROG = "precrel"
 #: Exit code of bad input (argparse's own convention).
 USAGE_ERROR = 2

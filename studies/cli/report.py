@@ -6,11 +6,13 @@ from reliability.acceptance.suggested_limits import minimum_machines
 from reliability.basics.errors import InputError
 from reliability.basics.streams import sensitivity_stream, zone_stream
 from reliability.compensation.compensation_plans import read_compensation_plan
+from reliability.measured.acceptance_runs import has_run_columns
 from studies.report import machine_sections
 from studies.report.acceptance_section import BUILT_MACHINES
 from studies.report.as_measured_section import as_measured_builder
 from studies.report.extras import (EXTRAS, TITLES, acceptance_builder, builders,
-                                   catalogue_builder, guarded, not_computed)
+                                   catalogue_builder, evaluation_builder, guarded,
+                                   not_computed)
 from studies.report.sensitivity_section import study_sensitivity_section
 from studies.report.writer import REPORT_MARKERS, write_report
 from studies.report.zone_section import zone_section
@@ -96,6 +98,10 @@ def run(args) -> int:
         included.append("as_measured")
         extra.append(guarded("as_measured", as_measured_builder(
             measured, tests, source=args.identification or args.measurements)))
+    if args.measurements is not None and tests is not None and \
+            has_run_columns(args.measurements):
+        included.append("evaluation")
+        extra.append(guarded("evaluation", evaluation_builder(args.measurements, tests)))
     if args.sensitivity:
         included.append("sensitivity")
         extra.append(guarded("sensitivity", lambda study: study_sensitivity_section(

@@ -30,8 +30,11 @@ import pandas as pd
 from allocation import AllocationProblem, InfeasibleAllocationError, solve_catalogue
 from reliability.basics.display import axis_units, with_positions
 from reliability.basics.errors import InputError, InputTypeError
-from reliability.basics.streams import (catalogue_stream, compensated_acceptance_stream,
-                                        rare_stream, system_stream)
+from reliability.basics.streams import (acceptance_stream, catalogue_stream,
+                                        compensated_acceptance_stream, rare_stream,
+                                        system_stream)
+from reliability.measured.acceptance_runs import read_acceptance_runs
+from studies.workflows.acceptance_evaluation import evaluate_against_design
 from studies.workflows.compensated_acceptance import compensated_acceptance
 from studies.workflows.profile_comparison import (ProfilesStudy, profile_comparison,
                                                   profile_length)
@@ -41,6 +44,8 @@ from .acceptance_section import acceptance_section
 from .as_measured_section import TITLE as AS_MEASURED_TITLE
 from .catalogue_section import TITLE as CATALOGUE_TITLE
 from .catalogue_section import catalogue_section
+from .evaluation_section import TITLE as EVALUATION_TITLE
+from .evaluation_section import evaluation_section
 from .profiles_section import TITLE as PROFILES_TITLE
 from .profiles_section import profiles_section
 from .rare_section import rare_section
@@ -61,10 +66,11 @@ TITLES = {"front": "Cost against reliability", "system": "System reliability",
           "rare": "Verification at the worst poses", "profiles": PROFILES_TITLE,
           "tests": ACCEPTANCE_TITLE, "catalogue": CATALOGUE_TITLE,
           "sensitivity": "What each tolerance buys", "as_measured": AS_MEASURED_TITLE,
-          "compensation": "After compensation"}
+          "evaluation": EVALUATION_TITLE, "compensation": "After compensation"}
 #: The option that asks for each section not in :data:`EXTRAS`.
 OPTIONS = {"tests": "--tests", "catalogue": "--catalogue", "sensitivity": "--sensitivity",
            "as_measured": "--identification or --measurements",
+           "evaluation": "--measurements with acceptance runs and --tests",
            "compensation": "--compensation"}
 
 
@@ -144,6 +150,20 @@ def acceptance_builder(tests, suggest=None, plan=None, plan_name: str = ""):
                                   machines=study.machines, profile=study_profile(study),
                                   suggest=suggest, seed=study.seed, compensated=compensated,
                                   plan_name=plan_name)
+    return build
+
+
+def evaluation_builder(path, tests):
+    """The builder of the "Acceptance as measured" section: the acceptance runs of the
+    measurement file ``path`` against ``tests`` and machines built to the initial allocation
+    under the study's profile, with the study's machine count and seed."""
+    def build(study):
+        runs = read_acceptance_runs(path, study.machine)
+        evaluated = evaluate_against_design(runs, study.machine, tests,
+                                            machines=study.machines,
+                                            profile=study_profile(study),
+                                            rng=acceptance_stream(study.seed))
+        return evaluation_section(runs, evaluated, source=str(path), seed=study.seed)
     return build
 
 
