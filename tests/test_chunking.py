@@ -259,3 +259,19 @@ def test_output_variance_equals_the_squared_jacobian_sum(any_machine):
     expected = np.einsum("pon,n->po", any_machine.jacobian(q) ** 2, variance)  # Eq. (20)
     np.testing.assert_allclose(output_variance(any_machine, q, variance), expected,
                                rtol=1e-13)
+
+
+def test_rows_equal_up_to_rounding_are_one_row_across_a_rounding_step():
+    """Two rows equal but for last-bit rounding, with an entry right at a step of the
+    10-digit rounding (so that rounding alone puts them in different cells), are screened
+    as one row, and rows differing in the 9th digit stay two."""
+    rng = np.random.default_rng(3)
+    base = rng.uniform(0.1, 1.0, (4, 6))
+    twin = base.copy()
+    base[0, 2] = 0.3 + 5e-11  # halfway between two 10-digit steps of the row's scale
+    twin[0, 2] = np.nextafter(base[0, 2], 0.0)
+    twin[1:] = base[1:] * (1 + 4e-16)
+    apart = base[:1] * (1 + 1e-8)
+    rows = np.stack([np.vstack([base, twin, apart])] * 6, axis=1)  # (9 poses, 6, 6 items)
+    screened = screen_rows(rows, np.full(6, 10.0))
+    assert screened.counts["duplicates"] == 6 * 5
