@@ -84,6 +84,7 @@ from ..basics import checks, streams
 from ..basics.chunks import chunk_size, chunks
 from ..basics.pass_rule import passes
 from ..basics.renamed import renamed
+from ..basics.ties import TIE_RTOL
 from ..first_order.fosm import two_sided_failure
 from ..model.error_draws import check_reading, grid_factors, normal_to_marginal
 from ..model.kinematics import (chain_factors, deviation_from_transports, ideal_rotation,
@@ -290,7 +291,10 @@ class YieldModel:
         if not with_poses:
             return _largest_over_poses(rows), None
         by_output = np.ascontiguousarray(rows.transpose(0, 2, 1))  # reduced along memory
-        where = np.argmax(by_output, axis=2)
+        top = by_output.max(axis=2, keepdims=True)
+        # the first pose (grid order is lexicographic) within the tie tolerance of the
+        # largest, not the one the rounding of symmetric poses happens to favour
+        where = np.argmax(by_output >= top * (1 - TIE_RTOL), axis=2)
         ratios = np.take_along_axis(by_output, where[..., None], axis=2)[..., 0]
         return ratios, self._deciding_rows[where]
 
@@ -565,11 +569,13 @@ def _joined(parts, empty_shape, dtype) -> np.ndarray:
 
 
 def _worst_of(ratios, poses):
-    """The largest of each machine's output ratios and its row ``pose · 6 + output`` (on a
-    tie, the row that comes first)."""
+    """The largest of each machine's output ratios and its row ``pose · 6 + output``: among
+    the rows within :data:`reliability.basics.ties.TIE_RTOL` of the largest, the one that
+    comes first."""
     ratio = ratios.max(axis=1)
     rows = poses * len(OUTPUTS) + np.arange(len(OUTPUTS))
-    worst = np.where(ratios == ratio[:, None], rows, np.iinfo(np.intp).max).min(axis=1)
+    tied = ratios >= ratio[:, None] * (1 - TIE_RTOL)
+    worst = np.where(tied, rows, np.iinfo(np.intp).max).min(axis=1)
     return ratio, worst
 
 
