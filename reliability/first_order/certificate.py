@@ -58,6 +58,7 @@ from scipy.optimize import minimize
 from ..basics import checks
 from ..basics.chunks import chunks
 from ..basics.errors import InputError
+from ..basics.files import rounded_up
 from ..basics.ties import SEARCH_RTOL, TIE_RTOL, worst_rows
 from ..model.error_draws import DISTRIBUTIONS
 from ..model.kinematics import jacobian, output_variance
@@ -84,6 +85,9 @@ BOX_MEMORY = 8 * 2 ** 20
 #: reported pose recomputed from the chain (equal to the expansion's to about 1e-15) still
 #: meets ``rtol``.
 CLOSING_MARGIN = 1e-9
+#: Significant digits of a reported gap (rounded up: it bounds the relative distance of
+#: the reported value from the largest).
+GAP_DIGITS = 2
 #: Points per axis of the grid that gives the first candidate (σ reading; the stack's
 #: vertex candidates need less, and its grid costs a whole Jacobian row per point).
 START_POINTS = {"sigma": 5, "stack": 3}
@@ -135,12 +139,16 @@ def certified_worst(machine, tolerances, *, rtol: float = DEFAULT_RTOL, k: float
         Indexed by output: the pose (one column per axis, mm or rad); ``sigma`` there and
         ``sigma_bound`` (an upper bound of σ over every pose of the strokes, or of the
         machine's work zone when it has one), or ``stack``
-        and ``stack_bound`` under ``reading='stack'``; ``gap`` (``bound/value − 1``),
+        and ``stack_bound`` under ``reading='stack'``; ``gap`` (``bound/value − 1``,
+        rounded up to :data:`GAP_DIGITS` digits and at least :data:`CLOSING_MARGIN`),
         ``certified`` (gap ≤ rtol), ``calls`` (boxes evaluated), ``seconds`` (the search
         and a sixth of the expansion's time, so the column sums to the total). The value
-        at the pose is computed from the chain itself; among the candidates within
-        :data:`reliability.basics.ties.TIE_RTOL` of the largest, the first in lexicographic order
-        is reported (:func:`reliability.basics.ties.worst_rows`). ``attrs`` holds ``rtol``,
+        at the pose is computed from the chain itself; the local maxima of every region of
+        near-best candidates are polished and rounded to the pose resolution
+        (:mod:`reliability.first_order.canonical_maxima`), and among those within
+        :data:`reliability.basics.ties.SEARCH_RTOL` of the largest the first in
+        lexicographic order is reported (:func:`reliability.basics.ties.worst_rows`), so
+        that symmetric twins give the same pose on every computer. ``attrs`` holds ``rtol``,
         ``distribution`` and ``reading``.
 
     Raises
@@ -201,10 +209,17 @@ def _certify(machine, model, direct, rtol, max_calls, memory, reading, shared,
     value = float(values[choice])
     bound = max(model.spread(bound), value)
     row = dict(zip(machine.axes, poses[choice]))
-    row.update({reading: value, f"{reading}_bound": bound, "gap": bound / value - 1.0,
+    row.update({reading: value, f"{reading}_bound": bound, "gap": _gap(bound, value),
                 "certified": bool(bound <= value * (1 + rtol)), "calls": int(calls),
                 "seconds": time.perf_counter() - started})
     return row
+
+
+def _gap(bound, value) -> float:
+    """``bound/value − 1`` as the upper bound it is: at least :data:`CLOSING_MARGIN` (below
+    it the gap is the rounding of the bound's terms, which differs between computers) and
+    rounded up to :data:`GAP_DIGITS` significant digits."""
+    return float(rounded_up(max(bound / value - 1.0, CLOSING_MARGIN), GAP_DIGITS))
 
 
 def _snapped_poses(machine, model, points, zone):
