@@ -221,3 +221,26 @@ def test_reproduce_paper_refuses_bad_options_in_one_line(tmp_path, capsys):
         assert len(err) == 1 and err[0].startswith("reproduce_paper: error: ")
         assert words in err[0]
 
+
+
+def test_rows_equal_but_for_rounding_form_one_set_whichever_side_of_a_step_they_fall():
+    """first_of_equal_rows: rows a last bit apart around a rounding step (where rounding
+    alone splits them) are one set; rows a whole step apart are two; the first row of each
+    set is returned, in order."""
+    from reliability.basics.ties import first_of_equal_rows
+
+    step_edge = 7.5  # floor() changes here on the half-shifted grid, 8 on the plain one
+    keys = np.array([[3.0, 8.0], [3.0, np.nextafter(8.0, 0.0)], [3.0, step_edge],
+                     [3.0, np.nextafter(step_edge, 0.0)], [1.0, 2.0], [1.0, 3.2]])
+    assert first_of_equal_rows(keys).tolist() == [0, 4, 5]
+    assert first_of_equal_rows(keys[[4, 1, 0]]).tolist() == [0, 1]
+
+
+def test_the_largest_contributors_keep_the_error_order_on_shares_equal_but_for_rounding():
+    import pandas as pd
+
+    from reliability.basics.display import top_contributors
+
+    shares = pd.DataFrame({"dz": [61.0, 10.0, 10.0 * (1 + 1e-15), 19.0 - 1e-15]},
+                          index=["Y.ex", "X.ey", "Y-X.ey", "Z.ez"])
+    assert top_contributors(shares, "dz") == "Y.ex 61%, Z.ez 19%, X.ey 10%"

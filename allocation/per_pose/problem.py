@@ -33,12 +33,11 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 import pandas as pd
-from scipy import sparse
-from scipy.sparse.csgraph import connected_components
 
 from reliability.basics import checks
 from reliability.basics.chunks import MEMORY_BUDGET, chunks, jacobian_bytes
 from reliability.basics.errors import InputError, InputTypeError
+from reliability.basics.ties import first_of_equal_rows
 from reliability.first_order.fosm import error_sigma, fosm, probability, required_index
 from reliability.model.kinematics import check_frame
 from reliability.model.machine import OUTPUTS
@@ -480,36 +479,16 @@ def _screen_parts(parts, upper_u, n_poses, n_outputs=len(OUTPUTS)) -> ScreenedRo
 
 
 def _unique_rows(matrix) -> np.ndarray:
-    """Indices of the first row of each set of rows equal to :data:`DUPLICATE_DIGITS`.
-
-    Rows equal in exact arithmetic differ by rounding (1e-16) that differs between
-    computers, so rounding alone can put two of them on either side of a rounding step,
-    and the number of rows kept would depend on the computer. Each row is therefore keyed
-    on two grids half a step apart, and rows sharing a key on either grid are one set
-    (connected components): two rows within rounding of each other share a cell of at
-    least one grid in every entry unless two entries straddle a step of each grid.
-    """
+    """Indices of the first row of each set of rows equal to :data:`DUPLICATE_DIGITS`
+    significant digits (their shape and their size), found on two rounding grids so that
+    rows equal but for rounding count once on every computer
+    (:func:`reliability.basics.ties.first_of_equal_rows`)."""
     if len(matrix) == 0:
         return np.arange(0)
     scale = matrix.max(axis=1, keepdims=True)
     scale[scale == 0] = 1.0
-    step = 10.0 ** -DUPLICATE_DIGITS
-    keyed = np.hstack([matrix / scale, np.log(scale)]) / step  # the row's shape and size
-    codes = [_row_codes(np.floor(keyed + shift)) for shift in (0.0, 0.5)]
-    n = len(matrix)
-    links = sparse.coo_matrix((np.ones(2 * n), (np.tile(np.arange(n), 2),
-                                                np.concatenate([codes[0],
-                                                                codes[1] + codes[0].max() + 1]))))
-    graph = sparse.bmat([[None, links], [links.T, None]])
-    labels = connected_components(graph, directed=False)[1][:n]
-    first = np.full(labels.max() + 1, n)
-    np.minimum.at(first, labels, np.arange(n))
-    return np.sort(first)
-
-
-def _row_codes(key) -> np.ndarray:
-    """One integer per distinct row of ``key``."""
-    return np.unique(key, axis=0, return_inverse=True)[1].ravel()
+    keyed = np.hstack([matrix / scale, np.log(scale)]) / 10.0 ** -DUPLICATE_DIGITS
+    return first_of_equal_rows(keyed)
 
 
 def _undominated(matrix, block: int = 512) -> np.ndarray:

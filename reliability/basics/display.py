@@ -224,7 +224,10 @@ def top_contributors(contributions: pd.DataFrame, output: str, n: int = 3) -> st
     output : str
     n : int
     """
-    column = contributions[output].sort_values(ascending=False, kind="stable").head(n)
+    column = contributions[output]
+    # shares equal but for rounding (symmetric items) keep the error order
+    level = np.round(column / max(float(column.abs().max()), 1e-300), 9)
+    column = column.iloc[np.argsort(-level.to_numpy(), kind="stable")].head(n)
     return ", ".join(f"{name} {share:.0f}%" for name, share in column.items())
 
 

@@ -63,3 +63,43 @@ def lexicographic_rank(poses) -> np.ndarray:
     rank = np.empty(len(poses), dtype=np.int64)
     rank[order] = np.arange(len(poses))
     return rank
+
+
+def first_of_equal_rows(keys) -> np.ndarray:
+    """Index of the first row of each set of rows equal to the resolution of ``keys``.
+
+    Rows equal in exact arithmetic differ by rounding that differs between computers, so
+    rounding alone can put two of them on either side of a step and the sets found would
+    depend on the computer. Each row is therefore placed on two grids half a step apart,
+    and rows sharing a cell on either grid are one set (connected components): two rows
+    within rounding of each other share a cell of at least one grid in every entry unless
+    two of their entries straddle a step of each grid.
+
+    Parameters
+    ----------
+    keys : array_like (n_rows, n_columns)
+        Rows scaled so that one unit is the resolution (e.g. values divided by 1e-10).
+
+    Returns
+    -------
+    ndarray of int
+        The first row of each set, in increasing order.
+    """
+    from scipy import sparse
+    from scipy.sparse.csgraph import connected_components
+
+    keys = np.asarray(keys, dtype=float).reshape(len(keys), -1)
+    n = len(keys)
+    if n == 0:
+        return np.arange(0)
+    cells = [np.unique(np.floor(keys + shift), axis=0, return_inverse=True)[1].ravel()
+             for shift in (0.0, 0.5)]
+    links = sparse.coo_matrix((np.ones(2 * n), (np.tile(np.arange(n), 2),
+                                                np.concatenate([cells[0],
+                                                                cells[1] + n]))),
+                              shape=(n, 2 * n))
+    graph = sparse.bmat([[None, links], [links.T, None]])
+    labels = connected_components(graph, directed=False)[1][:n]
+    first = np.full(labels.max() + 1, n)
+    np.minimum.at(first, labels, np.arange(n))
+    return np.sort(first[first < n])

@@ -76,9 +76,10 @@ class LinearRows:
         return out
 
     def row_signatures(self, rows, tolerances) -> np.ndarray:
-        """``(len(rows), 3)``: the projections of ``a_r/I_r`` on three fixed directions,
-        rounded to 1e-10; rows with the same event ``{|a_r·u| ≥ I_r}`` have the same
-        signature (in chunks of rows)."""
+        """``(len(rows), 3)``: the projections of ``a_r/I_r`` on three fixed directions;
+        rows with the same event ``{|a_r·u| ≥ I_r}`` have the same signature up to rounding
+        (compare them with :func:`reliability.basics.ties.first_of_equal_rows` at
+        :data:`reliability.sampling.row_events.SIGNATURE_RESOLUTION`; in chunks of rows)."""
         rows = np.asarray(rows)
         spread = self.slope_spread(tolerances)
         limits = np.tile(self.machine.limits, self.experiment.n_poses)
@@ -87,7 +88,7 @@ class LinearRows:
         out = np.empty((len(rows), 3))
         for part in chunks(len(rows), jacobian_bytes(self.machine), self.memory):
             scaled = self._row_vectors(rows[part], spread) / limits[rows[part], None]
-            out[part] = np.round(scaled @ directions, 10)
+            out[part] = scaled @ directions
         return out
 
     def _row_vectors(self, rows, spread) -> np.ndarray:

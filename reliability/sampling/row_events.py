@@ -28,6 +28,7 @@ from scipy.special import ndtr, ndtri
 
 from ..basics.chunks import chunks
 from ..basics.pass_rule import passes
+from ..basics.ties import first_of_equal_rows
 from ..first_order.fosm import two_sided_failure
 
 #: α, the plain-normal share of the importance proposal; weights are at most 1/α.
@@ -36,6 +37,8 @@ DEFENSIVE = 0.1
 EVENT_MASS = 1.0 - 1e-3
 #: ... and at most this many.
 MAX_EVENTS = 20_000
+#: Rows whose signatures agree to this (absolute, in ``a_r/I_r`` projected) have one event.
+SIGNATURE_RESOLUTION = 1e-10
 #: Draws of the mixture in the chain-free ALOE estimate of the linearised failure probability.
 LINEAR_SAMPLES = 2000
 
@@ -71,9 +74,8 @@ class RowEvents:
         candidates = np.flatnonzero(failure > 0)
         if len(candidates) == 0:
             return cls(np.zeros((0, rows.dimension)), np.zeros(0), np.zeros(0), 0.0)
-        _, first = np.unique(rows.row_signatures(candidates, tolerances), axis=0,
-                             return_index=True)
-        distinct = candidates[np.sort(first)]
+        signatures = rows.row_signatures(candidates, tolerances)
+        distinct = candidates[first_of_equal_rows(signatures / SIGNATURE_RESOLUTION)]
         distinct = distinct[np.argsort(-failure[distinct], kind="stable")]
         cumulative = np.cumsum(failure[distinct])
         total = cumulative[-1]
