@@ -29,8 +29,9 @@ that a maximum on the stroke's boundary is approached to second order). Boxes wh
 is at most ``(1 + rtol)`` times the best candidate (on σ, so ``(1 + rtol)²`` on σ²) are
 closed; the others are halved along the axis contributing most to their bound. An axis the
 spread does not depend on contributes exactly nothing and is never split. The first
-candidate is the best point of a coarse grid (:data:`START_POINTS`), improved for σ by a
-bounded local search on the expansion (L-BFGS-B), which also polishes the final candidate.
+candidate is the best point of a coarse grid, improved for σ by a bounded local search on
+the expansion (L-BFGS-B), which also polishes the final candidate
+(:mod:`reliability.first_order.box_models` holds both readings' bounds and starts).
 
 **A work zone.** On a machine with a work zone (:mod:`reliability.model.work_zone`) the
 workspace is the zone's poses. Each open box is classified by the enclosure of its tool
@@ -53,7 +54,6 @@ import time
 
 import numpy as np
 import pandas as pd
-from scipy.optimize import minimize
 
 from ..basics import checks
 from ..basics.chunks import chunks
@@ -62,8 +62,9 @@ from ..basics.ties import TIE_RTOL, worst_rows
 from ..model.error_draws import DISTRIBUTIONS
 from ..model.kinematics import jacobian, output_variance
 from ..model.machine import OUTPUTS
+from .box_models import BOX_MEMORY, SigmaModel, StackModel, rising_step
 from .fosm import error_sigma
-from .pose_expansion import interval_tree, jacobian_expansion, point_tree, variance_expansion
+from .pose_expansion import jacobian_expansion, point_tree, variance_expansion
 from .zone_bound import ZoneConstraints, hessian_enclosure
 from .zone_enclosure import ZoneEnclosure
 
@@ -75,18 +76,10 @@ WORKSPACES = ("continuous", "grid")
 DEFAULT_RTOL = 1e-3
 #: Box evaluations one output may spend before the search stops uncertified.
 MAX_BOX_CALLS = 2_000_000
-#: Default bytes of temporary arrays per chunk of boxes: small enough to stay in cache,
-#: which the per-box contractions (a few passes over each box's states) need to be fast.
-BOX_MEMORY = 8 * 2 ** 20
 #: Relative margin below ``1 + rtol`` at which a box is closed, so that the value at the
 #: reported pose recomputed from the chain (equal to the expansion's to about 1e-15) still
 #: meets ``rtol``.
 CLOSING_MARGIN = 1e-9
-#: Points per axis of the grid that gives the first candidate (σ reading; the stack's
-#: vertex candidates need less, and its grid costs a whole Jacobian row per point).
-START_POINTS = {"sigma": 5, "stack": 3}
-#: Local searches (σ reading) from the best points of that grid.
-START_SEARCHES = 3
 #: Fraction of a stroke's span within which a reported position is put on the stroke's end.
 END_SNAP = 1e-12
 #: Best candidates (work zone) from which the search on the boundary starts and at which
@@ -164,13 +157,13 @@ def certified_worst(machine, tolerances, *, rtol: float = DEFAULT_RTOL, k: float
     if reading == "sigma":
         variance = np.square(error_sigma(t, k, distribution))
         expansion = variance_expansion(machine, variance, machine.frame)
-        models = [_SigmaModel(expansion.restricted(o)) for o in range(len(OUTPUTS))]
+        models = [SigmaModel(expansion.restricted(o)) for o in range(len(OUTPUTS))]
 
         def direct(q, o):
             return np.sqrt(output_variance(machine, q, variance, machine.frame)[:, o])
     else:
         expansion = jacobian_expansion(machine, t, machine.frame)
-        models = [_StackModel(expansion.restricted(o)) for o in range(len(OUTPUTS))]
+        models = [StackModel(expansion.restricted(o)) for o in range(len(OUTPUTS))]
 
         def direct(q, o):
             return np.abs(jacobian(machine, q, machine.frame)[:, o, :]) @ t
@@ -221,7 +214,7 @@ def branch_and_bound(model, low, high, rtol, max_calls, memory=None, zone=None):
 
     Parameters
     ----------
-    model : _SigmaModel or _StackModel
+    model : SigmaModel or StackModel
         Its ``boxes(low, high)`` gives, per box, a rigorous upper bound of the model's
         function, each axis' contribution to it and the box's best candidate point.
     low, high : ndarray (n_axes,)
@@ -418,7 +411,7 @@ class _ZoneBoundary:
         curvature = (mid + rad)[..., diagonal, diagonal]
         cross = np.abs(mid) + rad
         cross[..., diagonal, diagonal] = 0.0
-        step = _rising_step(np.abs(slope), curvature, np.broadcast_to(half[:, None], slope.shape))
+        step = rising_step(np.abs(slope), curvature, np.broadcast_to(half[:, None], slope.shape))
         rise = (np.abs(slope) * step + 0.5 * curvature * step ** 2
                 + 0.5 * half[:, None] * np.einsum("bkac,bc->bka", cross, half))
         total = value + rise.sum(axis=2) + e.margin + weights @ self.constraints.margins
@@ -516,241 +509,3 @@ def _halve(low, high, contribution):
     left_high[rows, axis] = middle
     right_low[rows, axis] = middle
     return np.vstack([low, right_low]), np.vstack([left_high, high])
-
-
-class _Model:
-    """What both readings share: the expansion, the local stroke box, the start."""
-
-    def __init__(self, expansion):
-        self.expansion = expansion
-        #: Axes the function does not depend on (only the constant basis function left):
-        #: never split, and reported at the low end of their stroke.
-        self.fixed = np.array([len(index) == 1 and index[0] == 0
-                               for index in expansion.basis_index])
-        # the first contraction's six states (three derivatives, midpoint and radius)
-        # and their temporaries dominate
-        values = int(np.prod(expansion.coefficients.shape[expansion.n_axes:]))
-        self.bytes_per_box = 8 * (4 * expansion.coefficients.size
-                                  + 4 * expansion.n_axes ** 2 * values)
-
-    def local_strokes(self, machine):
-        low = np.array([axis.stroke[0] for axis in machine.axis_specs], dtype=float)
-        high = np.array([axis.stroke[1] for axis in machine.axis_specs], dtype=float)
-        return self.expansion.local(low), self.expansion.local(high)
-
-    def start(self, low, high, inside, search):
-        """The best points of the :data:`START_POINTS` grid inside the work zone (``inside``
-        of points) and their value (``search``, a local search, is not used)."""
-        grid = _start_grid(low, high, START_POINTS[self.reading], inside)
-        values = self.grid_values(grid)
-        return grid[values >= values.max() * (1 - TIE_RTOL)], float(values.max())
-
-    def grid_values(self, points):
-        """:meth:`values` at many points, in chunks within :data:`BOX_MEMORY`."""
-        per_point = 8 * 2 * self.expansion.coefficients.size
-        return np.concatenate([self.values(points[part])
-                               for part in chunks(len(points), per_point, BOX_MEMORY)])
-
-
-def _start_grid(low, high, points, inside) -> np.ndarray:
-    """The ``points``-point grid's points inside the work zone, or an InputError."""
-    grid = _grid(low, high, points)
-    grid = grid[inside(grid)]
-    if not len(grid):
-        raise InputError(f"machine: no pose of the {points}-point grid of the strokes lies in "
-                         f"its work zone, so the certificate has no pose to start from")
-    return grid
-
-
-def _grid(low, high, points) -> np.ndarray:
-    """The ``points``-point grid of a box, ``(points^n_axes, n_axes)``."""
-    axes = [np.linspace(lo, hi, points) for lo, hi in zip(low, high)]
-    return np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, len(low))
-
-
-class _SigmaModel(_Model):
-    """σ² of one output: second-order Taylor bound on boxes (module docstring)."""
-
-    reading = "sigma"
-
-    def values(self, x):
-        return self.expansion.values(x) if len(x) else np.empty(0)
-
-    def spread(self, value):
-        return float(np.sqrt(max(value, 0.0)))
-
-    def closing_factor(self, rtol):
-        return (1 + rtol) ** 2
-
-    def start(self, low, high, inside, search):
-        """The grid's best points (inside the work zone: ``inside`` of points) improved by
-        the local search ``search`` of points (:meth:`polish`, or the search constrained to
-        the work zone) from the best few, where it stays in the zone."""
-        grid = _start_grid(low, high, START_POINTS[self.reading], inside)
-        values = self.grid_values(grid)
-        found = search(grid[np.argsort(-values, kind="stable")[:START_SEARCHES]])
-        found = found[inside(found)]
-        candidates = np.vstack([grid, found])
-        values = np.concatenate([values, self.values(found)])
-        best = float(values.max())
-        return candidates[values >= best * (1 - TIE_RTOL)], best
-
-    def polish(self, starts, low, high):
-        """Local maxima of σ² from a few starting points (bounded L-BFGS-B with the
-        expansion's gradient, σ² scaled to about 1 so that the search's absolute
-        tolerances mean the same for every machine and unit)."""
-        scale = float(np.abs(self.values(starts)).max()) if len(starts) else 1.0
-        scale = scale if scale > 0 else 1.0
-
-        def negative(x):
-            tree = point_tree(self.expansion, x[None, :], 1)
-            gradient = np.array([tree[(a,)][0] for a in range(len(x))])
-            return -tree[()][0] / scale, -gradient / scale
-
-        return np.array([np.clip(minimize(negative, x, jac=True, method="L-BFGS-B",
-                                          bounds=list(zip(low, high))).x, low, high)
-                         for x in starts])
-
-    def boxes(self, low, high):
-        """Bound, contributions, candidate points, their values and slopes for boxes:
-        the tighter of the second-order Taylor bound and the first-order mean-value
-        bound on the gradient's enclosure, per box."""
-        e = self.expansion
-        centre, half = (low + high) / 2, (high - low) / 2
-        point = point_tree(e, centre, 1)
-        value = point[()]
-        gradient = np.stack([point[(a,)] for a in range(e.n_axes)], axis=1)
-        second, step = self._second_order(low, high, gradient)
-        slope_mid, slope_rad = _stacked(interval_tree(e, low, high, 1), e.n_axes)
-        first = half * (np.abs(slope_mid) + slope_rad)
-        use_first = first.sum(axis=1) < second.sum(axis=1)
-        contribution = np.where(use_first[:, None], first, second)
-        bound = value + contribution.sum(axis=1) + e.margin
-        vertex = _stepped(low, high, step, np.sign(gradient))
-        vertex_value = e.values(vertex)
-        better = vertex_value > value
-        points = np.where(better[:, None], vertex, centre)
-        away = (np.abs(slope_mid) > slope_rad + e.margin) & (high > low)
-        return (bound, contribution, points, np.where(better, vertex_value, value),
-                np.where(away, np.sign(slope_mid), 0.0))
-
-    def _second_order(self, low, high, gradient):
-        """Each axis' share of the second-order Taylor bound's rise above the centre
-        value, and the step towards the largest value of its quadratic model."""
-        n = self.expansion.n_axes
-        half = (high - low) / 2
-        curvature = np.zeros((len(low), n))
-        cross = np.zeros((len(low), n, n))
-        for (a, b), (mid, rad) in interval_tree(self.expansion, low, high, 2).items():
-            if a == b:
-                curvature[:, a] = mid + rad
-            else:
-                cross[:, a, b] = cross[:, b, a] = np.abs(mid) + rad
-        step = _rising_step(np.abs(gradient), curvature, half)
-        return (np.abs(gradient) * step + 0.5 * curvature * step ** 2
-                + 0.5 * half * np.einsum("bac,bc->ba", cross, half)), step
-
-
-def _stepped(low, high, step, direction):
-    """The centre of each box moved by ``step`` along ``direction`` per axis, exactly on
-    the box's face where the step reaches it."""
-    centre, half = (low + high) / 2, (high - low) / 2
-    face = np.where(direction > 0, high, low)
-    return np.where((step >= half) & (direction != 0), face,
-                    np.clip(centre + step * direction, low, high))
-
-
-def _stacked(tree, n_axes):
-    """The first derivatives of an interval tree as ``(mid, rad)``, each ``(b, n_axes)``."""
-    return (np.stack([tree[(a,)][0] for a in range(n_axes)], axis=1),
-            np.stack([tree[(a,)][1] for a in range(n_axes)], axis=1))
-
-
-def _rising_step(slope, curvature, half):
-    """The step ``0 ≤ d ≤ h`` that maximises ``slope·d + ½ curvature·d²``: ``h`` unless
-    the curvature is negative and the maximum of the parabola lies inside."""
-    concave = curvature < 0
-    inside = np.divide(slope, -curvature, out=np.array(half, dtype=float), where=concave)
-    return np.where(concave, np.minimum(half, inside), half)
-
-
-class _StackModel(_Model):
-    """The weighted Jacobian row ``w_i = J_oi t_i`` of one output: the worst-case stack
-    bounded by the vertices of its linear model plus the second-order remainder (module
-    docstring)."""
-
-    reading = "stack"
-
-    def __init__(self, expansion):
-        super().__init__(expansion)
-        n = expansion.n_axes
-        # the linear model's vertices over the axes the row depends on (others: 0)
-        moving = [[0.0] if fixed else [-1.0, 1.0] for fixed in self.fixed]
-        self.vertices = np.array(np.meshgrid(*moving, indexing="ij")).reshape(n, -1).T
-        self.curvature = curvature_bound(expansion)
-        values = expansion.coefficients.shape[-1]
-        self.bytes_per_box = 8 * (3 * len(self.vertices) * values + 4 * (n + 1) * values
-                                  + 2 * expansion.coefficients.size)
-
-    def values(self, x):
-        return np.abs(self.expansion.values(x)).sum(axis=-1) if len(x) else np.empty(0)
-
-    def polish(self, starts, low, high):
-        """No local search: the stack is not smooth, its boxes' vertex candidates serve."""
-        return starts[:0]
-
-    def spread(self, value):
-        return float(value)
-
-    def closing_factor(self, rtol):
-        return 1 + rtol
-
-    def boxes(self, low, high):
-        e = self.expansion
-        centre, half = (low + high) / 2, (high - low) / 2
-        n = e.n_axes
-        point = point_tree(e, centre, 1)
-        value = point[()]  # (b, n_errors)
-        gradient = np.stack([point[(a,)] for a in range(n)], axis=1)  # (b, a, n_errors)
-        remainder = 0.5 * half * (half @ self.curvature)  # (b, a): Σ_i over the errors
-        steps = half[:, None, :] * self.vertices[None]  # (b, v, a)
-        linear = np.abs(value[:, None, :] + np.matmul(steps, gradient))  # (b, v, i)
-        totals = linear.sum(axis=-1)  # (b, v)
-        best_vertex = np.argmax(totals, axis=1)
-        rows = np.arange(len(low))
-        bound = totals[rows, best_vertex] + remainder.sum(axis=1) + e.margin.sum()
-        contribution = half * np.abs(gradient).sum(axis=-1) + remainder
-        vertex = np.clip(centre + steps[rows, best_vertex], low, high)
-        vertex_value = self.values(vertex)
-        centre_value = np.abs(value).sum(axis=-1)
-        better = vertex_value > centre_value
-        points = np.where(better[:, None], vertex, centre)
-        return (bound, contribution, points, np.where(better, vertex_value, centre_value),
-                np.zeros_like(half))
-
-
-def curvature_bound(expansion) -> np.ndarray:
-    """``K_ab ≥ Σ_i max |∂²w_i/∂x_a∂x_b|`` over the whole stroke box, ``(n_axes, n_axes)``.
-
-    ``w_i`` is of degree 1 in each axis, so ``∂_a ∂_b w_i`` (a ≠ b) keeps the terms whose
-    basis functions on axes a and b are not the constant, each differentiated once, and
-    ``∂_a² w_i`` keeps the rotary terms in cos θ_a, sin θ_a (a linear axis enters
-    affinely). Every basis function and its derivatives are at most 1 in magnitude on the
-    strokes (``|u| ≤ 1``), so ``Σ_k |C_k,i|`` over those terms bounds each entry.
-    """
-    magnitude = np.abs(expansion.coefficients)
-    magnitude = magnitude.reshape(magnitude.shape[:expansion.n_axes] + (-1,)).sum(axis=-1)
-    n = expansion.n_axes
-    moving = [np.asarray(index) != 0 for index in expansion.basis_index]
-    out = np.zeros((n, n))
-    for a in range(n):
-        for b in range(a, n):
-            if a == b and expansion.kinds[a] == "linear":
-                continue
-            weight = magnitude
-            for axis in {a, b}:
-                shape = [1] * n
-                shape[axis] = -1
-                weight = weight * moving[axis].reshape(shape)
-            out[a, b] = out[b, a] = weight.sum()
-    return out
