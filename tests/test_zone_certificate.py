@@ -172,8 +172,8 @@ def test_swivel_zone_certificate_of_dz_closes_on_the_rim_within_a_few_thousand_b
     model = box_models.SigmaModel(variance_expansion(machine, variance, machine.frame)
                                   .restricted(2))
     low, high = model.local_strokes(machine)
-    tied, bound, calls = certificate.branch_and_bound(model, low, high, 1e-3, 3000,
-                                                      zone=ZoneEnclosure(machine))
+    tied, bound, calls, _ = certificate.branch_and_bound(model, low, high, 1e-3, 3000,
+                                                         zone=ZoneEnclosure(machine))
     value = float(model.values(tied).max())
     assert bound <= value * (1 + 1e-3) ** 2 and calls <= 3000
     poses = random_poses(machine, 2000, rng=8)

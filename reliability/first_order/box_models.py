@@ -101,6 +101,10 @@ class SigmaModel(_Model):
     def spread(self, value):
         return float(np.sqrt(max(value, 0.0)))
 
+    def function_of(self, spread):
+        """The model's function (σ²) at a spread (σ); the inverse of :meth:`spread`."""
+        return float(spread) ** 2
+
     def closing_factor(self, rtol):
         return (1 + rtol) ** 2
 
@@ -223,6 +227,9 @@ class StackModel(_Model):
 
     def spread(self, value):
         return float(value)
+
+    def function_of(self, spread):
+        return float(spread)
 
     def closing_factor(self, rtol):
         return 1 + rtol

@@ -94,8 +94,9 @@ FIT_SWEEPS = 3
 
 def certified_worst(machine, tolerances, *, rtol: float = DEFAULT_RTOL, k: float = 3.0,
                     distribution: str | None = None, reading: str = "sigma",
-                    max_calls: int = MAX_BOX_CALLS, memory: int | None = None
-                    ) -> pd.DataFrame:
+                    max_calls: int = MAX_BOX_CALLS, memory: int | None = None,
+                    stop_above=None, close_below=None,
+                    deadline: float | None = None) -> pd.DataFrame:
     """Largest σ (or worst-case stack) of each output over the continuous stroke box, with
     a rigorous bound.
 
@@ -119,6 +120,24 @@ def certified_worst(machine, tolerances, *, rtol: float = DEFAULT_RTOL, k: float
         Box evaluations per output before the search stops with ``certified`` False.
     memory : int, optional
         Bytes of temporary arrays per chunk of boxes (:data:`BOX_MEMORY` by default).
+    stop_above : array_like, optional
+        ``(6,)`` values (σ or the stack, per output): an output's search stops as soon as
+        it meets a pose where the value exceeds its entry, and reports that pose with
+        the bound ``+inf`` (nothing bounded, ``certified`` False). A search that never
+        meets one runs as without ``stop_above`` and gives the same row. The cutting-plane
+        loop (:func:`allocation.per_pose.continuous.solve_continuous`) passes what the
+        targets allow, so that a certificate at an allocation that is short somewhere
+        returns its cuts without proving the rest.
+    close_below : array_like, optional
+        ``(6,)`` values (σ or the stack, per output): a box whose bound is at most its
+        output's entry is closed whatever the best candidate (the feasibility test "is
+        the spread anywhere above this?"), so the bound stays at most
+        ``max(close_below, (1 + rtol) × value)`` and ``gap`` may exceed ``rtol`` where
+        the entry does.
+    deadline : float, optional
+        A :func:`time.perf_counter` time after which every output's search stops as at
+        ``max_calls``: the boxes still open count in the bound (rigorous, with a wider
+        gap), ``certified`` False unless the gap is met.
 
     Returns
     -------
@@ -127,7 +146,9 @@ def certified_worst(machine, tolerances, *, rtol: float = DEFAULT_RTOL, k: float
         ``sigma_bound`` (an upper bound of σ over every pose of the strokes, or of the
         machine's work zone when it has one), or ``stack``
         and ``stack_bound`` under ``reading='stack'``; ``gap`` (``bound/value − 1``),
-        ``certified`` (gap ≤ rtol), ``calls`` (boxes evaluated), ``seconds`` (the search
+        ``certified`` (gap ≤ rtol), ``calls`` (boxes evaluated), ``open`` (boxes still
+        open when the search stopped: 0 unless stopped by ``max_calls``, ``deadline`` or
+        ``stop_above``), ``seconds`` (the search
         and a sixth of the expansion's time, so the column sums to the total). The value
         at the pose is computed from the chain itself; among the candidates within
         :data:`reliability.basics.ties.TIE_RTOL` of the largest, the first in lexicographic order
@@ -137,9 +158,9 @@ def certified_worst(machine, tolerances, *, rtol: float = DEFAULT_RTOL, k: float
     Raises
     ------
     InputError
-        For a bad ``rtol``, ``k``, ``distribution``, ``reading``, ``max_calls`` or
-        allocation, correlated errors, or a machine whose chain fails the expansion check
-        (:mod:`reliability.first_order.pose_expansion`).
+        For a bad ``rtol``, ``k``, ``distribution``, ``reading``, ``max_calls``,
+        ``stop_above``, ``deadline`` or allocation, correlated errors, or a machine whose
+        chain fails the expansion check (:mod:`reliability.first_order.pose_expansion`).
     """
     rtol = checks.finite_float(rtol, "rtol", 0.0, 1.0, low_open=True, high_open=True)
     reading = checks.choice(reading, "reading", READINGS)
@@ -153,6 +174,10 @@ def certified_worst(machine, tolerances, *, rtol: float = DEFAULT_RTOL, k: float
     distribution = machine.distribution if distribution is None else distribution
     checks.choice(distribution, "distribution", DISTRIBUTIONS)
     k = checks.finite_float(k, "k", 0.0, low_open=True)
+    above = _output_values(stop_above, "stop_above", np.inf)
+    below = _output_values(close_below, "close_below", 0.0)
+    if deadline is not None:
+        deadline = checks.finite_float(deadline, "deadline")
     started = time.perf_counter()
     if reading == "sigma":
         variance = np.square(error_sigma(t, k, distribution))
@@ -170,20 +195,37 @@ def certified_worst(machine, tolerances, *, rtol: float = DEFAULT_RTOL, k: float
     zone = None if machine.work_zone is None else ZoneEnclosure(machine)
     shared = (time.perf_counter() - started) / len(OUTPUTS)  # the expansion, per output
     rows = [_certify(machine, models[o], lambda q, o=o: direct(q, o), rtol, max_calls,
-                     memory, reading, shared, zone) for o in range(len(OUTPUTS))]
+                     memory, reading, shared, zone, (above[o], below[o], deadline))
+            for o in range(len(OUTPUTS))]
     frame = pd.DataFrame(rows, index=pd.Index(OUTPUTS, name="output"))
     frame.attrs.update(rtol=rtol, distribution=distribution, reading=reading)
     return frame
 
 
+def _output_values(values, name, default) -> np.ndarray:
+    """``values`` checked: ``(6,)`` positive values, or ``default`` for each output
+    without them."""
+    if values is None:
+        return np.full(len(OUTPUTS), default)
+    array = checks.numeric_array(values, name, 1)
+    if array.shape != (len(OUTPUTS),) or not np.all(array > 0):
+        raise InputError(f"{name} must hold one positive value per output "
+                         f"({len(OUTPUTS)}); got {array.tolist()}")
+    return array
+
+
 def _certify(machine, model, direct, rtol, max_calls, memory, reading, shared,
-             zone=None) -> dict:
+             zone=None, ends=(np.inf, 0.0, None)) -> dict:
     """One output's row: branch and bound on the model (in the work zone ``zone``, if
-    any), the value at the reported pose from the chain itself; ``shared`` seconds (its
-    share of the expansion) added to its time."""
+    any; ``ends`` = (stop above, close below, deadline) as in :func:`certified_worst`),
+    the value at the reported pose from the chain itself; ``shared`` seconds (its share of
+    the expansion) added to its time."""
+    above, below, deadline = ends
     started = time.perf_counter() - shared
     low, high = model.local_strokes(machine)
-    tied, bound, calls = branch_and_bound(model, low, high, rtol, max_calls, memory, zone)
+    tied, bound, calls, still_open = branch_and_bound(
+        model, low, high, rtol, max_calls, memory, zone,
+        above=model.function_of(above), below=model.function_of(below), deadline=deadline)
     if zone is None:
         tied[:, model.fixed] = low[model.fixed]  # axes the spread does not depend on
     tied = _onto_ends(tied, low, high)
@@ -195,7 +237,7 @@ def _certify(machine, model, direct, rtol, max_calls, memory, reading, shared,
     row = dict(zip(machine.axes, poses[choice]))
     row.update({reading: value, f"{reading}_bound": bound, "gap": bound / value - 1.0,
                 "certified": bool(bound <= value * (1 + rtol)), "calls": int(calls),
-                "seconds": time.perf_counter() - started})
+                "open": int(still_open), "seconds": time.perf_counter() - started})
     return row
 
 
@@ -208,7 +250,8 @@ def _onto_ends(points, low, high):
     return np.where(high - points <= near, high, points)
 
 
-def branch_and_bound(model, low, high, rtol, max_calls, memory=None, zone=None):
+def branch_and_bound(model, low, high, rtol, max_calls, memory=None, zone=None, *,
+                     above=np.inf, below=0.0, deadline=None):
     """Branch and bound of one model over the box ``[low, high]`` of local coordinates, or
     over its poses in a work zone.
 
@@ -224,6 +267,14 @@ def branch_and_bound(model, low, high, rtol, max_calls, memory=None, zone=None):
     memory : int, optional
     zone : ZoneEnclosure, optional
         The machine's work zone (module docstring); None for the whole box.
+    above : float
+        Stop as soon as a candidate's function value exceeds it; the bound is then
+        ``+inf``.
+    below : float
+        Close a box whose bound is at most this function value, whatever the best
+        candidate.
+    deadline : float, optional
+        :func:`time.perf_counter` time after which the search stops as at ``max_calls``.
 
     Returns
     -------
@@ -233,6 +284,8 @@ def branch_and_bound(model, low, high, rtol, max_calls, memory=None, zone=None):
         Upper bound of the function over the whole box (over its poses in the zone).
     calls : int
         Boxes evaluated.
+    still_open : int
+        Boxes open when the search stopped (0 when it closed them all).
     """
     inside = _zone_test(model, zone)
     boundary = _ZoneBoundary.for_model(model, zone, low, high, inside)
@@ -242,15 +295,13 @@ def branch_and_bound(model, low, high, rtol, max_calls, memory=None, zone=None):
     box_low, box_high = low[None, :], high[None, :]
     closed_bound = -np.inf
     calls = 0
-    while len(box_low) and calls < max_calls:
+    while len(box_low) and calls < max_calls and best <= above and not _late(deadline):
         across = _across_zone(model, zone, box_low, box_high, memory)
         box_low, box_high, across = box_low[~across[0]], box_high[~across[0]], across[1]
         if not len(box_low):
             break
         bound, contribution, points, values, slope = _evaluate(model, box_low, box_high,
                                                                memory)
-        bound, contribution = boundary.tighten(bound, contribution, box_low, box_high,
-                                               across, memory)
         calls += len(box_low)
         values = np.where(inside(points), values, -np.inf)
         top = values.max()
@@ -260,18 +311,25 @@ def branch_and_bound(model, low, high, rtol, max_calls, memory=None, zone=None):
         tied = np.unique(np.vstack([tied[model.values(tied) >= best * (1 - TIE_RTOL)],
                                     points[values >= best * (1 - TIE_RTOL)]]), axis=0)
         tied, best = boundary.update(tied, best)
-        done = bound <= best * limit
+        closing = max(best * limit, below * (1 - CLOSING_MARGIN))
+        # only boxes the whole-box bound leaves open need the Lagrangian's
+        bound, contribution = boundary.tighten(bound, contribution, box_low, box_high,
+                                               across & (bound > closing), memory)
+        done = bound <= closing
         if done.any():
             closed_bound = max(closed_bound, bound[done].max())
         keep = ~done
         slope = np.where(across[:, None], 0.0, slope)  # a face may leave the zone
-        if across.any():
-            contribution[across] = _across_split(model, zone, contribution[across],
-                                                 box_low[across], box_high[across],
-                                                 high - low)
+        split = across & keep
+        if split.any():
+            contribution[split] = _across_split(model, zone, contribution[split],
+                                                box_low[split], box_high[split], high - low)
         box_low, box_high = _narrow(box_low[keep], box_high[keep], contribution[keep],
                                     slope[keep])
-    if len(box_low):  # stopped by max_calls: the open boxes still count
+    still_open = len(box_low)
+    if best > above:
+        closed_bound = np.inf
+    elif len(box_low):  # stopped by max_calls or the deadline: the open boxes still count
         across = _across_zone(model, zone, box_low, box_high, memory)
         box_low, box_high, across = box_low[~across[0]], box_high[~across[0]], across[1]
         if len(box_low):
@@ -285,7 +343,12 @@ def branch_and_bound(model, low, high, rtol, max_calls, memory=None, zone=None):
     top = float(model.values(polished).max()) if len(polished) else -np.inf
     if top > best * (1 + TIE_RTOL):
         tied, best = polished, top
-    return tied, max(closed_bound, best), calls
+    return tied, max(closed_bound, best), calls, still_open
+
+
+def _late(deadline) -> bool:
+    """Whether the :func:`time.perf_counter` time ``deadline`` (None: never) has passed."""
+    return deadline is not None and time.perf_counter() > deadline
 
 
 class _ZoneBoundary:
