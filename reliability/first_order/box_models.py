@@ -29,6 +29,7 @@ from ..basics.chunks import chunks
 from ..basics.errors import InputError
 from ..basics.ties import TIE_RTOL
 from .pose_expansion import interval_tree, point_tree
+from .zone_bound import hessian_enclosure
 
 #: Default bytes of temporary arrays per chunk of boxes: small enough to stay in cache,
 #: which the per-box contractions (a few passes over each box's states) need to be fast.
@@ -137,16 +138,20 @@ class SigmaModel(_Model):
                                           bounds=list(zip(low, high))).x, low, high)
                          for x in starts])
 
-    def boxes(self, low, high):
+    def boxes(self, low, high, parts: bool = False):
         """Bound, contributions, candidate points, their values and slopes for boxes:
         the tighter of the second-order Taylor bound and the first-order mean-value
-        bound on the gradient's enclosure, per box."""
+        bound on the gradient's enclosure, per box. With ``parts``, also σ² and its
+        gradient at the centres and the enclosure ``(mid, rad)`` of its Hessian over the
+        boxes, ``(b, n_axes, n_axes)`` each, for the bounds that build on them (the
+        Lagrangian bound of a work zone's boundary)."""
         e = self.expansion
         centre, half = (low + high) / 2, (high - low) / 2
         point = point_tree(e, centre, 1)
         value = point[()]
         gradient = np.stack([point[(a,)] for a in range(e.n_axes)], axis=1)
-        second, step = self._second_order(low, high, gradient)
+        hessian = hessian_enclosure(e, low, high)
+        second, step = self._second_order(half, gradient, *hessian)
         slope_mid, slope_rad = _stacked(interval_tree(e, low, high, 1), e.n_axes)
         first = half * (np.abs(slope_mid) + slope_rad)
         use_first = first.sum(axis=1) < second.sum(axis=1)
@@ -157,21 +162,18 @@ class SigmaModel(_Model):
         better = vertex_value > value
         points = np.where(better[:, None], vertex, centre)
         away = (np.abs(slope_mid) > slope_rad + e.margin) & (high > low)
-        return (bound, contribution, points, np.where(better, vertex_value, value),
-                np.where(away, np.sign(slope_mid), 0.0))
+        found = (bound, contribution, points, np.where(better, vertex_value, value),
+                 np.where(away, np.sign(slope_mid), 0.0))
+        return found + (value, gradient) + hessian if parts else found
 
-    def _second_order(self, low, high, gradient):
+    def _second_order(self, half, gradient, h_mid, h_rad):
         """Each axis' share of the second-order Taylor bound's rise above the centre
-        value, and the step towards the largest value of its quadratic model."""
-        n = self.expansion.n_axes
-        half = (high - low) / 2
-        curvature = np.zeros((len(low), n))
-        cross = np.zeros((len(low), n, n))
-        for (a, b), (mid, rad) in interval_tree(self.expansion, low, high, 2).items():
-            if a == b:
-                curvature[:, a] = mid + rad
-            else:
-                cross[:, a, b] = cross[:, b, a] = np.abs(mid) + rad
+        value, and the step towards the largest value of its quadratic model, from the
+        Hessian's enclosure ``(h_mid, h_rad)`` over the boxes."""
+        diagonal = np.arange(self.expansion.n_axes)
+        curvature = (h_mid + h_rad)[:, diagonal, diagonal]
+        cross = np.abs(h_mid) + h_rad
+        cross[:, diagonal, diagonal] = 0.0
         step = rising_step(np.abs(gradient), curvature, half)
         return (np.abs(gradient) * step + 0.5 * curvature * step ** 2
                 + 0.5 * half * np.einsum("bac,bc->ba", cross, half)), step
@@ -234,7 +236,8 @@ class StackModel(_Model):
     def closing_factor(self, rtol):
         return 1 + rtol
 
-    def boxes(self, low, high):
+    def boxes(self, low, high, parts: bool = False):
+        """As :meth:`SigmaModel.boxes`; the stack's Lagrangian bound needs no parts."""
         e = self.expansion
         centre, half = (low + high) / 2, (high - low) / 2
         n = e.n_axes

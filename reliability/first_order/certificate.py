@@ -65,7 +65,7 @@ from ..model.machine import OUTPUTS
 from .box_models import BOX_MEMORY, SigmaModel, StackModel, rising_step
 from .fosm import error_sigma
 from .pose_expansion import jacobian_expansion, point_tree, variance_expansion
-from .zone_bound import ZoneConstraints, hessian_enclosure
+from .zone_bound import ZoneConstraints
 from .zone_enclosure import ZoneEnclosure
 
 #: The spreads the certificate can bound: σ (Eq. 20) or the first-order worst-case stack.
@@ -129,11 +129,12 @@ def certified_worst(machine, tolerances, *, rtol: float = DEFAULT_RTOL, k: float
         targets allow, so that a certificate at an allocation that is short somewhere
         returns its cuts without proving the rest.
     close_below : array_like, optional
-        ``(6,)`` values (σ or the stack, per output): a box whose bound is at most its
-        output's entry is closed whatever the best candidate (the feasibility test "is
-        the spread anywhere above this?"), so the bound stays at most
-        ``max(close_below, (1 + rtol) × value)`` and ``gap`` may exceed ``rtol`` where
-        the entry does.
+        ``(6,)`` values (σ or the stack, per output), used once an output (in the order
+        of :data:`OUTPUTS`) has stopped at a pose above ``stop_above``, i.e. when the
+        table is a search for cuts rather than a certificate: in the outputs after it, a
+        box whose bound is at most the entry is closed whatever the best candidate (the
+        feasibility test "is the spread anywhere above this?"), so their bound stays at
+        most ``max(close_below, (1 + rtol) × value)`` and ``gap`` may exceed ``rtol``.
     deadline : float, optional
         A :func:`time.perf_counter` time after which every output's search stops as at
         ``max_calls``: the boxes still open count in the bound (rigorous, with a wider
@@ -194,9 +195,12 @@ def certified_worst(machine, tolerances, *, rtol: float = DEFAULT_RTOL, k: float
             return np.abs(jacobian(machine, q, machine.frame)[:, o, :]) @ t
     zone = None if machine.work_zone is None else ZoneEnclosure(machine)
     shared = (time.perf_counter() - started) / len(OUTPUTS)  # the expansion, per output
-    rows = [_certify(machine, models[o], lambda q, o=o: direct(q, o), rtol, max_calls,
-                     memory, reading, shared, zone, (above[o], below[o], deadline))
-            for o in range(len(OUTPUTS))]
+    rows = []
+    for o in range(len(OUTPUTS)):
+        stopped = any(np.isinf(row[f"{reading}_bound"]) for row in rows)
+        rows.append(_certify(machine, models[o], lambda q, o=o: direct(q, o), rtol, max_calls,
+                             memory, reading, shared, zone,
+                             (above[o], below[o] if stopped else 0.0, deadline)))
     frame = pd.DataFrame(rows, index=pd.Index(OUTPUTS, name="output"))
     frame.attrs.update(rtol=rtol, distribution=distribution, reading=reading)
     return frame
@@ -300,8 +304,8 @@ def branch_and_bound(model, low, high, rtol, max_calls, memory=None, zone=None, 
         box_low, box_high, across = box_low[~across[0]], box_high[~across[0]], across[1]
         if not len(box_low):
             break
-        bound, contribution, points, values, slope = _evaluate(model, box_low, box_high,
-                                                               memory)
+        evaluated = _evaluate(model, box_low, box_high, memory, parts=zone is not None)
+        bound, contribution, points, values, slope = evaluated[:5]
         calls += len(box_low)
         values = np.where(inside(points), values, -np.inf)
         top = values.max()
@@ -314,7 +318,8 @@ def branch_and_bound(model, low, high, rtol, max_calls, memory=None, zone=None, 
         closing = max(best * limit, below * (1 - CLOSING_MARGIN))
         # only boxes the whole-box bound leaves open need the Lagrangian's
         bound, contribution = boundary.tighten(bound, contribution, box_low, box_high,
-                                               across & (bound > closing), memory)
+                                               across & (bound > closing), memory,
+                                               evaluated[5:])
         done = bound <= closing
         if done.any():
             closed_bound = max(closed_bound, bound[done].max())
@@ -397,16 +402,18 @@ class _ZoneBoundary:
         self.multipliers = np.array(kept[:MULTIPLIER_SETS]).reshape(-1, found.shape[1])
         return tied, best
 
-    def tighten(self, bound, contribution, low, high, across, memory):
+    def tighten(self, bound, contribution, low, high, across, memory, parts=()):
         """The bounds (and contributions) of the boxes across the boundary replaced by
-        their Lagrangian bound (:meth:`_lagrangian_bounds`) where it is lower."""
+        their Lagrangian bound (:meth:`_lagrangian_bounds`) where it is lower; ``parts``,
+        the model's own parts of every box when it gave them (``model.boxes``)."""
         rows = np.flatnonzero(across)
         if self.constraints is None or not len(rows):
             return bound, contribution
         per_box = self.model.bytes_per_box + self.constraints.bytes_per_box
         for part in chunks(len(rows), per_box, BOX_MEMORY if memory is None else memory):
             chosen = rows[part]
-            other = self._lagrangian_bounds(low[chosen], high[chosen])
+            other = self._lagrangian_bounds(low[chosen], high[chosen],
+                                            [part[chosen] for part in parts])
             other, share = other if self.model.reading == "sigma" else \
                 (other, contribution[chosen])
             lower = other < bound[chosen]
@@ -414,11 +421,11 @@ class _ZoneBoundary:
             contribution[chosen[lower]] = share[lower]
         return bound, contribution
 
-    def _lagrangian_bounds(self, low, high):
+    def _lagrangian_bounds(self, low, high, parts=()):
         """The σ reading's Lagrangian bounds (:meth:`_sigma_bounds`) and shares, or the
         stack's bounds (:meth:`_stack_bounds`)."""
         if self.model.reading == "sigma":
-            return self._sigma_bounds(low, high)
+            return self._sigma_bounds(low, high, parts)
         return self._stack_bounds(low, high)
 
     def _weights(self, gradient, g, g_gradient, g_mid, g_rad, half):
@@ -453,20 +460,19 @@ class _ZoneBoundary:
                  + e.margin.sum() + weights @ self.constraints.margins)
         return total.min(axis=1)
 
-    def _sigma_bounds(self, low, high):
+    def _sigma_bounds(self, low, high, parts=()):
         """Per box, the least over the multipliers kept and one fitted to the box of the
         second-order Taylor bound of ``L = f − λ·g`` over the box (its Hessian enclosed by
         ``f``'s minus λ times the constraints'), plus the margins: an upper bound of ``f``
         over the box's poses in the zone. Returns the bounds ``(b,)`` and each axis' share
-        ``(b, n_axes)``."""
+        ``(b, n_axes)``. ``parts``: σ², its gradient and Hessian enclosure of the boxes
+        as the model computed them (:meth:`SigmaModel.boxes`), computed here if empty."""
         e = self.model.expansion
         half = (high - low) / 2
-        point = point_tree(e, (low + high) / 2, 1)
-        gradient = np.stack([point[(a,)] for a in range(e.n_axes)], axis=1)
-        f_mid, f_rad = hessian_enclosure(e, low, high)
+        f_value, gradient, f_mid, f_rad = parts or self.model.boxes(low, high, parts=True)[5:]
         g, g_gradient, g_mid, g_rad = self.constraints.parts(low, high)
         weights = self._weights(gradient, g, g_gradient, g_mid, g_rad, half)
-        value = point[()][:, None] - np.einsum("bkj,bj->bk", weights, g)
+        value = f_value[:, None] - np.einsum("bkj,bj->bk", weights, g)
         slope = gradient[:, None] - np.einsum("bkj,bja->bka", weights, g_gradient)
         mid = f_mid[:, None] - np.einsum("bkj,bjac->bkac", weights, g_mid)
         rad = f_rad[:, None] + np.einsum("bkj,bjac->bkac", weights, g_rad)
@@ -544,10 +550,11 @@ def _across_split(model, zone, contribution, low, high, span):
             + (high - low) / span)
 
 
-def _evaluate(model, low, high, memory):
-    """``model.boxes`` over all boxes in chunks within the memory budget."""
+def _evaluate(model, low, high, memory, parts=False):
+    """``model.boxes`` (with ``parts``) over all boxes in chunks within the memory
+    budget."""
     memory = BOX_MEMORY if memory is None else memory
-    parts = [model.boxes(low[part], high[part])
+    parts = [model.boxes(low[part], high[part], parts)
              for part in chunks(len(low), model.bytes_per_box, memory)]
     return tuple(np.concatenate(items) for items in zip(*parts))
 
