@@ -14,7 +14,9 @@ method:
    cheap, for the σ readings), and, when the search finds no output short by more than a
    quarter of ``rtol``, by the certificate
    (:func:`reliability.first_order.workspace_search.certified_worst`), a rigorous upper bound of
-   the output's σ (or worst-case stack) over the whole stroke box;
+   the output's σ (or worst-case stack) over the whole stroke box, asked to stop an output at
+   its first pose short by more than a quarter of ``rtol`` (a cut; the outputs after it then
+   only look for cuts);
 3. add the poses of every output short of its requirement (all at once) and solve again;
 4. stop when the certified bound of every output is within ``rtol`` of what its target allows:
    σ ≤ ``I/z`` (two- or one-sided reading; under ``distribution="truncated"`` σ is the
@@ -28,9 +30,12 @@ relaxation of the continuous problem, so
 
 where ``F*(·)`` is the continuous optimum: the cost is the continuous optimum to ``rtol``
 in σ. The certificate is asked for half of ``rtol`` so that the loop can close the other
-half with finitely many cuts. When the certificate does not reach its gap within its box
-evaluations, or the loop reaches its cap on solves, the result says so and is not
-certified.
+half with finitely many cuts; a certificate that stops no output early is the full one, and
+its bounds are within ``(1 + ¼ rtol)(1 + ½ rtol) < 1 + rtol`` of what the targets allow.
+When the certificate does not reach its gap within its box evaluations, the loop reaches
+its cap on solves, its ``time_limit`` or a Ctrl-C, the result says so and is not certified;
+stopped by the time or Ctrl-C, it offers the allocation scaled into certified feasibility
+(:attr:`ContinuousAllocation.scaled`).
 
 With ``certify=False`` the same loop cuts the poses the local search finds short by more
 than ``rtol`` and stops when it finds none: no certificate is asked for, and the result says

@@ -31,7 +31,10 @@ closed; the others are halved along the axis contributing most to their bound. A
 spread does not depend on contributes exactly nothing and is never split. The first
 candidate is the best point of a coarse grid, improved for σ by a bounded local search on
 the expansion (L-BFGS-B), which also polishes the final candidate
-(:mod:`reliability.first_order.box_models` holds both readings' bounds and starts).
+(:mod:`reliability.first_order.box_models` holds both readings' bounds and starts). For the
+allocation loop the search can stop early: at the first candidate above a value
+(``stop_above``, a cut), at a deadline, and it can close boxes below a value whatever the
+best candidate (``close_below``, a feasibility test).
 
 **A work zone.** On a machine with a work zone (:mod:`reliability.model.work_zone`) the
 workspace is the zone's poses. Each open box is classified by the enclosure of its tool
