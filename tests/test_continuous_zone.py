@@ -103,6 +103,17 @@ def test_zone_loop_certificate_holds_against_a_dense_search_of_the_zone(zoned, p
     assert np.all(table["excess"] <= RTOL) and (table["open"] == 0).all()
 
 
+def test_the_reported_certificate_is_the_full_certificate_of_the_final_allocation(
+        zoned, problem, loop):
+    """The loop's last certificate stopped no output early, so it is the table the
+    certificate gives at the final allocation without the loop's options: the same worst
+    poses, values and bounds."""
+    again = certificate_table(problem, loop.tolerances, RTOL)
+    columns = list(zoned.axes) + ["sigma", "sigma_bound", "calls", "open", "excess"]
+    assert loop.certificate.attrs["current"]
+    assert loop.certificate[columns].equals(again[columns])
+
+
 def test_a_certificate_that_stops_at_short_poses_cuts_them(zoned, problem):
     """At the grid optimum, asked to stop at the first pose short by more than ¼ rtol,
     the certificate stops the outputs it finds short (bound +inf, boxes left open) at a
