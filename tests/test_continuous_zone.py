@@ -12,6 +12,8 @@ from scipy.optimize import minimize
 
 from allocation import AllocationProblem
 from allocation.per_pose.continuous import certificate_table, solve_continuous
+from reliability.basics.errors import InputError, InputTypeError
+from reliability.first_order.certificate import certified_worst
 from reliability.first_order.fosm import error_sigma
 from reliability.model.kinematics import output_variance
 from reliability.model.machine_file import machine_from_dict
@@ -141,6 +143,21 @@ def test_time_limit_returns_an_uncertified_result_with_the_reason(problem):
     assert result.reason.startswith("not certified to rtol: stopped by the time limit "
                                     "after ")
     assert "NOT certified" in result.statement and result.scaled is None
+
+
+@pytest.mark.parametrize(("call", "error", "named"), [
+    (lambda p: solve_continuous(p, time_limit=-1.0), InputError, "time_limit"),
+    (lambda p: solve_continuous(p, time_limit=float("nan")), InputError, "time_limit"),
+    (lambda p: certified_worst(p.machine, p.machine.initial_allocation,
+                               stop_above=[1.0, 2.0]), InputError, "stop_above"),
+    (lambda p: certified_worst(p.machine, p.machine.initial_allocation,
+                               close_below=np.zeros(6)), InputError, "close_below"),
+    (lambda p: certified_worst(p.machine, p.machine.initial_allocation,
+                               deadline="soon"), InputTypeError, "deadline"),
+])
+def test_bad_stopping_options_are_refused_by_name(problem, call, error, named):
+    with pytest.raises(error, match=named):
+        call(problem)
 
 
 def test_ctrl_c_stops_the_loop_with_the_last_allocation(problem):
