@@ -74,8 +74,9 @@ CERTIFICATE_SHARE = 0.5
 #: without a certificate (``SEARCH_SHARE + CERTIFICATE_SHARE < 1`` leaves room to stop);
 #: searched only (``certify=False``), the search cuts by the whole ``rtol``.
 SEARCH_SHARE = 0.25
-#: Share of ``rtol`` above what its target allows below which the loop's certificate
-#: closes a box whatever its best candidate: every output then meets ``rtol``.
+#: Share of ``rtol`` above what its target allows below which the loop's certificate,
+#: once it has stopped an output at a short pose (it then only looks for cuts), closes a
+#: box of the outputs after it whatever their best candidate.
 CLOSE_SHARE = 1.0
 #: Local searches per output, from the poses of the set where it is largest.
 SEARCH_STARTS = 3
@@ -381,7 +382,6 @@ class _Loop:
         self.started = time.perf_counter()
         self.problem, self.rtol, self.max_calls = problem, rtol, max_calls
         self.search, self.certify, self.progress = search, certify, progress
-        self.time_limit = time_limit
         self.deadline = None if time_limit is None else self.started + time_limit
         self.current, self.result = problem, problem.solve_exact()
         self.grid, self.solves, self.calls, self.searches = self.result, 1, 0, 0
@@ -402,8 +402,8 @@ class _Loop:
                 return
             cut = self._cuts()
             if not len(cut):
-                if self.late() and self.table is not None and self.table["open"].any():
-                    self.reason = self._late_reason()
+                if self.certify and self.late() and not self.table["meets"].all():
+                    self.reason = self._late_reason()  # cut short of its gap by the deadline
                 return
             if self.late():
                 self.reason = self._late_reason()
