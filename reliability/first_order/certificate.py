@@ -93,6 +93,9 @@ MULTIPLIER_POINTS = 4
 MULTIPLIER_SETS = 4
 #: Sweeps of coordinate descent that fit a box's own multipliers.
 FIT_SWEEPS = 3
+#: Box evaluations every output's search makes before it stops at a deadline already
+#: passed, so that an output reached late still has a useful bound (about a second).
+DEADLINE_CALLS = 2000
 
 
 def certified_worst(machine, tolerances, *, rtol: float = DEFAULT_RTOL, k: float = 3.0,
@@ -140,8 +143,9 @@ def certified_worst(machine, tolerances, *, rtol: float = DEFAULT_RTOL, k: float
         most ``max(close_below, (1 + rtol) × value)`` and ``gap`` may exceed ``rtol``.
     deadline : float, optional
         A :func:`time.perf_counter` time after which every output's search stops as at
-        ``max_calls``: the boxes still open count in the bound (rigorous, with a wider
-        gap), ``certified`` False unless the gap is met.
+        ``max_calls`` once it has evaluated :data:`DEADLINE_CALLS` boxes: the boxes still
+        open count in the bound (rigorous, with a wider gap), ``certified`` False unless the
+        gap is met.
 
     Returns
     -------
@@ -281,7 +285,8 @@ def branch_and_bound(model, low, high, rtol, max_calls, memory=None, zone=None, 
         Close a box whose bound is at most this function value, whatever the best
         candidate.
     deadline : float, optional
-        :func:`time.perf_counter` time after which the search stops as at ``max_calls``.
+        :func:`time.perf_counter` time after which the search stops as at ``max_calls``,
+        once it has evaluated :data:`DEADLINE_CALLS` boxes.
 
     Returns
     -------
@@ -302,7 +307,8 @@ def branch_and_bound(model, low, high, rtol, max_calls, memory=None, zone=None, 
     box_low, box_high = low[None, :], high[None, :]
     closed_bound = -np.inf
     calls = 0
-    while len(box_low) and calls < max_calls and best <= above and not _late(deadline):
+    while (len(box_low) and calls < max_calls and best <= above
+           and not (calls >= DEADLINE_CALLS and _late(deadline))):
         across = _across_zone(model, zone, box_low, box_high, memory)
         box_low, box_high, across = box_low[~across[0]], box_high[~across[0]], across[1]
         if not len(box_low):
