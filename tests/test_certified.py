@@ -15,7 +15,8 @@ import pytest
 import reliability
 from reliability import OUTPUTS
 from reliability.basics.errors import InputError
-from reliability.first_order.certificate import _SigmaModel, _StackModel, certified_worst
+from reliability.first_order.box_models import SigmaModel, StackModel
+from reliability.first_order.certificate import certified_worst
 from reliability.first_order.pose_expansion import (CHECK_RTOL, basis_ranges, fit_expansion,
                                                     interval_tree, jacobian_expansion, point_tree,
                                                     variance_expansion)
@@ -192,10 +193,10 @@ def test_box_bounds_are_never_below_the_chain_inside_their_box(name, reading, re
     rng = np.random.default_rng(10)
     if reading == "sigma":
         expansion = variance_expansion(machine, variance)
-        models = [_SigmaModel(expansion.restricted(o)) for o in range(len(OUTPUTS))]
+        models = [SigmaModel(expansion.restricted(o)) for o in range(len(OUTPUTS))]
     else:
         expansion = jacobian_expansion(machine, t)
-        models = [_StackModel(expansion.restricted(o)) for o in range(len(OUTPUTS))]
+        models = [StackModel(expansion.restricted(o)) for o in range(len(OUTPUTS))]
     low, high = models[0].local_strokes(machine)
     size = (high - low) * np.exp(rng.uniform(np.log(1e-4), 0, (200, len(low))))
     box_low = low + (high - low - size) * rng.random((200, len(low)))

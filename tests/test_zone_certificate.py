@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from reliability.first_order import certificate
+from reliability.first_order import box_models, certificate
 from reliability.first_order.certificate import certified_worst
 from reliability.first_order.fosm import error_sigma, pose_sigma
 from reliability.first_order.pose_expansion import jacobian_expansion, variance_expansion
@@ -80,11 +80,11 @@ def swivel_boundary(reading="sigma"):
     t = machine.initial_allocation
     if reading == "sigma":
         variance = np.square(error_sigma(t, 3.0, "normal"))
-        model = certificate._SigmaModel(variance_expansion(machine, variance, machine.frame)
-                                        .restricted(0))
+        model = box_models.SigmaModel(variance_expansion(machine, variance, machine.frame)
+                                      .restricted(0))
     else:
-        model = certificate._StackModel(jacobian_expansion(machine, t, machine.frame)
-                                        .restricted(0))
+        model = box_models.StackModel(jacobian_expansion(machine, t, machine.frame)
+                                      .restricted(0))
     enclosure = ZoneEnclosure(machine)
     low, high = model.local_strokes(machine)
     boundary = certificate._ZoneBoundary.for_model(
@@ -169,11 +169,11 @@ def test_swivel_zone_certificate_of_dz_closes_on_the_rim_within_a_few_thousand_b
     machine = machine_from_dict({**SWIVEL, "workzone": SWIVEL_CYLINDER})
     t = machine.initial_allocation
     variance = np.square(error_sigma(t, 3.0, "normal"))
-    model = certificate._SigmaModel(variance_expansion(machine, variance, machine.frame)
-                                    .restricted(2))
+    model = box_models.SigmaModel(variance_expansion(machine, variance, machine.frame)
+                                  .restricted(2))
     low, high = model.local_strokes(machine)
-    tied, bound, calls = certificate.branch_and_bound(model, low, high, 1e-3, 3000,
-                                                      zone=ZoneEnclosure(machine))
+    tied, bound, calls, _ = certificate.branch_and_bound(model, low, high, 1e-3, 3000,
+                                                         zone=ZoneEnclosure(machine))
     value = float(model.values(tied).max())
     assert bound <= value * (1 + 1e-3) ** 2 and calls <= 3000
     poses = random_poses(machine, 2000, rng=8)

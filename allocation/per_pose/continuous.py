@@ -14,7 +14,9 @@ method:
    cheap, for the σ readings), and, when the search finds no output short by more than a
    quarter of ``rtol``, by the certificate
    (:func:`reliability.first_order.workspace_search.certified_worst`), a rigorous upper bound of
-   the output's σ (or worst-case stack) over the whole stroke box;
+   the output's σ (or worst-case stack) over the whole stroke box, asked to stop an output at
+   its first pose short by more than a quarter of ``rtol`` (a cut; the outputs after it then
+   only look for cuts);
 3. add the poses of every output short of its requirement (all at once) and solve again;
 4. stop when the certified bound of every output is within ``rtol`` of what its target allows:
    σ ≤ ``I/z`` (two- or one-sided reading; under ``distribution="truncated"`` σ is the
@@ -28,9 +30,12 @@ relaxation of the continuous problem, so
 
 where ``F*(·)`` is the continuous optimum: the cost is the continuous optimum to ``rtol``
 in σ. The certificate is asked for half of ``rtol`` so that the loop can close the other
-half with finitely many cuts. When the certificate does not reach its gap within its box
-evaluations, or the loop reaches its cap on solves, the result says so and is not
-certified.
+half with finitely many cuts; a certificate that stops no output early is the full one, and
+its bounds are within ``(1 + ¼ rtol)(1 + ½ rtol) < 1 + rtol`` of what the targets allow.
+When the certificate does not reach its gap within its box evaluations, the loop reaches
+its cap on solves, its ``time_limit`` or a Ctrl-C, the result says so and is not certified;
+stopped by the time or Ctrl-C, it offers the allocation scaled into certified feasibility
+(:attr:`ContinuousAllocation.scaled`).
 
 With ``certify=False`` the same loop cuts the poses the local search finds short by more
 than ``rtol`` and stops when it finds none: no certificate is asked for, and the result says
@@ -50,8 +55,8 @@ from reliability.basics import checks
 from reliability.basics.display import (OUTPUT_UNITS, axis_units, pose_frame, pose_text,
                                         upper_bound_text)
 from reliability.basics.errors import InputError
-from reliability.basics.saved_fields import (Flag, Frame, Integer, Number, Text, read_fields,
-                                            write_fields)
+from reliability.basics.saved_fields import (Array, Flag, Frame, Integer, Number, Text,
+                                            read_fields, write_fields)
 from reliability.basics.saved_results import load_payload, save_payload
 from reliability.first_order.certificate import DEFAULT_RTOL, MAX_BOX_CALLS, WORKSPACES
 from reliability.first_order.workspace_search import certified_worst, searched_worst
@@ -69,8 +74,15 @@ CERTIFICATE_SHARE = 0.5
 #: without a certificate (``SEARCH_SHARE + CERTIFICATE_SHARE < 1`` leaves room to stop);
 #: searched only (``certify=False``), the search cuts by the whole ``rtol``.
 SEARCH_SHARE = 0.25
+#: Share of ``rtol`` above what its target allows below which the loop's certificate,
+#: once it has stopped an output at a short pose (it then only looks for cuts), closes a
+#: box of the outputs after it whatever their best candidate.
+CLOSE_SHARE = 1.0
 #: Local searches per output, from the poses of the set where it is largest.
 SEARCH_STARTS = 3
+#: Relative margin by which :attr:`ContinuousAllocation.scaled` is scaled beyond the
+#: largest excess, so that the rounding of the scaled bounds stays below what is allowed.
+SCALE_MARGIN = 1e-9
 
 
 @dataclass(frozen=True, eq=False)
@@ -116,6 +128,14 @@ class ContinuousAllocation:
         The loop stopped at ``max_solves`` with outputs still short.
     workspace : str
         ``'continuous'``.
+    scaled : ndarray or None
+        When not certified but the last certificate is of this allocation and bounds every
+        output: the allocation divided by ``1 + e`` (e its largest excess, and a margin of
+        :data:`SCALE_MARGIN`). σ and the stack are linear in a common factor on the
+        tolerances, so every output's certified bound then meets what its target allows:
+        the scaled allocation is certified feasible over the continuous workspace (it may
+        leave the box of bounds and moves locked items too; :meth:`summary` says). None
+        otherwise.
     """
 
     result: object = field(repr=False)
@@ -132,6 +152,7 @@ class ContinuousAllocation:
     searched_only: bool = False
     capped: bool = False
     workspace: str = "continuous"
+    scaled: np.ndarray | None = field(default=None, repr=False)
 
     @property
     def tolerances(self) -> np.ndarray:
@@ -173,12 +194,27 @@ class ContinuousAllocation:
                  f"{self.searches} local search(es), {self.certificate_calls} certificate "
                  f"call(s), {self.seconds:.1f} s; cost {self.cost_ratio:.6f} × the "
                  f"{len(self.grid.problem.poses)}-pose grid optimum's"]
+        if self.scaled is not None:
+            lines.append(self._scaled_text())
         if self.certificate is not None:
             lines += ["", "certified worst pose of each output"
                       + ("" if self.certificate.attrs.get("current", True) else
                          " (at an earlier solve)") + ":",
                       certificate_text(self.result.problem, self.certificate)]
         return "\n".join(lines)
+
+    def _scaled_text(self) -> str:
+        """What :attr:`scaled` is and costs."""
+        problem = self.result.problem
+        factor = float(self.scaled[0] / self.tolerances[0])
+        cost = float(problem.cost.total(self.scaled))
+        below = int(np.sum(self.scaled < problem.lower))
+        locked = int(np.sum(problem.locked))
+        return (f"certified feasible instead: this allocation × {factor:.6f} (every item "
+                f"scaled by 1/(1 + the largest certified excess)), at {cost / self.cost:.6f} "
+                f"× its cost ({cost / self.grid.cost:.6f} × the grid optimum's)"
+                + (f"; {below} item(s) below the box's lower bound" if below else "")
+                + (f"; {locked} locked item(s) scaled too" if locked else ""))
 
     def __repr__(self) -> str:
         return self.summary()
@@ -227,7 +263,8 @@ SAVED_FIELDS = (Flag("certified"), Number("rtol", positive=True),
                 Frame("added", ("solve", "source", "output", "ratio")),
                 Integer("solves", low=0), Integer("certificate_calls", low=0),
                 Integer("searches", low=0), Number("seconds", low=0.0), Text("reason"),
-                Flag("searched_only"), Flag("capped"), Text("workspace", WORKSPACES))
+                Flag("searched_only"), Flag("capped"), Text("workspace", WORKSPACES),
+                Array("scaled", (None,), optional=True, positive=True))
 
 
 def continuous_unavailable(machine) -> str | None:
@@ -260,7 +297,8 @@ def check_continuous(machine, side: str = "two_sided") -> None:
 
 def solve_continuous(problem, *, rtol: float = DEFAULT_RTOL, max_solves: int = MAX_SOLVES,
                      max_calls: int = MAX_BOX_CALLS, search: bool = True,
-                     certify: bool = True, progress=None) -> ContinuousAllocation:
+                     certify: bool = True, progress=None,
+                     time_limit: float | None = None) -> ContinuousAllocation:
     """The cheapest allocation meeting the targets over the continuous workspace, to ``rtol``.
 
     Parameters
@@ -286,7 +324,16 @@ def solve_continuous(problem, *, rtol: float = DEFAULT_RTOL, max_solves: int = M
         loop stops when it finds no output short; the result is not certified ("searched
         only"). Needs ``search`` and a σ reading (the search reads σ, not the stack).
     progress : callable, optional
-        ``progress(text)`` after each step.
+        ``progress(text)`` after each step: the solve, the largest excess, the outputs
+        short, the boxes left open and the seconds since the start.
+    time_limit : float, optional
+        Seconds after which the loop stops (a certificate under way stops at its deadline
+        with the boxes still open counted in its bound) with the allocation of the last
+        solve, ``certified`` False and the reason "not certified to rtol: stopped by the
+        time limit after S s". Ctrl-C (KeyboardInterrupt) during the loop stops it alike
+        ("… interrupted after S s"). Either way, when the last certificate is of that
+        allocation and bounds every output, :attr:`ContinuousAllocation.scaled` is the
+        allocation scaled into certified feasibility.
 
     Returns
     -------
@@ -297,8 +344,22 @@ def solve_continuous(problem, *, rtol: float = DEFAULT_RTOL, max_solves: int = M
             if certify else checks.finite_float(rtol, "rtol", 0.0))
     max_solves = checks.positive_int(max_solves, "max_solves")
     max_calls = checks.positive_int(max_calls, "max_calls")
+    if time_limit is not None:
+        time_limit = checks.finite_float(time_limit, "time_limit", 0.0, low_open=True)
     progress = progress or (lambda text: None)
     checks.callback(progress, "progress")
+    _check_loop(problem, certify, search)
+    loop = _Loop(problem, rtol, max_calls, search and problem.side != "stack", certify,
+                 progress, time_limit)
+    try:
+        loop.run(max_solves)
+    except KeyboardInterrupt:
+        loop.reason = f"not certified to rtol: interrupted after {loop.elapsed():.1f} s"
+    return loop.answer()
+
+
+def _check_loop(problem, certify, search) -> None:
+    """Refuse, before any work, a problem or mode the loop cannot run."""
     if problem.workspace != "worst":
         raise InputError("workspace 'continuous' needs the worst-case reading (the "
                          "workspace-mean reading averages over the grid poses); use the "
@@ -311,50 +372,121 @@ def solve_continuous(problem, *, rtol: float = DEFAULT_RTOL, max_solves: int = M
     elif not search:
         raise InputError("certify=False needs search=True: without the certificate the "
                          "local search is what finds the poses")
-    started = time.perf_counter()
-    current, result = problem, problem.solve_exact()
-    grid, solves, calls, searches = result, 1, 0, 0
-    added, table, reason, capped = [], None, "", False
-    search = search and problem.side != "stack"
-    threshold = SEARCH_SHARE * rtol if certify else rtol
-    while True:
+
+
+class _Loop:
+    """The state of the cutting-plane loop of :func:`solve_continuous`: the pose set, its
+    optimum, the last certificate, the poses added and the counts."""
+
+    def __init__(self, problem, rtol, max_calls, search, certify, progress, time_limit):
+        self.started = time.perf_counter()
+        self.problem, self.rtol, self.max_calls = problem, rtol, max_calls
+        self.search, self.certify, self.progress = search, certify, progress
+        self.deadline = None if time_limit is None else self.started + time_limit
+        self.current, self.result = problem, problem.solve_exact()
+        self.grid, self.solves, self.calls, self.searches = self.result, 1, 0, 0
+        self.added, self.table, self.table_solve = [], None, 0
+        self.reason, self.capped = "", False
+
+    def elapsed(self) -> float:
+        return time.perf_counter() - self.started
+
+    def late(self) -> bool:
+        return self.deadline is not None and time.perf_counter() > self.deadline
+
+    def run(self, max_solves) -> None:
+        """Solve, cut, solve again until nothing is cut, the cap or the time limit."""
+        while True:
+            if self.late():
+                self.reason = self._late_reason()
+                return
+            cut = self._cuts()
+            if not len(cut):
+                if self.certify and self.late() and not self.table["meets"].all():
+                    self.reason = self._late_reason()  # cut short of its gap by the deadline
+                return
+            if self.late():
+                self.reason = self._late_reason()
+                return
+            if self.solves >= max_solves:
+                self.reason = (f"stopped after {max_solves} solves with output(s) "
+                               f"{', '.join(cut['output'])} still short")
+                self.capped = True
+                return
+            current = self.current.with_poses(
+                cut[list(self.problem.machine.axes)].to_numpy(dtype=float))
+            self.result, self.current = current.solve_exact(), current
+            self.added.append(cut.assign(solve=self.solves))
+            self.solves += 1
+
+    def _late_reason(self) -> str:
+        return (f"not certified to rtol: stopped by the time limit after "
+                f"{self.elapsed():.1f} s")
+
+    def _cuts(self) -> pd.DataFrame:
+        """The poses to cut at the current optimum: the local search's, or when it finds
+        none (and certifying) the certificate's, asked to stop at the first pose short by
+        more than :data:`SEARCH_SHARE` × rtol."""
         cut = None
-        if search:
-            searches += 1
-            cut, largest = _searched_cuts(current, result.tolerances, threshold)
-            progress(f"solve {solves}: cost {result.cost:.6g}; local search: largest σ "
-                     f"{largest - 1:+.3g} over what the targets allow; {len(cut)} output(s) "
-                     f"short by more than {threshold:g}")
-        if certify and (cut is None or not len(cut)):
-            calls += 1
-            table = certificate_table(current, result.tolerances, rtol, max_calls)
-            cut = _certified_cuts(current, table, rtol)
-            progress(f"solve {solves}: cost {result.cost:.6g}; certificate: largest excess "
-                     f"{table['excess'].max():+.3g} over what the targets allow; "
-                     f"{len(cut)} output(s) to cut")
-        if not len(cut):
-            break
-        if solves >= max_solves:
-            reason = (f"stopped after {max_solves} solves with output(s) "
-                      f"{', '.join(cut['output'])} still short")
-            capped = True
-            break
-        added.append(cut.assign(solve=solves))
-        current = current.with_poses(cut[list(problem.machine.axes)].to_numpy(dtype=float))
-        result = current.solve_exact()
-        solves += 1
-    if table is not None:
-        table.attrs["current"] = not reason
-    is_certified = certify and not reason and bool(table["meets"].all())
-    if certify and not is_certified and not reason:
-        reason = _uncertified_reason(table, rtol)
-    if not certify and not reason:
-        reason = "searched only"
-    return ContinuousAllocation(
-        result=result, grid=grid, certified=is_certified, rtol=rtol, certificate=table,
-        added=_added_frame(problem.machine, added), solves=solves, certificate_calls=calls,
-        searches=searches, seconds=time.perf_counter() - started, reason=reason,
-        searched_only=not certify, capped=capped)
+        threshold = SEARCH_SHARE * self.rtol if self.certify else self.rtol
+        if self.search:
+            self.searches += 1
+            cut, largest = _searched_cuts(self.current, self.result.tolerances, threshold)
+            self.progress(f"solve {self.solves}: cost {self.result.cost:.6g}; local search: "
+                          f"largest σ {largest - 1:+.3g} over what the targets allow; "
+                          f"{len(cut)} output(s) short by more than {threshold:g}; "
+                          f"{self.elapsed():.1f} s")
+        if self.certify and (cut is None or not len(cut)):
+            self.calls += 1
+            self.table = certificate_table(self.current, self.result.tolerances, self.rtol,
+                                           self.max_calls, stop_share=SEARCH_SHARE,
+                                           close_share=CLOSE_SHARE, deadline=self.deadline)
+            self.table_solve = self.solves
+            cut = _certified_cuts(self.current, self.table, self.rtol)
+            self.progress(_certificate_line(self.solves, self.result.cost, self.table,
+                                            len(cut), self.elapsed()))
+        return cut
+
+    def answer(self) -> ContinuousAllocation:
+        table, reason = self.table, self.reason
+        current = table is not None and self.table_solve == self.solves
+        if table is not None:
+            table.attrs["current"] = current
+        is_certified = (self.certify and not reason and current
+                        and bool(table["meets"].all()))
+        if self.certify and not is_certified and not reason:
+            reason = _uncertified_reason(table, self.rtol)
+        if not self.certify and not reason:
+            reason = "searched only"
+        scaled = _scaled(self.result, table) if current and not is_certified else None
+        return ContinuousAllocation(
+            result=self.result, grid=self.grid, certified=is_certified, rtol=self.rtol,
+            certificate=table, added=_added_frame(self.problem.machine, self.added),
+            solves=self.solves, certificate_calls=self.calls, searches=self.searches,
+            seconds=self.elapsed(), reason=reason, searched_only=not self.certify,
+            capped=self.capped, scaled=scaled)
+
+
+def _certificate_line(solve, cost, table, short, seconds) -> str:
+    """The progress line of one certificate: the largest excess of the outputs it bounds,
+    the outputs it found short, the boxes left open, the time."""
+    bounded = table["excess"][np.isfinite(table["excess"])]
+    largest = f"{bounded.max():+.3g}" if len(bounded) else "none bounded"
+    return (f"solve {solve}: cost {cost:.6g}; certificate: largest excess {largest} over "
+            f"what the targets allow; {short} output(s) to cut; "
+            f"{int(table['open'].sum())} box(es) open; {seconds:.1f} s")
+
+
+def _scaled(result, table) -> np.ndarray | None:
+    """The allocation divided by ``(1 + e)(1 + SCALE_MARGIN)``, e the largest excess of
+    its certificate, when e is finite and positive: σ (Eq. 20, any distribution) and the
+    stack are linear in a common factor on the tolerances, and so is the certificate's
+    bound, so every output's bound then falls to what its target allows; None
+    otherwise."""
+    excess = float(table["excess"].max())
+    if not np.isfinite(excess) or excess <= 0:
+        return None
+    return result.tolerances / ((1.0 + excess) * (1.0 + SCALE_MARGIN))
 
 
 def solve_over_workspace(problem, *, max_rounds: int = 20, tolerance: float = 1e-6,
@@ -407,22 +539,28 @@ def solve_over_workspace(problem, *, max_rounds: int = 20, tolerance: float = 1e
 
 
 def certificate_table(problem, tolerances, rtol: float = DEFAULT_RTOL,
-                      max_calls: int = MAX_BOX_CALLS) -> pd.DataFrame:
+                      max_calls: int = MAX_BOX_CALLS, *, stop_share: float | None = None,
+                      close_share: float | None = None,
+                      deadline: float | None = None) -> pd.DataFrame:
     """The certificate of ``tolerances`` under the problem's reading, asked for
     ``CERTIFICATE_SHARE × rtol``, with what each output's target allows (``allowed``: σ
     ``I/z``, or the limit ``I`` for the stack), ``excess`` = bound / allowed − 1 and
-    ``meets`` (``excess ≤ rtol``)."""
+    ``meets`` (``excess ≤ rtol``). With ``stop_share``, an output's search stops at the
+    first pose above ``(1 + stop_share × rtol)`` × allowed (its bound is then ``+inf``);
+    ``deadline`` as in :func:`~reliability.first_order.workspace_search.certified_worst`."""
     machine = problem.machine
     if problem.side == "stack":
-        table = certified_worst(machine, tolerances, rtol=CERTIFICATE_SHARE * rtol,
-                                k=problem.k, reading="stack", max_calls=max_calls,
-                                memory=problem.memory)
         allowed = machine.limits
+        options = dict(reading="stack")
     else:
-        table = certified_worst(machine, tolerances, rtol=CERTIFICATE_SHARE * rtol,
-                                k=problem.k, distribution=problem.distribution,
-                                max_calls=max_calls, memory=problem.memory)
         allowed = problem.allowed_sigma
+        options = dict(distribution=problem.distribution)
+    above = None if stop_share is None else np.asarray(allowed) * (1.0 + stop_share * rtol)
+    below = None if close_share is None else np.asarray(allowed) * (1.0 + close_share * rtol)
+    table = certified_worst(machine, tolerances, rtol=CERTIFICATE_SHARE * rtol,
+                            k=problem.k, max_calls=max_calls, memory=problem.memory,
+                            stop_above=above, close_below=below, deadline=deadline,
+                            **options)
     bound = _columns(problem)[1]
     table = table.copy()
     table["allowed"] = allowed

@@ -29,8 +29,12 @@ that a maximum on the stroke's boundary is approached to second order). Boxes wh
 is at most ``(1 + rtol)`` times the best candidate (on σ, so ``(1 + rtol)²`` on σ²) are
 closed; the others are halved along the axis contributing most to their bound. An axis the
 spread does not depend on contributes exactly nothing and is never split. The first
-candidate is the best point of a coarse grid (:data:`START_POINTS`), improved for σ by a
-bounded local search on the expansion (L-BFGS-B), which also polishes the final candidate.
+candidate is the best point of a coarse grid, improved for σ by a bounded local search on
+the expansion (L-BFGS-B), which also polishes the final candidate
+(:mod:`reliability.first_order.box_models` holds both readings' bounds and starts). For the
+allocation loop the search can stop early: at the first candidate above a value
+(``stop_above``, a cut), at a deadline, and it can close boxes below a value whatever the
+best candidate (``close_below``, a feasibility test).
 
 **A work zone.** On a machine with a work zone (:mod:`reliability.model.work_zone`) the
 workspace is the zone's poses. Each open box is classified by the enclosure of its tool
@@ -53,7 +57,6 @@ import time
 
 import numpy as np
 import pandas as pd
-from scipy.optimize import minimize
 
 from ..basics import checks
 from ..basics.chunks import chunks
@@ -63,11 +66,11 @@ from ..basics.ties import SEARCH_RTOL, TIE_RTOL, worst_rows
 from ..model.error_draws import DISTRIBUTIONS
 from ..model.kinematics import jacobian, output_variance
 from ..model.machine import OUTPUTS
-from .canonical_maxima import (POLISH_OPTIONS, NearCandidates, representatives,
-                               snap_positions)
+from .box_models import BOX_MEMORY, SigmaModel, StackModel, rising_step
+from .canonical_maxima import NearCandidates, representatives, snap_positions
 from .fosm import error_sigma
-from .pose_expansion import interval_tree, jacobian_expansion, point_tree, variance_expansion
-from .zone_bound import ZoneConstraints, hessian_enclosure
+from .pose_expansion import jacobian_expansion, point_tree, variance_expansion
+from .zone_bound import ZoneConstraints
 from .zone_enclosure import ZoneEnclosure
 
 #: The spreads the certificate can bound: σ (Eq. 20) or the first-order worst-case stack.
@@ -78,9 +81,6 @@ WORKSPACES = ("continuous", "grid")
 DEFAULT_RTOL = 1e-3
 #: Box evaluations one output may spend before the search stops uncertified.
 MAX_BOX_CALLS = 2_000_000
-#: Default bytes of temporary arrays per chunk of boxes: small enough to stay in cache,
-#: which the per-box contractions (a few passes over each box's states) need to be fast.
-BOX_MEMORY = 8 * 2 ** 20
 #: Relative margin below ``1 + rtol`` at which a box is closed, so that the value at the
 #: reported pose recomputed from the chain (equal to the expansion's to about 1e-15) still
 #: meets ``rtol``.
@@ -88,11 +88,6 @@ CLOSING_MARGIN = 1e-9
 #: Significant digits of a reported gap (rounded up: it bounds the relative distance of
 #: the reported value from the largest).
 GAP_DIGITS = 2
-#: Points per axis of the grid that gives the first candidate (σ reading; the stack's
-#: vertex candidates need less, and its grid costs a whole Jacobian row per point).
-START_POINTS = {"sigma": 5, "stack": 3}
-#: Local searches (σ reading) from the best points of that grid.
-START_SEARCHES = 3
 #: Fraction of a stroke's span within which a reported position is put on the stroke's end.
 END_SNAP = 1e-12
 #: Best candidates (work zone) from which the search on the boundary starts and at which
@@ -103,12 +98,16 @@ MULTIPLIER_POINTS = 4
 MULTIPLIER_SETS = 4
 #: Sweeps of coordinate descent that fit a box's own multipliers.
 FIT_SWEEPS = 3
+#: Box evaluations every output's search makes before it stops at a deadline already
+#: passed, so that an output reached late still has a useful bound (about a second).
+DEADLINE_CALLS = 2000
 
 
 def certified_worst(machine, tolerances, *, rtol: float = DEFAULT_RTOL, k: float = 3.0,
                     distribution: str | None = None, reading: str = "sigma",
-                    max_calls: int = MAX_BOX_CALLS, memory: int | None = None
-                    ) -> pd.DataFrame:
+                    max_calls: int = MAX_BOX_CALLS, memory: int | None = None,
+                    stop_above=None, close_below=None,
+                    deadline: float | None = None) -> pd.DataFrame:
     """Largest σ (or worst-case stack) of each output over the continuous stroke box, with
     a rigorous bound.
 
@@ -132,6 +131,26 @@ def certified_worst(machine, tolerances, *, rtol: float = DEFAULT_RTOL, k: float
         Box evaluations per output before the search stops with ``certified`` False.
     memory : int, optional
         Bytes of temporary arrays per chunk of boxes (:data:`BOX_MEMORY` by default).
+    stop_above : array_like, optional
+        ``(6,)`` values (σ or the stack, per output): an output's search stops as soon as
+        it meets a pose where the value exceeds its entry, and reports that pose with
+        the bound ``+inf`` (nothing bounded, ``certified`` False). A search that never
+        meets one runs as without ``stop_above`` and gives the same row. The cutting-plane
+        loop (:func:`allocation.per_pose.continuous.solve_continuous`) passes what the
+        targets allow, so that a certificate at an allocation that is short somewhere
+        returns its cuts without proving the rest.
+    close_below : array_like, optional
+        ``(6,)`` values (σ or the stack, per output), used once an output (in the order
+        of :data:`OUTPUTS`) has stopped at a pose above ``stop_above``, i.e. when the
+        table is a search for cuts rather than a certificate: in the outputs after it, a
+        box whose bound is at most the entry is closed whatever the best candidate (the
+        feasibility test "is the spread anywhere above this?"), so their bound stays at
+        most ``max(close_below, (1 + rtol) × value)`` and ``gap`` may exceed ``rtol``.
+    deadline : float, optional
+        A :func:`time.perf_counter` time after which every output's search stops as at
+        ``max_calls`` once it has evaluated :data:`DEADLINE_CALLS` boxes: the boxes still
+        open count in the bound (rigorous, with a wider gap), ``certified`` False unless the
+        gap is met.
 
     Returns
     -------
@@ -141,7 +160,9 @@ def certified_worst(machine, tolerances, *, rtol: float = DEFAULT_RTOL, k: float
         machine's work zone when it has one), or ``stack``
         and ``stack_bound`` under ``reading='stack'``; ``gap`` (``bound/value − 1``,
         rounded up to :data:`GAP_DIGITS` digits and at least :data:`CLOSING_MARGIN`),
-        ``certified`` (gap ≤ rtol), ``calls`` (boxes evaluated), ``seconds`` (the search
+        ``certified`` (gap ≤ rtol), ``calls`` (boxes evaluated), ``open`` (boxes still
+        open when the search stopped: 0 unless stopped by ``max_calls``, ``deadline`` or
+        ``stop_above``), ``seconds`` (the search
         and a sixth of the expansion's time, so the column sums to the total). The value
         at the pose is computed from the chain itself; the local maxima of every region of
         near-best candidates are polished and rounded to the pose resolution
@@ -154,9 +175,9 @@ def certified_worst(machine, tolerances, *, rtol: float = DEFAULT_RTOL, k: float
     Raises
     ------
     InputError
-        For a bad ``rtol``, ``k``, ``distribution``, ``reading``, ``max_calls`` or
-        allocation, correlated errors, or a machine whose chain fails the expansion check
-        (:mod:`reliability.first_order.pose_expansion`).
+        For a bad ``rtol``, ``k``, ``distribution``, ``reading``, ``max_calls``,
+        ``stop_above``, ``deadline`` or allocation, correlated errors, or a machine whose
+        chain fails the expansion check (:mod:`reliability.first_order.pose_expansion`).
     """
     rtol = checks.finite_float(rtol, "rtol", 0.0, 1.0, low_open=True, high_open=True)
     reading = checks.choice(reading, "reading", READINGS)
@@ -170,37 +191,61 @@ def certified_worst(machine, tolerances, *, rtol: float = DEFAULT_RTOL, k: float
     distribution = machine.distribution if distribution is None else distribution
     checks.choice(distribution, "distribution", DISTRIBUTIONS)
     k = checks.finite_float(k, "k", 0.0, low_open=True)
+    above = _output_values(stop_above, "stop_above", np.inf)
+    below = _output_values(close_below, "close_below", 0.0)
+    if deadline is not None:
+        deadline = checks.finite_float(deadline, "deadline")
     started = time.perf_counter()
     if reading == "sigma":
         variance = np.square(error_sigma(t, k, distribution))
         expansion = variance_expansion(machine, variance, machine.frame)
-        models = [_SigmaModel(expansion.restricted(o)) for o in range(len(OUTPUTS))]
+        models = [SigmaModel(expansion.restricted(o)) for o in range(len(OUTPUTS))]
 
         def direct(q, o):
             return np.sqrt(output_variance(machine, q, variance, machine.frame)[:, o])
     else:
         expansion = jacobian_expansion(machine, t, machine.frame)
-        models = [_StackModel(expansion.restricted(o)) for o in range(len(OUTPUTS))]
+        models = [StackModel(expansion.restricted(o)) for o in range(len(OUTPUTS))]
 
         def direct(q, o):
             return np.abs(jacobian(machine, q, machine.frame)[:, o, :]) @ t
     zone = None if machine.work_zone is None else ZoneEnclosure(machine)
     shared = (time.perf_counter() - started) / len(OUTPUTS)  # the expansion, per output
-    rows = [_certify(machine, models[o], lambda q, o=o: direct(q, o), rtol, max_calls,
-                     memory, reading, shared, zone) for o in range(len(OUTPUTS))]
+    rows = []
+    for o in range(len(OUTPUTS)):
+        stopped = any(np.isinf(row[f"{reading}_bound"]) for row in rows)
+        rows.append(_certify(machine, models[o], lambda q, o=o: direct(q, o), rtol, max_calls,
+                             memory, reading, shared, zone,
+                             (above[o], below[o] if stopped else 0.0, deadline)))
     frame = pd.DataFrame(rows, index=pd.Index(OUTPUTS, name="output"))
     frame.attrs.update(rtol=rtol, distribution=distribution, reading=reading)
     return frame
 
 
+def _output_values(values, name, default) -> np.ndarray:
+    """``values`` checked: ``(6,)`` positive values, or ``default`` for each output
+    without them."""
+    if values is None:
+        return np.full(len(OUTPUTS), default)
+    array = checks.numeric_array(values, name, 1)
+    if array.shape != (len(OUTPUTS),) or not np.all(array > 0):
+        raise InputError(f"{name} must hold one positive value per output "
+                         f"({len(OUTPUTS)}); got {array.tolist()}")
+    return array
+
+
 def _certify(machine, model, direct, rtol, max_calls, memory, reading, shared,
-             zone=None) -> dict:
+             zone=None, ends=(np.inf, 0.0, None)) -> dict:
     """One output's row: branch and bound on the model (in the work zone ``zone``, if
-    any), the value at the reported pose from the chain itself; ``shared`` seconds (its
-    share of the expansion) added to its time."""
+    any; ``ends`` = (stop above, close below, deadline) as in :func:`certified_worst`),
+    the value at the reported pose from the chain itself; ``shared`` seconds (its share of
+    the expansion) added to its time."""
+    above, below, deadline = ends
     started = time.perf_counter() - shared
     low, high = model.local_strokes(machine)
-    tied, bound, calls = branch_and_bound(model, low, high, rtol, max_calls, memory, zone)
+    tied, bound, calls, still_open = branch_and_bound(
+        model, low, high, rtol, max_calls, memory, zone,
+        above=model.function_of(above), below=model.function_of(below), deadline=deadline)
     if zone is None:
         tied[:, model.fixed] = low[model.fixed]  # axes the spread does not depend on
     poses = _snapped_poses(machine, model, _onto_ends(tied, low, high), zone)
@@ -211,15 +256,18 @@ def _certify(machine, model, direct, rtol, max_calls, memory, reading, shared,
     row = dict(zip(machine.axes, poses[choice]))
     row.update({reading: value, f"{reading}_bound": bound, "gap": _gap(bound, value),
                 "certified": bool(bound <= value * (1 + rtol)), "calls": int(calls),
-                "seconds": time.perf_counter() - started})
+                "open": int(still_open), "seconds": time.perf_counter() - started})
     return row
 
 
 def _gap(bound, value) -> float:
     """``bound/value − 1`` as the upper bound it is: at least :data:`CLOSING_MARGIN` (below
     it the gap is the rounding of the bound's terms, which differs between computers) and
-    rounded up to :data:`GAP_DIGITS` significant digits."""
-    return float(rounded_up(max(bound / value - 1.0, CLOSING_MARGIN), GAP_DIGITS))
+    rounded up to :data:`GAP_DIGITS` significant digits; infinite when the search stopped
+    without a bound (``stop_above``) or the value is 0 and the bound is not."""
+    gap = bound / value - 1.0 if value > 0 else (0.0 if bound <= 0 else np.inf)
+    return float(rounded_up(max(gap, CLOSING_MARGIN), GAP_DIGITS)) if np.isfinite(gap) \
+        else float(gap)
 
 
 def _snapped_poses(machine, model, points, zone):
@@ -244,13 +292,14 @@ def _onto_ends(points, low, high):
     return np.where(high - points <= near, high, points)
 
 
-def branch_and_bound(model, low, high, rtol, max_calls, memory=None, zone=None):
+def branch_and_bound(model, low, high, rtol, max_calls, memory=None, zone=None, *,
+                     above=np.inf, below=0.0, deadline=None):
     """Branch and bound of one model over the box ``[low, high]`` of local coordinates, or
     over its poses in a work zone.
 
     Parameters
     ----------
-    model : _SigmaModel or _StackModel
+    model : SigmaModel or StackModel
         Its ``boxes(low, high)`` gives, per box, a rigorous upper bound of the model's
         function, each axis' contribution to it and the box's best candidate point.
     low, high : ndarray (n_axes,)
@@ -260,6 +309,15 @@ def branch_and_bound(model, low, high, rtol, max_calls, memory=None, zone=None):
     memory : int, optional
     zone : ZoneEnclosure, optional
         The machine's work zone (module docstring); None for the whole box.
+    above : float
+        Stop as soon as a candidate's function value exceeds it; the bound is then
+        ``+inf``.
+    below : float
+        Close a box whose bound is at most this function value, whatever the best
+        candidate.
+    deadline : float, optional
+        :func:`time.perf_counter` time after which the search stops as at ``max_calls``,
+        once it has evaluated :data:`DEADLINE_CALLS` boxes.
 
     Returns
     -------
@@ -272,6 +330,8 @@ def branch_and_bound(model, low, high, rtol, max_calls, memory=None, zone=None):
         Upper bound of the function over the whole box (over its poses in the zone).
     calls : int
         Boxes evaluated.
+    still_open : int
+        Boxes open when the search stopped (0 when it closed them all).
     """
     inside = _zone_test(model, zone)
     boundary = _ZoneBoundary.for_model(model, zone, low, high, inside)
@@ -283,15 +343,14 @@ def branch_and_bound(model, low, high, rtol, max_calls, memory=None, zone=None):
     box_low, box_high = low[None, :], high[None, :]
     closed_bound = -np.inf
     calls = 0
-    while len(box_low) and calls < max_calls:
+    while (len(box_low) and calls < max_calls and best <= above
+           and not (calls >= DEADLINE_CALLS and _late(deadline))):
         across = _across_zone(model, zone, box_low, box_high, memory)
         box_low, box_high, across = box_low[~across[0]], box_high[~across[0]], across[1]
         if not len(box_low):
             break
-        bound, contribution, points, values, slope = _evaluate(model, box_low, box_high,
-                                                               memory)
-        bound, contribution = boundary.tighten(bound, contribution, box_low, box_high,
-                                               across, memory)
+        evaluated = _evaluate(model, box_low, box_high, memory, parts=zone is not None)
+        bound, contribution, points, values, slope = evaluated[:5]
         calls += len(box_low)
         values = np.where(inside(points), values, -np.inf)
         top = values.max()
@@ -302,18 +361,26 @@ def branch_and_bound(model, low, high, rtol, max_calls, memory=None, zone=None):
                                     points[values >= best * (1 - TIE_RTOL)]]), axis=0)
         tied, best = boundary.update(tied, best)
         near.add(points[np.isfinite(values)], values[np.isfinite(values)], best)
-        done = bound <= best * limit
+        closing = max(best * limit, below * (1 - CLOSING_MARGIN))
+        # only boxes the whole-box bound leaves open need the Lagrangian's
+        bound, contribution = boundary.tighten(bound, contribution, box_low, box_high,
+                                               across & (bound > closing), memory,
+                                               evaluated[5:])
+        done = bound <= closing
         if done.any():
             closed_bound = max(closed_bound, bound[done].max())
         keep = ~done
         slope = np.where(across[:, None], 0.0, slope)  # a face may leave the zone
-        if across.any():
-            contribution[across] = _across_split(model, zone, contribution[across],
-                                                 box_low[across], box_high[across],
-                                                 high - low)
+        split = across & keep
+        if split.any():
+            contribution[split] = _across_split(model, zone, contribution[split],
+                                                box_low[split], box_high[split], high - low)
         box_low, box_high = _narrow(box_low[keep], box_high[keep], contribution[keep],
                                     slope[keep])
-    if len(box_low):  # stopped by max_calls: the open boxes still count
+    still_open = len(box_low)
+    if best > above:
+        closed_bound = np.inf
+    elif len(box_low):  # stopped by max_calls or the deadline: the open boxes still count
         across = _across_zone(model, zone, box_low, box_high, memory)
         box_low, box_high, across = box_low[~across[0]], box_high[~across[0]], across[1]
         if len(box_low):
@@ -323,7 +390,12 @@ def branch_and_bound(model, low, high, rtol, max_calls, memory=None, zone=None):
             closed_bound = max(closed_bound, bound.max())
             calls += len(box_low)
     tied, best = _polished_maxima(model, boundary, inside, tied, near, high - low)
-    return tied, max(closed_bound, best), calls
+    return tied, max(closed_bound, best), calls, still_open
+
+
+def _late(deadline) -> bool:
+    """Whether the :func:`time.perf_counter` time ``deadline`` (None: never) has passed."""
+    return deadline is not None and time.perf_counter() > deadline
 
 
 def _polished_maxima(model, boundary, inside, tied, near, span):
@@ -385,16 +457,18 @@ class _ZoneBoundary:
         self.multipliers = np.array(kept[:MULTIPLIER_SETS]).reshape(-1, found.shape[1])
         return tied, best
 
-    def tighten(self, bound, contribution, low, high, across, memory):
+    def tighten(self, bound, contribution, low, high, across, memory, parts=()):
         """The bounds (and contributions) of the boxes across the boundary replaced by
-        their Lagrangian bound (:meth:`_lagrangian_bounds`) where it is lower."""
+        their Lagrangian bound (:meth:`_lagrangian_bounds`) where it is lower; ``parts``,
+        the model's own parts of every box when it gave them (``model.boxes``)."""
         rows = np.flatnonzero(across)
         if self.constraints is None or not len(rows):
             return bound, contribution
         per_box = self.model.bytes_per_box + self.constraints.bytes_per_box
         for part in chunks(len(rows), per_box, BOX_MEMORY if memory is None else memory):
             chosen = rows[part]
-            other = self._lagrangian_bounds(low[chosen], high[chosen])
+            other = self._lagrangian_bounds(low[chosen], high[chosen],
+                                            [part[chosen] for part in parts])
             other, share = other if self.model.reading == "sigma" else \
                 (other, contribution[chosen])
             lower = other < bound[chosen]
@@ -402,11 +476,11 @@ class _ZoneBoundary:
             contribution[chosen[lower]] = share[lower]
         return bound, contribution
 
-    def _lagrangian_bounds(self, low, high):
+    def _lagrangian_bounds(self, low, high, parts=()):
         """The σ reading's Lagrangian bounds (:meth:`_sigma_bounds`) and shares, or the
         stack's bounds (:meth:`_stack_bounds`)."""
         if self.model.reading == "sigma":
-            return self._sigma_bounds(low, high)
+            return self._sigma_bounds(low, high, parts)
         return self._stack_bounds(low, high)
 
     def _weights(self, gradient, g, g_gradient, g_mid, g_rad, half):
@@ -441,20 +515,19 @@ class _ZoneBoundary:
                  + e.margin.sum() + weights @ self.constraints.margins)
         return total.min(axis=1)
 
-    def _sigma_bounds(self, low, high):
+    def _sigma_bounds(self, low, high, parts=()):
         """Per box, the least over the multipliers kept and one fitted to the box of the
         second-order Taylor bound of ``L = f − λ·g`` over the box (its Hessian enclosed by
         ``f``'s minus λ times the constraints'), plus the margins: an upper bound of ``f``
         over the box's poses in the zone. Returns the bounds ``(b,)`` and each axis' share
-        ``(b, n_axes)``."""
+        ``(b, n_axes)``. ``parts``: σ², its gradient and Hessian enclosure of the boxes
+        as the model computed them (:meth:`SigmaModel.boxes`), computed here if empty."""
         e = self.model.expansion
         half = (high - low) / 2
-        point = point_tree(e, (low + high) / 2, 1)
-        gradient = np.stack([point[(a,)] for a in range(e.n_axes)], axis=1)
-        f_mid, f_rad = hessian_enclosure(e, low, high)
+        f_value, gradient, f_mid, f_rad = parts or self.model.boxes(low, high, parts=True)[5:]
         g, g_gradient, g_mid, g_rad = self.constraints.parts(low, high)
         weights = self._weights(gradient, g, g_gradient, g_mid, g_rad, half)
-        value = point[()][:, None] - np.einsum("bkj,bj->bk", weights, g)
+        value = f_value[:, None] - np.einsum("bkj,bj->bk", weights, g)
         slope = gradient[:, None] - np.einsum("bkj,bja->bka", weights, g_gradient)
         mid = f_mid[:, None] - np.einsum("bkj,bjac->bkac", weights, g_mid)
         rad = f_rad[:, None] + np.einsum("bkj,bjac->bkac", weights, g_rad)
@@ -462,7 +535,7 @@ class _ZoneBoundary:
         curvature = (mid + rad)[..., diagonal, diagonal]
         cross = np.abs(mid) + rad
         cross[..., diagonal, diagonal] = 0.0
-        step = _rising_step(np.abs(slope), curvature, np.broadcast_to(half[:, None], slope.shape))
+        step = rising_step(np.abs(slope), curvature, np.broadcast_to(half[:, None], slope.shape))
         rise = (np.abs(slope) * step + 0.5 * curvature * step ** 2
                 + 0.5 * half[:, None] * np.einsum("bkac,bc->bka", cross, half))
         total = value + rise.sum(axis=2) + e.margin + weights @ self.constraints.margins
@@ -532,10 +605,11 @@ def _across_split(model, zone, contribution, low, high, span):
             + (high - low) / span)
 
 
-def _evaluate(model, low, high, memory):
-    """``model.boxes`` over all boxes in chunks within the memory budget."""
+def _evaluate(model, low, high, memory, parts=False):
+    """``model.boxes`` (with ``parts``) over all boxes in chunks within the memory
+    budget."""
     memory = BOX_MEMORY if memory is None else memory
-    parts = [model.boxes(low[part], high[part])
+    parts = [model.boxes(low[part], high[part], parts)
              for part in chunks(len(low), model.bytes_per_box, memory)]
     return tuple(np.concatenate(items) for items in zip(*parts))
 
@@ -560,242 +634,3 @@ def _halve(low, high, contribution):
     left_high[rows, axis] = middle
     right_low[rows, axis] = middle
     return np.vstack([low, right_low]), np.vstack([left_high, high])
-
-
-class _Model:
-    """What both readings share: the expansion, the local stroke box, the start."""
-
-    def __init__(self, expansion):
-        self.expansion = expansion
-        #: Axes the function does not depend on (only the constant basis function left):
-        #: never split, and reported at the low end of their stroke.
-        self.fixed = np.array([len(index) == 1 and index[0] == 0
-                               for index in expansion.basis_index])
-        # the first contraction's six states (three derivatives, midpoint and radius)
-        # and their temporaries dominate
-        values = int(np.prod(expansion.coefficients.shape[expansion.n_axes:]))
-        self.bytes_per_box = 8 * (4 * expansion.coefficients.size
-                                  + 4 * expansion.n_axes ** 2 * values)
-
-    def local_strokes(self, machine):
-        low = np.array([axis.stroke[0] for axis in machine.axis_specs], dtype=float)
-        high = np.array([axis.stroke[1] for axis in machine.axis_specs], dtype=float)
-        return self.expansion.local(low), self.expansion.local(high)
-
-    def start(self, low, high, inside, search):
-        """The best points of the :data:`START_POINTS` grid inside the work zone (``inside``
-        of points) and their value (``search``, a local search, is not used)."""
-        grid = _start_grid(low, high, START_POINTS[self.reading], inside)
-        values = self.grid_values(grid)
-        return grid[values >= values.max() * (1 - TIE_RTOL)], float(values.max())
-
-    def grid_values(self, points):
-        """:meth:`values` at many points, in chunks within :data:`BOX_MEMORY`."""
-        per_point = 8 * 2 * self.expansion.coefficients.size
-        return np.concatenate([self.values(points[part])
-                               for part in chunks(len(points), per_point, BOX_MEMORY)])
-
-
-def _start_grid(low, high, points, inside) -> np.ndarray:
-    """The ``points``-point grid's points inside the work zone, or an InputError."""
-    grid = _grid(low, high, points)
-    grid = grid[inside(grid)]
-    if not len(grid):
-        raise InputError(f"machine: no pose of the {points}-point grid of the strokes lies in "
-                         f"its work zone, so the certificate has no pose to start from")
-    return grid
-
-
-def _grid(low, high, points) -> np.ndarray:
-    """The ``points``-point grid of a box, ``(points^n_axes, n_axes)``."""
-    axes = [np.linspace(lo, hi, points) for lo, hi in zip(low, high)]
-    return np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, len(low))
-
-
-class _SigmaModel(_Model):
-    """σ² of one output: second-order Taylor bound on boxes (module docstring)."""
-
-    reading = "sigma"
-
-    def values(self, x):
-        return self.expansion.values(x) if len(x) else np.empty(0)
-
-    def spread(self, value):
-        return float(np.sqrt(max(value, 0.0)))
-
-    def closing_factor(self, rtol):
-        return (1 + rtol) ** 2
-
-    def start(self, low, high, inside, search):
-        """The grid's best points (inside the work zone: ``inside`` of points) improved by
-        the local search ``search`` of points (:meth:`polish`, or the search constrained to
-        the work zone) from the best few, where it stays in the zone."""
-        grid = _start_grid(low, high, START_POINTS[self.reading], inside)
-        values = self.grid_values(grid)
-        found = search(grid[np.argsort(-values, kind="stable")[:START_SEARCHES]])
-        found = found[inside(found)]
-        candidates = np.vstack([grid, found])
-        values = np.concatenate([values, self.values(found)])
-        best = float(values.max())
-        return candidates[values >= best * (1 - TIE_RTOL)], best
-
-    def polish(self, starts, low, high):
-        """Local maxima of σ² from a few starting points (bounded L-BFGS-B with the
-        expansion's gradient, σ² scaled to about 1 so that the search's absolute
-        tolerances mean the same for every machine and unit)."""
-        scale = float(np.abs(self.values(starts)).max()) if len(starts) else 1.0
-        scale = scale if scale > 0 else 1.0
-
-        def negative(x):
-            tree = point_tree(self.expansion, x[None, :], 1)
-            gradient = np.array([tree[(a,)][0] for a in range(len(x))])
-            return -tree[()][0] / scale, -gradient / scale
-
-        return np.array([np.clip(minimize(negative, x, jac=True, method="L-BFGS-B",
-                                          bounds=list(zip(low, high)),
-                                          options=POLISH_OPTIONS).x, low, high)
-                         for x in starts])
-
-    def boxes(self, low, high):
-        """Bound, contributions, candidate points, their values and slopes for boxes:
-        the tighter of the second-order Taylor bound and the first-order mean-value
-        bound on the gradient's enclosure, per box."""
-        e = self.expansion
-        centre, half = (low + high) / 2, (high - low) / 2
-        point = point_tree(e, centre, 1)
-        value = point[()]
-        gradient = np.stack([point[(a,)] for a in range(e.n_axes)], axis=1)
-        second, step = self._second_order(low, high, gradient)
-        slope_mid, slope_rad = _stacked(interval_tree(e, low, high, 1), e.n_axes)
-        first = half * (np.abs(slope_mid) + slope_rad)
-        use_first = first.sum(axis=1) < second.sum(axis=1)
-        contribution = np.where(use_first[:, None], first, second)
-        bound = value + contribution.sum(axis=1) + e.margin
-        vertex = _stepped(low, high, step, np.sign(gradient))
-        vertex_value = e.values(vertex)
-        better = vertex_value > value
-        points = np.where(better[:, None], vertex, centre)
-        away = (np.abs(slope_mid) > slope_rad + e.margin) & (high > low)
-        return (bound, contribution, points, np.where(better, vertex_value, value),
-                np.where(away, np.sign(slope_mid), 0.0))
-
-    def _second_order(self, low, high, gradient):
-        """Each axis' share of the second-order Taylor bound's rise above the centre
-        value, and the step towards the largest value of its quadratic model."""
-        n = self.expansion.n_axes
-        half = (high - low) / 2
-        curvature = np.zeros((len(low), n))
-        cross = np.zeros((len(low), n, n))
-        for (a, b), (mid, rad) in interval_tree(self.expansion, low, high, 2).items():
-            if a == b:
-                curvature[:, a] = mid + rad
-            else:
-                cross[:, a, b] = cross[:, b, a] = np.abs(mid) + rad
-        step = _rising_step(np.abs(gradient), curvature, half)
-        return (np.abs(gradient) * step + 0.5 * curvature * step ** 2
-                + 0.5 * half * np.einsum("bac,bc->ba", cross, half)), step
-
-
-def _stepped(low, high, step, direction):
-    """The centre of each box moved by ``step`` along ``direction`` per axis, exactly on
-    the box's face where the step reaches it."""
-    centre, half = (low + high) / 2, (high - low) / 2
-    face = np.where(direction > 0, high, low)
-    return np.where((step >= half) & (direction != 0), face,
-                    np.clip(centre + step * direction, low, high))
-
-
-def _stacked(tree, n_axes):
-    """The first derivatives of an interval tree as ``(mid, rad)``, each ``(b, n_axes)``."""
-    return (np.stack([tree[(a,)][0] for a in range(n_axes)], axis=1),
-            np.stack([tree[(a,)][1] for a in range(n_axes)], axis=1))
-
-
-def _rising_step(slope, curvature, half):
-    """The step ``0 ≤ d ≤ h`` that maximises ``slope·d + ½ curvature·d²``: ``h`` unless
-    the curvature is negative and the maximum of the parabola lies inside."""
-    concave = curvature < 0
-    inside = np.divide(slope, -curvature, out=np.array(half, dtype=float), where=concave)
-    return np.where(concave, np.minimum(half, inside), half)
-
-
-class _StackModel(_Model):
-    """The weighted Jacobian row ``w_i = J_oi t_i`` of one output: the worst-case stack
-    bounded by the vertices of its linear model plus the second-order remainder (module
-    docstring)."""
-
-    reading = "stack"
-
-    def __init__(self, expansion):
-        super().__init__(expansion)
-        n = expansion.n_axes
-        # the linear model's vertices over the axes the row depends on (others: 0)
-        moving = [[0.0] if fixed else [-1.0, 1.0] for fixed in self.fixed]
-        self.vertices = np.array(np.meshgrid(*moving, indexing="ij")).reshape(n, -1).T
-        self.curvature = curvature_bound(expansion)
-        values = expansion.coefficients.shape[-1]
-        self.bytes_per_box = 8 * (3 * len(self.vertices) * values + 4 * (n + 1) * values
-                                  + 2 * expansion.coefficients.size)
-
-    def values(self, x):
-        return np.abs(self.expansion.values(x)).sum(axis=-1) if len(x) else np.empty(0)
-
-    def polish(self, starts, low, high):
-        """No local search: the stack is not smooth, its boxes' vertex candidates serve."""
-        return starts[:0]
-
-    def spread(self, value):
-        return float(value)
-
-    def closing_factor(self, rtol):
-        return 1 + rtol
-
-    def boxes(self, low, high):
-        e = self.expansion
-        centre, half = (low + high) / 2, (high - low) / 2
-        n = e.n_axes
-        point = point_tree(e, centre, 1)
-        value = point[()]  # (b, n_errors)
-        gradient = np.stack([point[(a,)] for a in range(n)], axis=1)  # (b, a, n_errors)
-        remainder = 0.5 * half * (half @ self.curvature)  # (b, a): Σ_i over the errors
-        steps = half[:, None, :] * self.vertices[None]  # (b, v, a)
-        linear = np.abs(value[:, None, :] + np.matmul(steps, gradient))  # (b, v, i)
-        totals = linear.sum(axis=-1)  # (b, v)
-        best_vertex = np.argmax(totals, axis=1)
-        rows = np.arange(len(low))
-        bound = totals[rows, best_vertex] + remainder.sum(axis=1) + e.margin.sum()
-        contribution = half * np.abs(gradient).sum(axis=-1) + remainder
-        vertex = np.clip(centre + steps[rows, best_vertex], low, high)
-        vertex_value = self.values(vertex)
-        centre_value = np.abs(value).sum(axis=-1)
-        better = vertex_value > centre_value
-        points = np.where(better[:, None], vertex, centre)
-        return (bound, contribution, points, np.where(better, vertex_value, centre_value),
-                np.zeros_like(half))
-
-
-def curvature_bound(expansion) -> np.ndarray:
-    """``K_ab ≥ Σ_i max |∂²w_i/∂x_a∂x_b|`` over the whole stroke box, ``(n_axes, n_axes)``.
-
-    ``w_i`` is of degree 1 in each axis, so ``∂_a ∂_b w_i`` (a ≠ b) keeps the terms whose
-    basis functions on axes a and b are not the constant, each differentiated once, and
-    ``∂_a² w_i`` keeps the rotary terms in cos θ_a, sin θ_a (a linear axis enters
-    affinely). Every basis function and its derivatives are at most 1 in magnitude on the
-    strokes (``|u| ≤ 1``), so ``Σ_k |C_k,i|`` over those terms bounds each entry.
-    """
-    magnitude = np.abs(expansion.coefficients)
-    magnitude = magnitude.reshape(magnitude.shape[:expansion.n_axes] + (-1,)).sum(axis=-1)
-    n = expansion.n_axes
-    moving = [np.asarray(index) != 0 for index in expansion.basis_index]
-    out = np.zeros((n, n))
-    for a in range(n):
-        for b in range(a, n):
-            if a == b and expansion.kinds[a] == "linear":
-                continue
-            weight = magnitude
-            for axis in {a, b}:
-                shape = [1] * n
-                shape[axis] = -1
-                weight = weight * moving[axis].reshape(shape)
-            out[a, b] = out[b, a] = weight.sum()
-    return out
