@@ -76,7 +76,10 @@ class RowEvents:
             return cls(np.zeros((0, rows.dimension)), np.zeros(0), np.zeros(0), 0.0)
         signatures = rows.row_signatures(candidates, tolerances)
         distinct = candidates[first_of_equal_rows(signatures / SIGNATURE_RESOLUTION)]
-        distinct = distinct[np.argsort(-failure[distinct], kind="stable")]
+        # decreasing p_r; p_r equal but for rounding (symmetric rows) keep the row order,
+        # so that the events, and which event a draw comes from, are the same everywhere
+        level = np.round(failure[distinct] / failure[distinct].max(), 9)
+        distinct = distinct[np.argsort(-level, kind="stable")]
         cumulative = np.cumsum(failure[distinct])
         total = cumulative[-1]
         count = min(MAX_EVENTS, int(np.searchsorted(cumulative, EVENT_MASS * total)) + 1)
