@@ -404,9 +404,13 @@ def fosm_section(study: MachineStudy) -> Section:
 def allocation_section(study: MachineStudy) -> Section:
     optimum, machine = study.optimum, study.machine
     groups = groups_table(machine, study.problem.poses)
+    written = written_tolerances(optimum)
     detail = optimum.to_frame().reset_index()
-    people = shown_tolerance_table(machine, study.problem.reference,
-                                   written_tolerances(optimum))
+    # the rate of the tolerance as written: a solve fixes a tolerance's sixth digit, not
+    # the sixth digit of its change
+    detail["allocated"] = written
+    detail["rate"] = written / study.problem.reference - 1.0
+    people = shown_tolerance_table(machine, study.problem.reference, written)
     people["status"] = detail["status"].to_numpy()
     requirements = requirement_table(optimum).reset_index()
     for column in requirements.columns[requirements.columns.str.startswith("dlncost/")]:
