@@ -77,15 +77,16 @@ def brute_force_undominated(matrix):
 
 
 def old_screen(rows, upper_u):
-    """The previous screen: box, duplicates, then every row against every other."""
-    from allocation.per_pose.problem import _unique_rows
+    """The previous screen: box, duplicates, then every row against every other (entries
+    equal but for rounding taken as equal)."""
+    from allocation.per_pose.problem import _equal_entries_equal, _unique_rows
 
     kept = []
     for output in range(rows.shape[1]):
         matrix = rows[:, output, :]
         pose = np.flatnonzero(matrix @ upper_u > 1.0)
         pose = pose[_unique_rows(matrix[pose])]
-        pose = pose[brute_force_undominated(matrix[pose])]
+        pose = pose[brute_force_undominated(_equal_entries_equal(matrix[pose]))]
         kept.extend((int(p), output) for p in pose)
     return sorted(kept)
 
@@ -275,3 +276,21 @@ def test_rows_equal_up_to_rounding_are_one_row_across_a_rounding_step():
     rows = np.stack([np.vstack([base, twin, apart])] * 6, axis=1)  # (9 poses, 6, 6 items)
     screened = screen_rows(rows, np.full(6, 10.0))
     assert screened.counts["duplicates"] == 6 * 5
+
+
+def test_entries_equal_but_for_rounding_are_equal_in_the_dominance_screen():
+    """A row whose entries equal another's but for last bits on either side is dominated
+    by it (and the other way round only one of them is kept); an entry apart by 1e-9 is
+    not equal."""
+    from allocation.per_pose.problem import _equal_entries_equal, _undominated
+
+    base = np.array([[0.5, 0.25, 0.125], [0.1, 0.9, 0.3]])
+    noisy = np.array([[np.nextafter(0.5, 1.0), np.nextafter(0.25, 0.0), 0.125]])
+    apart = np.array([[0.5 * (1 + 1e-9), 0.2, 0.1]])
+    matrix = np.vstack([base, noisy, apart])
+    canonical = _equal_entries_equal(matrix)
+    assert canonical[0, 0] == canonical[2, 0] == 0.5
+    assert canonical[0, 1] == canonical[2, 1] == np.nextafter(0.25, 0.0)
+    assert canonical[3, 0] == matrix[3, 0]
+    assert _undominated(matrix).tolist() == [1, 2, 3] or \
+        _undominated(matrix).tolist() == [0, 1, 3]

@@ -49,6 +49,9 @@ from . import solve
 SIDES = ("one_sided", "two_sided", "stack")
 WORKSPACES = ("worst", "mean")
 DUPLICATE_DIGITS = 10  # rows equal to 10 significant digits count as one
+#: Entries of a column within this relative distance count as equal in the dominance
+#: screening (the rounding of equal entries differs between computers).
+ENTRY_RTOL = 1e-13
 
 
 @dataclass(frozen=True, eq=False)
@@ -503,6 +506,14 @@ def _undominated(matrix, block: int = 512) -> np.ndarray:
     """
     if len(matrix) == 0:
         return np.arange(0)
+    # entries equal but for rounding made equal; rows then equal count once (the first)
+    canonical = _equal_entries_equal(matrix)
+    distinct = np.sort(np.unique(canonical, axis=0, return_index=True)[1])
+    return distinct[_undominated_distinct(canonical[distinct], block)]
+
+
+def _undominated_distinct(matrix, block: int) -> np.ndarray:
+    """:func:`_undominated` of rows no two of which are equal."""
     varying = np.flatnonzero(np.ptp(matrix, axis=0) > 0)
     order = np.argsort(-matrix.sum(axis=1), kind="stable")
     sorted_rows = np.ascontiguousarray(matrix[order][:, varying])
@@ -516,6 +527,24 @@ def _undominated(matrix, block: int = 512) -> np.ndarray:
         keep[index] = True
         kept = np.concatenate([kept, sorted_rows[index]])
     return np.sort(order[keep])
+
+
+def _equal_entries_equal(matrix) -> np.ndarray:
+    """``matrix`` with the entries of each column that are equal but for rounding (apart by
+    at most :data:`ENTRY_RTOL` of the larger, consecutively in sorted order) replaced by
+    the smallest of them, so that dominance, an exact comparison, does not depend on which
+    way the rounding of equal entries went on this computer."""
+    order = np.argsort(matrix, axis=0, kind="stable")
+    ordered = np.take_along_axis(matrix, order, axis=0)
+    new_group = np.diff(ordered, axis=0) > ENTRY_RTOL * np.abs(ordered[1:])
+    group = np.vstack([np.zeros((1, matrix.shape[1]), dtype=int),
+                       np.cumsum(new_group, axis=0)])
+    columns = np.arange(matrix.shape[1])
+    first = np.full((group.max() + 1 if group.size else 0, matrix.shape[1]), np.inf)
+    np.minimum.at(first, (group, np.broadcast_to(columns, group.shape)), ordered)
+    canonical = np.empty_like(matrix)
+    np.put_along_axis(canonical, order, first[group, columns], axis=0)
+    return canonical
 
 
 def _covered(rows, dominators, skip_self: bool = False) -> np.ndarray:

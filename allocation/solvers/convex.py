@@ -72,7 +72,7 @@ FEASIBILITY_MARGIN = 1e-13
 #: a dual answer certified at 4e-7 on the paper's machine with poses added between grid
 #: points moved tolerances by 3e-5 (relative) between two BLAS kernels, where the primal
 #: solve reaches a gap of 1e-13 and the same tolerances to their sixth digit.
-PRECISE_GAP = 1e-10
+PRECISE_GAP = 1e-9
 #: L-BFGS-B memory for the dual; more than the default 10 pairs lets working sets of
 #: hundreds of rows reach a 1e-6 duality gap without the slower primal fallback.
 DUAL_MEMORY = 30
