@@ -514,8 +514,10 @@ def machine_yield(machine, tolerances, *, profile=None, distribution=None,
         Split by :func:`reliability.basics.streams.spawn` into the stream of the ``auto`` decision
         and the stream of the machines.
     method : {'auto', 'crude', 'importance'}
-        See the module's docstring; ``auto`` samples crudely unless fewer than
-        :data:`MIN_FAILURES` failing machines are expected.
+        See the module's docstring; ``auto`` samples by importance only with at least
+        :data:`MIN_IMPORTANCE_MACHINES` machines, a linearised failure probability below
+        :data:`RARE_FAILURE` and fewer than :data:`MIN_FAILURES` failing machines
+        expected, crudely otherwise.
     confidence : float
         Level of the interval.
     k : float
