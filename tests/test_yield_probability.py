@@ -172,3 +172,22 @@ def test_the_command_prints_a_yield_within_its_interval(tmp_path, capsys, machin
     assert f"crude Monte-Carlo of {machines} built machines" in printed
     assert "Clopper–Pearson interval" in printed
     assert "would need about -" not in printed and "would need about ?" not in printed
+
+
+def test_a_sweep_of_small_repeats_writes_yields_within_0_1(tmp_path):
+    """results.csv keeps its columns, and every task's yield (1 to 10 built machines, three
+    profiles, three seeds) is a probability."""
+    from studies.workflows.sweep import SweepSpec, run_sweep
+    spec = SweepSpec(machines=(str(MILL),), targets=(0.9,),
+                     profiles=("constant", "independent", "gp:300"), seeds=(0, 1, 2),
+                     repeats=(1, 2, 5, 10), points=3)
+    result = run_sweep(spec, tmp_path / "store")
+    written = result.path.read_text().splitlines()
+    assert written[0].split(",") == [
+        "machine", "side", "target", "profile", "seed", "repeats", "points", "distribution",
+        "workspace", "bounds_low", "bounds_high", "bounds_source", "status", "reason",
+        "relative_cost", "certified", "fraction_dx", "fraction_dy", "fraction_dz",
+        "fraction_ex", "fraction_ey", "fraction_ez", "yield"]
+    yields = np.array([float(row.split(",")[-1]) for row in written[1:]])
+    assert len(yields) == 36 and np.all((0.0 <= yields) & (yields <= 1.0))
+    assert len(np.unique(yields)) > 2  # not all 0 or 1: the samples see failures
