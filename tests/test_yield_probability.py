@@ -172,6 +172,7 @@ def test_the_command_prints_a_yield_within_its_interval(tmp_path, capsys, machin
     assert f"crude Monte-Carlo of {machines} built machines" in printed
     assert "Clopper–Pearson interval" in printed
     assert "would need about -" not in printed and "would need about ?" not in printed
+    assert "CoV nan" not in printed and "CoV 0," not in printed
 
 
 def test_a_sweep_of_small_repeats_writes_yields_within_0_1(tmp_path):

@@ -169,7 +169,8 @@ class YieldEstimate:
         lines = [
             f"machine yield {yield_text(self.estimate)} ({level} interval "
             f"[{yield_text(self.lower)}, {yield_text(self.upper)}]); "
-            f"failure probability {self.failure_probability:.3g}, CoV {self.cov:.3g}",
+            f"failure probability {self.failure_probability:.3g}, "
+            f"{f'CoV {self.cov:.3g}' if np.isfinite(self.cov) else 'CoV not estimable'}",
             f"  share of built machines with all six outputs within their limits at every "
             f"pose; {self.model_text()}",
             f"  {how}; {self.method_reason}",
