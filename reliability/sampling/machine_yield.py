@@ -62,13 +62,17 @@ makes correlated normals ``z = L u``; the reading maps each to its error,
   ``q > 0`` wherever ``φ > 0`` and the weight ``w = φ/q`` is exact; the linearisation only
   sets the efficiency. Its CoV is the sample standard deviation of those terms over ``√n``
   and the mean; sampling runs in batches until the CoV is at most ``target_cov`` (after at
-  least :data:`MIN_IMPORTANCE_MACHINES`) or ``machines`` are spent. The interval is
-  ``p ± z·se`` (failure probability, lower end floored at 0).
-* **auto** — crude unless crude sampling of ``machines`` would expect fewer than
-  :data:`MIN_FAILURES` failing machines; the expectation is ``machines`` times the
-  linearised model's failure probability, itself estimated cheaply by ALOE without the
-  chain (``P_S · mean 1/N_S`` over 2 000 draws of the mixture) plus the rows left out of
-  ``S``.
+  least :data:`MIN_IMPORTANCE_MACHINES`) or ``machines`` are spent. The mean is clipped to
+  1 and its interval ``p ± z·se`` to [0, 1] (or, without a spread to estimate, bounded
+  through the proposal's plain-normal share: :mod:`reliability.sampling.yield_estimate`),
+  so the yield and its interval are probabilities whatever the sample.
+* **auto** — importance sampling only where failures are rare and crude sampling would
+  see few of them: at least :data:`MIN_IMPORTANCE_MACHINES` machines, and the linearised
+  model's failure probability below :data:`RARE_FAILURE` and below
+  :data:`MIN_FAILURES` failing machines among ``machines``; crude otherwise. That
+  probability is the worst row's when it alone decides, else estimated cheaply by ALOE
+  without the chain (``P_S · mean 1/N_S`` over 2 000 draws of the mixture, a precision
+  that does not depend on ``machines``) plus the rows left out of ``S``.
 
 The first-order bounds on the yield come from the linearised rows
 (:mod:`reliability.sampling.linear_rows`), the failure shares from
@@ -104,8 +108,12 @@ DEFAULT_MACHINES = 4000
 METHODS = ("auto", "crude", "importance")
 #: ``auto`` samples crudely only when it expects at least this many failing machines.
 MIN_FAILURES = 50
-#: Importance sampling stops at the target CoV only after this many machines.
+#: Importance sampling stops at the target CoV only after this many machines, and ``auto``
+#: uses it only when it may draw that many.
 MIN_IMPORTANCE_MACHINES = 1000
+#: ``auto`` calls failures rare below this linearised failure probability: fewer than
+#: :data:`MIN_FAILURES` failing among :data:`DEFAULT_MACHINES`, whatever the sample size.
+RARE_FAILURE = MIN_FAILURES / DEFAULT_MACHINES
 #: Machines per importance-sampling batch at most (the CoV is checked between batches).
 IMPORTANCE_BATCH = 500
 
@@ -441,19 +449,23 @@ class YieldModel:
         if method == "importance":
             events = RowEvents.dominant(self.linear, t)
             return method, "method 'importance' asked for", events
-        if machines * failure.max() >= MIN_FAILURES:
-            return "crude", (f"the worst row alone gives {machines * failure.max():,.0f} "
-                             f"expected failing machines ≥ {MIN_FAILURES}"), None
+        if machines < MIN_IMPORTANCE_MACHINES:
+            return "crude", (f"{machines:,} machines < {MIN_IMPORTANCE_MACHINES:,}, too few "
+                             f"for importance sampling's standard error"), None
+        common = _common_failure(machines, failure.max())
+        if common:
+            return "crude", f"the worst row alone gives {common}", None
         events = RowEvents.dominant(self.linear, t)
         if events.size == 0:
             return "crude", "no row of the linearised model can fail in double precision", None
-        expected = machines * min(1.0, events.linear_failure(rng) + events.left_out)
-        if expected >= MIN_FAILURES:
-            return "crude", (f"{expected:,.0f} expected failing machines (linearised model) "
-                             f"≥ {MIN_FAILURES}"), None
+        linear = min(1.0, events.linear_failure(rng) + events.left_out)
+        common = _common_failure(machines, linear)
+        if common:
+            return "crude", f"the linearised model gives {common}", None
         return "importance", (f"crude sampling of {machines:,} machines would expect "
-                              f"{expected:.3g} failing (linearised model) < "
-                              f"{MIN_FAILURES}"), events
+                              f"{machines * linear:.3g} failing (linearised model) < "
+                              f"{MIN_FAILURES}, failure probability {linear:.3g} < "
+                              f"{RARE_FAILURE:.3g}"), events
 
     def _sample(self, t, machines, rng, events, target_cov) -> SampleSums:
         """Machines drawn plainly (``events`` None) or from the proposal, in batches, until
@@ -502,8 +514,10 @@ def machine_yield(machine, tolerances, *, profile=None, distribution=None,
         Split by :func:`reliability.basics.streams.spawn` into the stream of the ``auto`` decision
         and the stream of the machines.
     method : {'auto', 'crude', 'importance'}
-        See the module's docstring; ``auto`` samples crudely unless fewer than
-        :data:`MIN_FAILURES` failing machines are expected.
+        See the module's docstring; ``auto`` samples by importance only with at least
+        :data:`MIN_IMPORTANCE_MACHINES` machines, a linearised failure probability below
+        :data:`RARE_FAILURE` and fewer than :data:`MIN_FAILURES` failing machines
+        expected, crudely otherwise.
     confidence : float
         Level of the interval.
     k : float
@@ -548,6 +562,19 @@ def deciding_points(machine, profiles, points: int) -> list[np.ndarray] | None:
             and isinstance(profile, ConstantProfile) else np.arange(points)
             for spec, profile in zip(machine.axis_specs, profiles)]
     return None if all(len(k) == points for k in kept) else kept
+
+
+def _common_failure(machines: int, probability: float) -> str:
+    """Why failures of ``probability`` are not rare enough for importance sampling of
+    ``machines`` (at least :data:`RARE_FAILURE`, or :data:`MIN_FAILURES` expected failing
+    machines), else the empty text."""
+    expected = machines * probability
+    if expected >= MIN_FAILURES:
+        return f"{expected:,.0f} expected failing machines ≥ {MIN_FAILURES}"
+    if probability >= RARE_FAILURE:
+        return (f"failure probability {probability:.3g} ≥ {RARE_FAILURE:.3g}: failures are "
+                f"not rare")
+    return ""
 
 
 def _largest_over_poses(rows) -> np.ndarray:

@@ -1,11 +1,27 @@
 """The machine yield's result: :class:`YieldEstimate`, its table and file, and the running
 sums of sampled machines it is estimated from.
 
-A yield estimated by crude sampling is the share of built machines that passed, with a
-Clopper–Pearson interval; by importance sampling it is ``1 − p`` with ``p`` the mean of the
-weighted failure indicators, its interval ``1 − (p ± z·se)`` (failure probability floored at
-0) and its CoV ``se/p``. A saved estimate (:meth:`YieldEstimate.save`) is reloaded with these
-verdicts checked against the counts they come from.
+Every yield, interval end and failure probability lies in [0, 1], and the interval holds
+the yield, whatever the sample. The estimator and its interval (:data:`INTERVAL_METHODS`,
+named by :attr:`YieldEstimate.interval_method`):
+
+* ``'clopper-pearson'`` (crude sampling): the share of built machines that passed, with a
+  Clopper–Pearson interval (never of zero width: one machine gives [0, 0.975] or
+  [0.025, 1] at 95 %).
+* ``'clipped-wald'`` (importance sampling): ``p̂ = min(1, mean w·f)``, the mean of the
+  weighted failure indicators clipped to a probability (unchanged wherever failures are
+  rare, where the mean is far below 1), its standard error ``se`` of the terms ``w·f``, the
+  interval ``p̂ ± z·se`` clipped to [0, 1] on that scale, the yield ``1 − p̂`` and its
+  interval ``1 − (p̂ ± z·se)``; CoV ``se/p̂``.
+* ``'defensive-bound'`` (importance sampling without a spread to estimate: fewer than two
+  machines, none failing, or all terms equal): the proposal draws a plain normal with
+  probability ``α`` (:data:`~reliability.sampling.row_events.DEFENSIVE`), so ``q ≥ α φ``
+  and the failure probability under the proposal is at least ``α p``; with ``K`` of ``n``
+  proposal draws failing, ``p ≤ U/α`` with ``U`` the Clopper–Pearson upper end of ``K/n``,
+  and the interval of ``p`` is ``[0, min(1, U/α)]`` (CoV not estimable).
+
+A saved estimate (:meth:`YieldEstimate.save`) is reloaded with these verdicts checked
+against the counts they come from.
 """
 
 from __future__ import annotations
@@ -20,14 +36,26 @@ from scipy.stats import norm
 from ..basics.saved_results import encode_frame, load_payload, save_payload
 from ..basics.statistics import all_within_share
 from .failure_regions import SHARE_COLUMNS
+from .row_events import DEFENSIVE
 
 #: Rows of the failure-share table that :meth:`YieldEstimate.summary` prints.
 SHOWN_SHARES = 12
 SAVED_FORMAT = "precrel.yield_estimate"
 #: The fields :meth:`YieldEstimate.save` writes besides the failure shares.
 SAVED_FIELDS = ("estimate", "lower", "upper", "confidence", "cov", "machines", "method",
-                "method_reason", "profile", "distribution", "workspace", "n_poses", "failures",
-                "first_order_lower", "first_order_upper", "target_cov")
+                "method_reason", "interval_method", "profile", "distribution", "workspace",
+                "n_poses", "failures", "first_order_lower", "first_order_upper", "target_cov")
+#: The estimator and interval of each sampling method (see the module's docstring).
+INTERVAL_METHODS = {"crude": ("clopper-pearson",),
+                    "importance": ("clipped-wald", "defensive-bound")}
+#: How each interval is named in :meth:`YieldEstimate.summary`.
+INTERVAL_TEXT = {
+    "clopper-pearson": "share of passing machines, Clopper–Pearson interval",
+    "clipped-wald": "weighted failure mean clipped to [0, 1], normal interval ±z·se on the "
+                    "clipped scale",
+    "defensive-bound": "weighted failure mean clipped to [0, 1], no spread to estimate: "
+                       "interval from the plain-normal share α of the proposal, "
+                       "p ≤ (Clopper–Pearson upper end of the failing share)/α"}
 
 
 @dataclass(frozen=True, eq=False, repr=False)
@@ -40,18 +68,22 @@ class YieldEstimate:
         Estimated yield: the probability that a built machine keeps all six outputs within
         their limits at every pose of the workspace.
     lower, upper : float
-        Interval at ``confidence``: Clopper–Pearson (crude) or ``1 − (p ± z·se)``
-        (importance sampling).
+        Interval at ``confidence`` (:attr:`interval_method`), within [0, 1] and holding
+        ``estimate``.
     confidence : float
     cov : float
         Coefficient of variation of the estimated *failure* probability ``1 − estimate``
-        (NaN when no failing machine was seen).
+        (NaN when it is not estimable: no failing machine seen, every crude machine
+        failing, or an importance sample without spread).
     machines : int
         Built machines simulated; each is one evaluation of the exact chain at every pose.
     method : str
         ``'crude'`` or ``'importance'``.
     method_reason : str
         Why the method was used.
+    interval_method : str
+        The estimator and its interval: ``'clopper-pearson'`` (crude), ``'clipped-wald'``
+        or ``'defensive-bound'`` (importance sampling); see the module's docstring.
     profile : str
         The error-profile model (``'constant'``, ``'independent'``, ``'gp:300'``).
     distribution : str
@@ -78,6 +110,7 @@ class YieldEstimate:
     machines: int
     method: str
     method_reason: str
+    interval_method: str
     profile: str
     distribution: str
     workspace: str
@@ -107,11 +140,12 @@ class YieldEstimate:
     @property
     def crude_equivalent(self) -> float:
         """Machines crude sampling would need for the same CoV: ``(1 − p)/(p · CoV²)`` with
-        ``p`` the failure probability (NaN without a CoV)."""
+        ``p`` the failure probability, at least one machine; NaN when it means nothing
+        (``p`` 0 or 1, or no CoV)."""
         p = self.failure_probability
-        if not (p > 0 and np.isfinite(self.cov) and self.cov > 0):
+        if not (0 < p < 1 and np.isfinite(self.cov) and self.cov > 0):
             return math.nan
-        return (1.0 - p) / (p * self.cov ** 2)
+        return max(1.0, (1.0 - p) / (p * self.cov ** 2))
 
     def model_text(self) -> str:
         """The modelling choices the yield depends on, in words."""
@@ -125,14 +159,18 @@ class YieldEstimate:
         and the failure shares."""
         level = f"{self.confidence:.0%}"
         how = (f"crude Monte-Carlo of {self.machines:,} built machines, {self.failures:,} "
-               f"failing (Clopper–Pearson interval)" if self.method == "crude" else
+               f"failing" if self.method == "crude" else
                f"importance sampling (defensive ALOE mixture) of {self.machines:,} built "
-               f"machines, {self.failures:,} failing; crude sampling would need about "
-               f"{_count_text(self.crude_equivalent)} machines for the same CoV")
+               f"machines, {self.failures:,} failing")
+        how += f" ({INTERVAL_TEXT[self.interval_method]})"
+        if self.method == "importance" and np.isfinite(self.crude_equivalent):
+            how += (f"; crude sampling would need about {self.crude_equivalent:,.0f} "
+                    f"machines for the same CoV")
         lines = [
             f"machine yield {yield_text(self.estimate)} ({level} interval "
             f"[{yield_text(self.lower)}, {yield_text(self.upper)}]); "
-            f"failure probability {self.failure_probability:.3g}, CoV {self.cov:.3g}",
+            f"failure probability {self.failure_probability:.3g}, "
+            f"{f'CoV {self.cov:.3g}' if np.isfinite(self.cov) else 'CoV not estimable'}",
             f"  share of built machines with all six outputs within their limits at every "
             f"pose; {self.model_text()}",
             f"  {how}; {self.method_reason}",
@@ -163,7 +201,8 @@ class YieldEstimate:
         return pd.DataFrame([{
             "yield": self.estimate, "lower": self.lower, "upper": self.upper,
             "confidence": self.confidence, "failure_probability": self.failure_probability,
-            "cov": self.cov, "method": self.method, "machines": self.machines,
+            "cov": self.cov, "method": self.method, "interval_method": self.interval_method,
+            "machines": self.machines,
             "failing": self.failures, "first_order_lower": self.first_order_lower,
             "first_order_upper": self.first_order_upper, "profile": self.profile,
             "distribution": self.distribution, "workspace": self.workspace}])
@@ -183,9 +222,12 @@ class YieldEstimate:
 
         The verdicts are checked against the counts they come from: a crude estimate and
         its interval must be the Clopper–Pearson share of the machines that passed
-        (``machines − failures``), an importance-sampling interval ``1 − (p ± z·se)`` of its
-        failure probability and CoV, and the failure shares must sum to one over the failing
-        machines.
+        (``machines − failures``), a ``'clipped-wald'`` interval ``1 − (p ± z·se)`` of its
+        failure probability and CoV, a ``'defensive-bound'`` one the bound of its failing
+        count, and the failure shares must sum to one over the failing machines. A file
+        saved before ``interval_method`` was written has the one its method then had
+        (``'clopper-pearson'``, ``'clipped-wald'``); one whose yield or interval left
+        [0, 1] is refused.
         """
         machines = data.integer("machines", low=1)
         values = {
@@ -193,7 +235,7 @@ class YieldEstimate:
             "upper": data.number("upper"), "confidence": data.number("confidence"),
             "cov": math.nan if data.raw("cov") is None else data.number("cov"),
             "machines": machines,
-            "method": data.text("method", ("crude", "importance")),
+            "method": data.text("method", tuple(INTERVAL_METHODS)),
             "method_reason": data.text("method_reason"), "profile": data.text("profile"),
             "distribution": data.text("distribution", ("normal", "truncated")),
             "workspace": data.text("workspace"), "n_poses": data.integer("n_poses", low=1),
@@ -202,6 +244,7 @@ class YieldEstimate:
             "first_order_upper": data.number("first_order_upper"),
             "target_cov": None if data.raw("target_cov") is None else
             data.number("target_cov", positive=True)}
+        values["interval_method"] = _saved_interval_method(data, values["method"])
         _check_interval(data, values)
         values["failure_shares"] = _saved_shares(data, values["failures"])
         return cls(**values)
@@ -224,7 +267,7 @@ class YieldEstimate:
             "estimate": self.estimate, "lower": self.lower, "upper": self.upper,
             "confidence": self.confidence, "cov": None if math.isnan(self.cov) else self.cov,
             "machines": self.machines, "machine_evaluations": self.machine_evaluations,
-            "method": self.method,
+            "method": self.method, "interval_method": self.interval_method,
             "method_reason": self.method_reason, "profile": self.profile,
             "distribution": self.distribution, "workspace": self.workspace,
             "n_poses": self.n_poses, "failures": self.failures,
@@ -246,19 +289,42 @@ def _check_interval(data, values) -> None:
         raise data.error("cov", f"expected a number >= 0 or null, got {values['cov']!r}")
     for key in ("estimate", "lower", "upper", "first_order_lower", "first_order_upper"):
         if not 0.0 <= values[key] <= 1.0:
-            raise data.error(key, f"expected a yield in [0, 1], got {values[key]!r}")
-    if values["method"] == "crude":
+            raise data.error(key, f"expected a yield in [0, 1], got {values[key]!r} (a file "
+                                  f"written before yields were kept in [0, 1]: estimate it "
+                                  f"again)")
+    method = values["interval_method"]
+    if method == "clopper-pearson":
         interval = all_within_share(values["machines"] - values["failures"],
                                     values["confidence"], trials=values["machines"])
         expected = (interval.estimate, interval.lower, interval.upper)
-    else:
+    elif method == "clipped-wald":
         p = 1.0 - values["estimate"]
         spread = norm.ppf(0.5 + values["confidence"] / 2) * values["cov"] * p if p > 0 else 0.0
         expected = (values["estimate"], 1.0 - min(1.0, p + spread), 1.0 - max(0.0, p - spread))
+    else:
+        expected = (values["estimate"], 1.0 - defensive_bound(
+            values["failures"], values["machines"], values["confidence"]), 1.0)
     for key, value in zip(("estimate", "lower", "upper"), expected):
         if not math.isclose(values[key], float(value), rel_tol=1e-9, abs_tol=1e-12):
             raise data.error(key, f"is {values[key]!r}, but the saved {values['method']} "
-                                  f"sample gives {float(value)!r}")
+                                  f"sample ({method}) gives {float(value)!r}")
+
+
+def _saved_interval_method(data, method: str) -> str:
+    """The saved ``interval_method``, one of ``method``'s; a file written before the field
+    existed has the one its method then used (its values are checked like any other)."""
+    if "interval_method" not in data.data:
+        return INTERVAL_METHODS[method][0]
+    return data.text("interval_method", INTERVAL_METHODS[method])
+
+
+def defensive_bound(failures: int, machines: int, confidence: float) -> float:
+    """Upper end ``min(1, U/α)`` of the failure probability ``p`` from ``failures`` of
+    ``machines`` draws of the defensive proposal: ``q ≥ α φ`` gives
+    ``P_q(fail) ≥ α p``, and ``U`` is the Clopper–Pearson upper end of ``P_q(fail)`` at
+    ``confidence`` (so ``[0, min(1, U/α)]`` covers ``p`` at least that often)."""
+    share = all_within_share(failures, confidence, trials=machines)
+    return min(1.0, float(share.upper) / DEFENSIVE)
 
 
 def _saved_shares(data, failures: int) -> pd.DataFrame:
@@ -310,30 +376,47 @@ class SampleSums:
         return self.standard_error() / mean if mean > 0 else math.inf
 
     def result(self, model, sigma, confidence, method, reason, lower, upper, target_cov):
-        """The :class:`YieldEstimate` of the machines added: crude (Clopper–Pearson) or
-        importance sampling (``1 − (p ± z·se)``), with ``model``'s description and failure
-        shares (``sigma``: every row's FOSM σ), and the first-order bounds ``lower``,
-        ``upper``."""
+        """The :class:`YieldEstimate` of the machines added, with ``model``'s description
+        and failure shares (``sigma``: every row's FOSM σ), and the first-order bounds
+        ``lower``, ``upper``: crude (Clopper–Pearson) or importance sampling (clipped mean,
+        ``'clipped-wald'`` or ``'defensive-bound'`` interval; the module's docstring)."""
         rows, weights = np.concatenate(self.rows), np.concatenate(self.weights)
         if method == "crude":
-            passed = self.n - len(rows)
-            interval = all_within_share(passed, confidence, trials=self.n)
-            estimate, low, high = float(interval.estimate), float(interval.lower), \
-                float(interval.upper)
-            p = 1.0 - estimate
-            cov = math.sqrt((1.0 - p) / (self.n * p)) if p > 0 else math.nan
+            interval_method, (estimate, low, high, cov) = "clopper-pearson", \
+                self._crude(len(rows), confidence)
         else:
-            p, se = self.mean(), self.standard_error()
-            z = norm.ppf(0.5 + confidence / 2)
-            estimate, low, high = 1.0 - p, 1.0 - min(1.0, p + z * se), 1.0 - max(0.0, p - z * se)
-            cov = se / p if p > 0 else math.nan
+            interval_method, (estimate, low, high, cov) = self._importance(len(rows),
+                                                                           confidence)
         shares = model.regions.failure_shares(sigma, rows, weights, confidence)
         return YieldEstimate(
             estimate=estimate, lower=low, upper=high, confidence=confidence, cov=cov,
-            machines=self.n, method=method, method_reason=reason, profile=model.profile,
+            machines=self.n, method=method, method_reason=reason,
+            interval_method=interval_method, profile=model.profile,
             distribution=model.distribution, workspace=model.workspace,
             n_poses=model.experiment.n_poses, failures=len(rows), first_order_lower=lower,
             first_order_upper=upper, failure_shares=shares, target_cov=target_cov)
+
+    def _crude(self, failures, confidence):
+        """Yield, interval and CoV of ``failures`` of :attr:`n` plain machines: the
+        passing share with its Clopper–Pearson interval, CoV ``√((1 − p)/(n p))`` of the
+        failure share ``p`` (NaN at ``p`` = 0 or 1, where only the interval informs)."""
+        interval = all_within_share(self.n - failures, confidence, trials=self.n)
+        p = failures / self.n
+        cov = math.sqrt((1.0 - p) / (self.n * p)) if 0 < p < 1 else math.nan
+        return float(interval.estimate), float(interval.lower), float(interval.upper), cov
+
+    def _importance(self, failures, confidence):
+        """Interval method, then yield, interval and CoV of the weighted sample: the mean
+        ``p̂`` clipped to 1, ``p̂ ± z·se`` clipped to [0, 1] when the terms have a spread,
+        else ``[0, defensive_bound]``."""
+        p, se = min(1.0, self.mean()), self.standard_error()
+        if self.n < 2 or failures == 0 or not se > 0:
+            return "defensive-bound", (1.0 - p, 1.0 - defensive_bound(failures, self.n,
+                                                                      confidence),
+                                       1.0, math.nan)
+        spread = norm.ppf(0.5 + confidence / 2) * se
+        return "clipped-wald", (1.0 - p, 1.0 - min(1.0, p + spread),
+                                1.0 - max(0.0, p - spread), se / p)
 
 
 def yield_text(value: float) -> str:
@@ -344,11 +427,6 @@ def yield_text(value: float) -> str:
         return "1"
     digits = max(4, 1 - int(math.floor(math.log10(failure))))
     return f"{value:.{digits}f}"
-
-
-def _count_text(value: float) -> str:
-    """A count with thousands separators, ``?`` when unknown."""
-    return "?" if not np.isfinite(value) else f"{value:,.0f}"
 
 
 def _indent(text: str, by: str = "    ") -> str:
