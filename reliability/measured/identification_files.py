@@ -29,6 +29,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from ..basics.display import ZERO_RESOLUTION
 from ..basics.errors import InputError, SavedResultError
 from ..basics.files import (SIGNIFICANT, atomic_write_bytes, atomic_write_text,
                             check_destination, write_csv)
@@ -377,7 +378,10 @@ def _check_rows(path, errors, posterior) -> None:
     for column, key in (("prior_sd", "prior_sd"), ("posterior_mean", "mean")):
         written = errors[column].to_numpy()
         given = posterior[key]
-        off = np.abs(given - written) > SD_AGREEMENT * np.maximum(np.abs(written), 1e-300)
+        # a mean within ZERO_RESOLUTION of the prior σ is written as 0 (its rounding)
+        floor = ZERO_RESOLUTION * posterior["prior_sd"] if key == "mean" else 0.0
+        off = np.abs(given - written) > np.maximum(
+            SD_AGREEMENT * np.maximum(np.abs(written), 1e-300), floor)
         if off.any():
             row = int(np.flatnonzero(off)[0])
             raise SavedResultError(f"{path}: the coefficients give error "
