@@ -17,9 +17,10 @@ from allocation import AllocationProblem, allocate_for_yield
 from allocation.per_pose.continuous import check_continuous, solve_continuous
 from allocation.per_pose.elasticity import requirement_table
 from allocation.per_pose.result_files import (DRAWING_RESOLUTION, allocation_frame,
-                                     allocation_to_csv, cost_shares_text, cost_units_text, drawing_check_text,
-                                     drawing_to_csv, gap_text, nearly_free_text,
-                                     written_cost_text, written_tolerances)
+                                     allocation_to_csv, cost_shares_text, cost_units_text,
+                                     drawing_check_text, drawing_to_csv, gap_text,
+                                     nearly_free_text, written_cost_text,
+                                     written_tolerances)
 from allocation.machine_yield.yield_dual import log_concave_bound, not_log_concave
 from reliability.basics import display
 from reliability.basics.errors import InputError
