@@ -23,7 +23,8 @@ continuous loop's convex solves and certificate calls and whether it certified (
 what ``allocate`` prints), and the peak resident memory of the continuous allocation's
 process (``os.wait4``'s ``ru_maxrss``: interpreter and libraries included). A run still
 going after ``--time-limit`` seconds (default 300; ``--quick``: 60) is stopped and shown as
-``> S s, stopped``, so the script never hangs. ``--code DIR`` runs another copy of the
+``> S s, stopped``, so the script never hangs. The load average at the start and the end
+says how busy the CPUs were. ``--code DIR`` runs another copy of the
 toolkit (for example an earlier commit checked out in DIR) on this copy's machine files, for
 before/after tables. Nothing is asserted on times.
 """
@@ -172,15 +173,22 @@ def main(argv=None) -> None:
     limit_blas_threads()
     print(f"toolkit from {args.code.resolve()}; BLAS threads "
           f"{os.environ['OPENBLAS_NUM_THREADS']}; CPUs {os.cpu_count()}; limit "
-          f"{time_limit:g} s per run{'; quick report' if args.quick else ''}\n")
+          f"{time_limit:g} s per run{'; quick report' if args.quick else ''}; "
+          f"{load_text()} at the start\n")
     print(HEADER)
     print("|" + " --- |" * HEADER.count(" | ") + " --- |", flush=True)
     for name in args.machines:
         for zone in args.zones:
             print(configuration_row(name, zone, args.code.resolve(), time_limit, args.quick),
                   flush=True)
-    print("\n(times are wall seconds of the whole command, interpreter start included; "
-          "'continuous / grid' is the ratio of the two allocate runs of the same row)")
+    print(f"\n(times are wall seconds of the whole command, interpreter start included; "
+          f"'continuous / grid' is the ratio of the two allocate runs of the same row; "
+          f"{load_text()} at the end: other processes share the CPUs)")
+
+
+def load_text() -> str:
+    """The machine's 1-minute load average, in words: how busy the CPUs were."""
+    return f"load average {os.getloadavg()[0]:.1f}"
 
 
 if __name__ == "__main__":
