@@ -75,11 +75,11 @@ def run_command(argv, code: Path, time_limit: float) -> dict:
                                    text=True, start_new_session=True)
         status, usage, stopped = _wait(process.pid, started + time_limit)
         seconds = time.perf_counter() - started
-        process.returncode = status  # reaped by os.wait4 already
+        process.returncode = os.waitstatus_to_exitcode(status)  # reaped by os.wait4
         out.seek(0)
         stdout = out.read()
     return {"seconds": seconds, "stopped": stopped,
-            "code": None if stopped else os.waitstatus_to_exitcode(status),
+            "code": None if stopped else process.returncode,
             "peak_mb": usage.ru_maxrss / 1024, "stdout": stdout}
 
 
