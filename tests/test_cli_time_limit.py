@@ -14,6 +14,7 @@ import pandas as pd
 import pytest
 
 from allocation.per_pose import continuous as continuous_module
+from reliability.basics.errors import InputError
 from studies import cli
 from studies.cli import allocate, options
 from studies.workflows import machine_study
@@ -138,6 +139,11 @@ def test_report_refuses_time_limit_on_the_grid(tmp_path, capsys):
                      "--time-limit", "5"]) == 2
     assert "--time-limit" in capsys.readouterr().err
     assert not (tmp_path / "r").exists()
+
+
+def test_the_study_refuses_a_time_limit_on_the_grid(mill3):
+    with pytest.raises(InputError, match="time_limit: .*workspace 'grid'"):
+        machine_study.run(mill3, workspace="grid", time_limit=5.0)
 
 
 @pytest.mark.skipif(not HAS_TIME_LIMIT,

@@ -25,6 +25,7 @@ from allocation.per_pose.continuous import DEFAULT_RTOL, WORKSPACE_CHOICES, chec
     solve_continuous
 from allocation.per_pose.result_files import gap_bound, written_tolerances
 from reliability.basics import checks as input_checks
+from reliability.basics.errors import InputError
 from reliability.basics.renamed import renamed
 from reliability.basics.streams import integer_seed
 from reliability.first_order.fosm import fosm
@@ -145,13 +146,16 @@ def run(machine, *, points: int = 5, side: str = "two_sided", bounds=None,
         Seconds the continuous workspace's loop may take
         (:func:`allocation.per_pose.continuous.solve_continuous`'s ``time_limit``): past
         them, or at Ctrl-C, it stops with the best allocation so far, not certified, and
-        the study goes on with it. None: no limit.
+        the study goes on with it. None: no limit. Refused (InputError) with the grid.
 
     When no allocation inside the bounds meets the targets the study still runs for the
     initial allocation: ``optimum`` and ``optimal_fosm`` are None and ``unreachable``
     holds the :class:`allocation.TargetUnreachableError` (what blocks, where).
     """
     input_checks.choice(workspace, "workspace", WORKSPACE_CHOICES)
+    if time_limit is not None and workspace != "continuous":
+        raise InputError(f"time_limit: bounds the loop of the continuous workspace; "
+                         f"workspace {workspace!r} has none (expected None)")
     seed = integer_seed(rng)
     if workspace == "continuous":
         check_continuous(machine, side)
