@@ -206,8 +206,8 @@ def run(args) -> int:
         return 0
     options.say(f"certifying over the continuous workspace (rtol {args.rtol:g}"
                 + (f", time limit {args.time_limit:g} s" if limits else "") + ")")
-    continuous = solve_continuous(problem, rtol=args.rtol, progress=options.timed_say(),
-                                  **limits)
+    continuous = solve_continuous(problem, rtol=args.rtol,
+                                  progress=lambda text: options.say(f"  {text}"), **limits)
     print(describe(continuous.result, continuous.summary()))
     print(changes_text(continuous.result))
     write_files(args, continuous.result, out, drawing,

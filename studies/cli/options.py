@@ -10,7 +10,6 @@ import contextlib
 import contextvars
 import dataclasses
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -305,15 +304,17 @@ def loop_limits(args, chosen: str) -> dict:
 #: ``--time-limit`` or Ctrl-C: its outputs are written, marked not certified, with the reason
 #: (bad input is 2, :data:`studies.cli.program.USAGE_ERROR`).
 STOPPED = 3
-#: What the continuous loop's reason says when it was stopped before its certificate closed
-#: (by its time limit: "stopped by the time limit after S s", or by Ctrl-C).
-STOPPED_WORDS = "stopped by"
+#: What the continuous loop's reason says when it was stopped before its certificate closed:
+#: "not certified to rtol: stopped by the time limit after S s" or "… interrupted after S s"
+#: (Ctrl-C).
+STOPPED_WORDS = ("stopped by the time limit", "interrupted after")
 
 
 def stopped_early(continuous) -> bool:
     """Whether the continuous loop stopped before its certificate closed because of the time
     limit or Ctrl-C (its ``reason``, :data:`STOPPED_WORDS`); false for a certified result."""
-    return not continuous.certified and STOPPED_WORDS in continuous.reason
+    return not continuous.certified and any(words in continuous.reason
+                                            for words in STOPPED_WORDS)
 
 
 def stop_code(continuous) -> int:
@@ -621,13 +622,6 @@ def say(text: str) -> None:
     """A progress line on stderr (none under ``--quiet``)."""
     if _SHOWN.get():
         print(text, file=sys.stderr, flush=True)
-
-
-def timed_say():
-    """A progress callable for a long loop: each line indented and headed by the seconds
-    since this call, e.g. ``  [  41 s] solve 2: ...`` (:func:`say`)."""
-    started = time.perf_counter()
-    return lambda text: say(f"  [{time.perf_counter() - started:4.0f} s] {text}")
 
 
 #: Workers of a local Dask cluster when ``--workers`` is not given.
