@@ -83,7 +83,8 @@ def test_each_option_has_one_type_and_one_meaning_in_every_command():
 @pytest.mark.parametrize("name", ["--profile", "--distribution", "--frame", "--points",
                                   "--seed", "--machines", "--executor", "--workers",
                                   "--scheduler", "--overwrite", "--bounds", "--workspace",
-                                  "--rtol", "--side", "--tolerances", "--out"])
+                                  "--rtol", "--side", "--tolerances", "--out",
+                                  "--time-limit", "--quiet"])
 def test_the_shared_options_are_declared_once_in_options(name):
     """The options every command shares come from one options.add_* each."""
     origins = {getattr(options_of(parser)[name], "origin", None)

@@ -16,13 +16,15 @@ import pandas as pd
 from allocation import AllocationProblem, allocate_for_yield
 from allocation.per_pose.continuous import check_continuous, solve_continuous
 from allocation.per_pose.elasticity import requirement_text
-from allocation.per_pose.result_files import (DRAWING_RESOLUTION, allocation_to_csv,
-                                     cost_shares_text, cost_units_text, drawing_check_text,
-                                     drawing_to_csv, gap_text, nearly_free_text,
-                                     written_cost_text, written_tolerances)
+from allocation.per_pose.result_files import (DRAWING_RESOLUTION, allocation_frame,
+                                     allocation_to_csv, cost_shares_text, cost_units_text,
+                                     drawing_check_text, drawing_to_csv, gap_text,
+                                     nearly_free_text, written_cost_text,
+                                     written_tolerances)
 from allocation.machine_yield.yield_dual import log_concave_bound, not_log_concave
 from reliability.basics import display
 from reliability.basics.errors import InputError
+from reliability.basics.files import write_csv
 from reliability.model.poses import workspace_grid
 from studies.report.machine_sections import shown_tolerance_table, tolerance_table
 from studies.report.writer import SIGNIFICANT
@@ -50,6 +52,7 @@ MODE_OPTIONS = (
     ("--lock", lambda args: bool(args.lock), (TARGETS, COMPENSATION)),
     ("--method gwo", lambda args: args.method == "gwo", (TARGETS,)),
     ("--workspace continuous", lambda args: args.workspace == "continuous", (TARGETS,)),
+    ("--time-limit", _given("time_limit"), (TARGETS,)),
     ("--bounds", _given("bounds"), (TARGETS, YIELD, COMPENSATION)),
     ("--profile", _given("profile"), (YIELD,)),
     ("--executor", _given("executor"), (YIELD,)),
@@ -106,6 +109,7 @@ def add_parser(subparsers):
     options.add_study_model(parser)
     options.add_bounds(parser)
     options.add_workspace(parser)
+    options.add_time_limit(parser)
     parser.add_argument("--lock", nargs="+", default=(), metavar="NAME",
                         help="errors held at their initial tolerance (e.g. X.dx)")
     parser.add_argument("--method", choices=("exact", "gwo"), default="exact",
@@ -132,6 +136,7 @@ def add_parser(subparsers):
                         help="resolution of the drawing tolerances in µm and arcsec "
                              "(default 0.1 0.1)")
     options.add_overwrite(parser)
+    options.add_quiet(parser)
     compensate.add_allocation_option(parser)
     return parser
 
@@ -180,6 +185,7 @@ def run(args) -> int:
     if args.target is not None:
         machine = dataclasses.replace(machine, targets=np.full(6, args.target))
     workspace = options.workspace(args)
+    limits = options.loop_limits(args, workspace)
     if workspace == "continuous":
         if args.method != "exact":
             raise InputError("--method gwo searches the grid problem only; use --workspace "
@@ -190,26 +196,42 @@ def run(args) -> int:
                 f"{options.box_words(machine, bounds)}")
     problem = AllocationProblem.build(machine, workspace_grid(machine, args.points),
                                       side=args.side, bounds=bounds, locked=tuple(args.lock))
-    if workspace == "continuous":
-        options.say(f"certifying over the continuous workspace (rtol {args.rtol:g})")
-        continuous = solve_continuous(problem, rtol=args.rtol, progress=options.say)
-        result = continuous.result
-        print(describe(result, continuous.summary()))
-    else:
+    if workspace != "continuous":
         result = solve(problem, args.method, args.seed)
         print(describe(result, f"workspace: grid — the targets hold at the "
                                f"{len(problem.poses)} poses of the {args.points}-point grid "
                                f"(not certified between them)"))
-    print(changes_text(result))
-    write_files(args, result, out, drawing)
-    return 0
+        print(changes_text(result))
+        write_files(args, result, out, drawing)
+        return 0
+    options.say(f"certifying over the continuous workspace (rtol {args.rtol:g}"
+                + (f", time limit {args.time_limit:g} s" if limits else "") + ")")
+    continuous = solve_continuous(problem, rtol=args.rtol,
+                                  progress=lambda text: options.say(f"  {text}"), **limits)
+    print(describe(continuous.result, continuous.summary()))
+    print(changes_text(continuous.result))
+    write_files(args, continuous.result, out, drawing,
+                verdict=None if continuous.certified else continuous.reason)
+    return options.stop_code(continuous)
 
 
-def write_files(args, result, out: Path, drawing: Path, *, targets: bool = True) -> None:
+def write_files(args, result, out: Path, drawing: Path, *, targets: bool = True,
+                verdict: str | None = None) -> None:
     """The allocation CSV and the drawing file, each with a line on what it holds (with
-    ``targets``, whether the drawing meets the per-pose targets of the result's problem)."""
-    allocation_to_csv(result, out, args.overwrite, significant=SIGNIFICANT)
-    print(f"\nallocation written to {out}, {written_cost_text(result)}")
+    ``targets``, whether the drawing meets the per-pose targets of the result's problem).
+
+    ``verdict``: why an allocation of the continuous workspace is not certified; its CSV
+    then has two more columns, ``certified`` (false) and ``reason``, which readers of
+    allocation files ignore."""
+    if verdict is None:
+        allocation_to_csv(result, out, args.overwrite, significant=SIGNIFICANT)
+    else:
+        write_csv(allocation_frame(result, SIGNIFICANT).assign(certified=False,
+                                                                reason=verdict),
+                  out, args.overwrite, index=False, float_format=f"%.{SIGNIFICANT}g")
+    print(f"\nallocation written to {out}"
+          + ("" if verdict is None else " (NOT certified: see its columns certified, reason)")
+          + f", {written_cost_text(result)}")
     resolution = tuple(args.drawing_resolution)
     drawing_to_csv(result.problem.machine, result.tolerances, drawing, args.overwrite,
                    resolution=resolution)

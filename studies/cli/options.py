@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import contextvars
 import dataclasses
 import sys
 from pathlib import Path
@@ -267,6 +268,65 @@ def add_workspace(parser) -> None:
 def workspace(args) -> str:
     """``--workspace``, ``'continuous'`` when not given."""
     return "continuous" if args.workspace is None else args.workspace
+
+
+def add_time_limit(parser):
+    """``--time-limit``: wall seconds the continuous workspace's certification may take."""
+    return _shared(parser.add_argument(
+        "--time-limit", type=positive_float, default=None, metavar="S",
+        help="stop the certification over the continuous workspace after S seconds (or at "
+             "Ctrl-C) with the best allocation so far, written and marked not certified; "
+             "exit code 3 (default: no limit)"), "add_time_limit")
+
+
+def add_quiet(parser):
+    """``--quiet``: no progress lines on stderr."""
+    return _shared(parser.add_argument(
+        "--quiet", action="store_true",
+        help="no progress lines or bars on stderr (results, warnings and errors are still "
+             "printed)"), "add_quiet")
+
+
+def loop_limits(args, chosen: str) -> dict:
+    """The continuous loop's keyword for ``--time-limit`` (``time_limit``; none when not
+    given, so the loop keeps its default of no limit); refused before any work with the
+    ``chosen`` workspace ``'grid'``, which has no certification to stop."""
+    if args.time_limit is None:
+        return {}
+    if chosen != "continuous":
+        raise InputError(f"--time-limit {args.time_limit:g} bounds the certification over "
+                         f"the continuous workspace; --workspace {chosen} has none to stop "
+                         f"(leave out --time-limit)")
+    return {"time_limit": args.time_limit}
+
+
+#: Exit code of a run whose certification over the continuous workspace was stopped by
+#: ``--time-limit`` or Ctrl-C: its outputs are written, marked not certified, with the reason
+#: (bad input is 2, :data:`studies.cli.program.USAGE_ERROR`).
+STOPPED = 3
+#: What the continuous loop's reason says when it was stopped before its certificate closed:
+#: "not certified to rtol: stopped by the time limit after S s" or "… interrupted after S s"
+#: (Ctrl-C).
+STOPPED_WORDS = ("stopped by the time limit", "interrupted after")
+
+
+def stopped_early(continuous) -> bool:
+    """Whether the continuous loop stopped before its certificate closed because of the time
+    limit or Ctrl-C (its ``reason``, :data:`STOPPED_WORDS`); false for a certified result."""
+    return not continuous.certified and any(words in continuous.reason
+                                            for words in STOPPED_WORDS)
+
+
+def stop_code(continuous) -> int:
+    """The exit code after the outputs of a continuous allocation are written: 0, or
+    :data:`STOPPED` with a line on stderr when its certification was
+    stopped by ``--time-limit`` or Ctrl-C (:func:`stopped_early`); None (no continuous
+    loop ran): 0."""
+    if continuous is None or not stopped_early(continuous):
+        return 0
+    print(f"precrel: certification stopped ({continuous.reason}); the best allocation so "
+          f"far is written, marked not certified (exit code {STOPPED})", file=sys.stderr)
+    return STOPPED
 
 
 def add_executor(parser) -> None:
@@ -534,7 +594,7 @@ def progress_bar(total: int, description: str):
     """A tqdm progress bar on stderr, hidden when stderr is not a terminal."""
     from tqdm import tqdm
     return tqdm(total=total, desc=description, file=sys.stderr, leave=False,
-                disable=None)
+                disable=None if _SHOWN.get() else True)
 
 
 def print_warnings(texts) -> None:
@@ -543,9 +603,25 @@ def print_warnings(texts) -> None:
         print(f"warning: {text}", file=sys.stderr, flush=True)
 
 
+#: Whether progress lines and bars are shown (``--quiet``: not); see :func:`progress_shown`.
+_SHOWN = contextvars.ContextVar("progress_shown", default=True)
+
+
+@contextlib.contextmanager
+def progress_shown(shown: bool):
+    """While the context runs, :func:`say` and :func:`progress_bar` print (``shown``) or
+    keep silent (``--quiet``)."""
+    token = _SHOWN.set(bool(shown))
+    try:
+        yield
+    finally:
+        _SHOWN.reset(token)
+
+
 def say(text: str) -> None:
-    """A progress line on stderr."""
-    print(text, file=sys.stderr, flush=True)
+    """A progress line on stderr (none under ``--quiet``)."""
+    if _SHOWN.get():
+        print(text, file=sys.stderr, flush=True)
 
 
 #: Workers of a local Dask cluster when ``--workers`` is not given.

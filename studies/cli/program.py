@@ -2,8 +2,10 @@
 
 Each subcommand is a module ``studies.cli.<name>`` with ``add_parser(subparsers)``
 (registers the command, its options and help) and ``run(args) -> int`` (the exit code).
-Results go to stdout, progress to stderr. Bad input and the toolkit's own errors end the
-program with one line ``precrel: error: ...`` on stderr and exit code 2.
+Results go to stdout, progress to stderr (none with ``--quiet``). Bad input and the
+toolkit's own errors end the program with one line ``precrel: error: ...`` on stderr and
+exit code 2; a certification stopped by ``--time-limit`` or Ctrl-C, with its outputs
+written, exits with :data:`studies.cli.options.STOPPED` (3).
 """
 
 from __future__ import annotations
@@ -73,8 +75,11 @@ def main(argv=None) -> int:
         args = build_parser().parse_args(argv)
     except SystemExit as exit_:  # --help, or a usage error already printed
         return int(exit_.code or 0)
+    from . import options
+
     try:
-        with threadpool_limits(limits=1):
+        with threadpool_limits(limits=1), \
+                options.progress_shown(not getattr(args, "quiet", False)):
             return int(args.run(args))
     except _toolkit_errors() as exc:
         print(f"{PROG}: error: {_one_line(exc, args)}", file=sys.stderr)

@@ -31,7 +31,10 @@ def add_parser(subparsers):
                     "figures, report.md, a self-contained report.html, summary.json and "
                     "allocation.csv in DIR. An optional section that cannot be computed "
                     "(e.g. a catalogue that cannot meet the targets) says why in its place; "
-                    "the report is still written and the command exits 0.")
+                    "the report is still written and the command exits 0. --time-limit S stops "
+                    "the certification over the continuous workspace after S seconds (or "
+                    "at Ctrl-C): the report is written with the best allocation so far, "
+                    "not certified, and the command exits 3.")
     options.add_machine(parser)
     options.add_out(parser, "folder", "folder of the report (report.md, report.html, "
                                       "summary.json, allocation.csv, "
@@ -44,6 +47,7 @@ def add_parser(subparsers):
     options.add_side(parser)
     options.add_bounds(parser)
     options.add_workspace(parser)
+    options.add_time_limit(parser)
     parser.add_argument("--skip", nargs="+", default=(), choices=EXTRAS, metavar="SECTION",
                         help="leave out optional sections: " + ", ".join(EXTRAS)
                              + " (default: include all)")
@@ -61,6 +65,7 @@ def add_parser(subparsers):
                              "every item at the optimal (else the initial) allocation")
     options.add_as_measured(parser)
     options.add_overwrite(parser)
+    options.add_quiet(parser)
     compensate.add_report_option(parser)
     return parser
 
@@ -69,6 +74,7 @@ def run(args) -> int:
     bounds = options.check_bounds(args.bounds)
     if args.tolerances is not None and args.catalogue is None:
         raise InputError("--tolerances is used with --catalogue only")
+    limits = options.loop_limits(args, options.workspace(args))
     out = options.destination(args.out, args.overwrite, folder=True, markers=REPORT_MARKERS)
     machine = options.machine(args)
     tests = None if args.tests is None else options.read_tests(args.tests, machine)
@@ -113,7 +119,7 @@ def run(args) -> int:
                               rng=args.seed, repeats=args.repeats, samples=args.samples,
                               progress=options.say, bar=options.progress_bar,
                               machines=args.machines, workspace=options.workspace(args),
-                              rtol=args.rtol)
+                              rtol=args.rtol, **limits)
     options.say("optional sections: " + (", ".join(included) or "none"))
     sections = machine_sections.sections(study, extra=extra)
     missing = not_computed(sections)
@@ -126,7 +132,9 @@ def run(args) -> int:
     for name, reason in missing.items():
         print(f"\nsection {TITLES[name]!r} not computed: {reason}")
     print(f"\n{len(written)} files written to {out}/ (open report.html)")
-    return 0  # a report whose targets are out of reach is still a complete answer
+    # a report whose targets are out of reach is still a complete answer (0); one whose
+    # certification was stopped is written but not certified (STOPPED)
+    return options.stop_code(study.continuous)
 
 
 def _check_suggest(probability: float, tests) -> None:

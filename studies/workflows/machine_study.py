@@ -25,6 +25,7 @@ from allocation.per_pose.continuous import DEFAULT_RTOL, WORKSPACE_CHOICES, chec
     solve_continuous
 from allocation.per_pose.result_files import gap_bound, written_tolerances
 from reliability.basics import checks as input_checks
+from reliability.basics.errors import InputError
 from reliability.basics.renamed import renamed
 from reliability.basics.streams import integer_seed
 from reliability.first_order.fosm import fosm
@@ -99,7 +100,7 @@ class MachineStudy:
 def run(machine, *, points: int = 5, side: str = "two_sided", bounds=None,
         rng: int | None = 0, repeats: int = 20, samples: int = 20_000, progress=None,
         bar=None, machines: int = DEFAULT_MACHINES, workspace: str = "continuous",
-        rtol: float = DEFAULT_RTOL) -> MachineStudy:
+        rtol: float = DEFAULT_RTOL, time_limit: float | None = None) -> MachineStudy:
     """Run the study of ``machine``.
 
     Parameters
@@ -141,12 +142,20 @@ def run(machine, *, points: int = 5, side: str = "two_sided", bounds=None,
         switches to the grid silently.
     rtol : float
         Relative tolerance in σ of the continuous workspace's certificate.
+    time_limit : float, optional
+        Seconds the continuous workspace's loop may take
+        (:func:`allocation.per_pose.continuous.solve_continuous`'s ``time_limit``): past
+        them, or at Ctrl-C, it stops with the best allocation so far, not certified, and
+        the study goes on with it. None: no limit. Refused (InputError) with the grid.
 
     When no allocation inside the bounds meets the targets the study still runs for the
     initial allocation: ``optimum`` and ``optimal_fosm`` are None and ``unreachable``
     holds the :class:`allocation.TargetUnreachableError` (what blocks, where).
     """
     input_checks.choice(workspace, "workspace", WORKSPACE_CHOICES)
+    if time_limit is not None and workspace != "continuous":
+        raise InputError(f"time_limit: bounds the loop of the continuous workspace; "
+                         f"workspace {workspace!r} has none (expected None)")
     seed = integer_seed(rng)
     if workspace == "continuous":
         check_continuous(machine, side)
@@ -161,8 +170,10 @@ def run(machine, *, points: int = 5, side: str = "two_sided", bounds=None,
     optimum = optimal = unreachable = continuous = None
     try:
         if workspace == "continuous":
+            limits = {} if time_limit is None else {"time_limit": time_limit}
             continuous = solve_continuous(problem, rtol=rtol,
-                                          progress=lambda text: progress(f"  {text}"))
+                                          progress=lambda text: progress(f"  {text}"),
+                                          **limits)
             optimum = continuous.result
         else:
             optimum = problem.solve_exact()
