@@ -30,10 +30,11 @@ from reliability.model.iso_names import plain_names
 from reliability.model.machine import OUTPUTS
 from studies.workflows.machine_study import UNCHANGED, MachineStudy, summary
 
-from . import plots
+from . import glance, plots
 from .markdown import (interval_formats, markdown_table, percent_bound,
                        significant_bound)
 from .section import Section
+from .writer import merged_summary
 from .yield_section import yield_section, yield_sentence
 
 PERCENT = "{:.3%}".format
@@ -44,65 +45,108 @@ ADVICE_SHOWN = 10
 
 
 def answers(study: MachineStudy) -> str:
-    """The designer's questions answered in a few markdown bullets."""
-    machine, side = study.machine, study.side
-    reading = f"{side.replace('_', '-')} probability, worst case over the " \
-              f"{study.points}-point grid of {len(study.problem.poses)} poses"
-    worst = study.initial_fosm.worst(side)
-    short = [f"{o} {PERCENT(p)} < {100 * t:g} %" for o, p, t in zip(OUTPUTS, worst, machine.targets)
-             if p < t]
-    meets = ("**yes**: every output meets its target" if not short else
-             f"**no**: {'; '.join(short)}")
-    frame = ("tool frame (Eq. 18, turning with the rotary axes)"
-             if machine.frame == "tool" else "workpiece frame (δ_w = R δ_t, ε_w = R ε_t)")
-    choices = (f"Choices behind every number below: outputs in the {frame}; a "
-               f"tolerance t read as {_reading(machine.distribution)} by FOSM and the "
-               f"allocation (distribution '{machine.distribution}') and drawn as "
+    """The designer's questions answered in a few markdown bullets (what ``precrel report``
+    prints; the report's first section is :func:`answers_section`)."""
+    choices = (f"Choices behind every number below: outputs in the {_frame_text(study)}; a "
+               f"tolerance t read as {_reading(study.machine.distribution)} by FOSM and the "
+               f"allocation (distribution '{study.machine.distribution}') and drawn as "
                f"{_reading(next(iter(study.checks.values())).distribution)} by the "
-               f"Monte-Carlo; {reading}; workspace: the optimum's targets hold "
+               f"Monte-Carlo; {_grid_reading(study)}; workspace: the optimum's targets hold "
                f"{study.workspace_text()}; {box_text(study)}; cost Eq. 28, "
                f"{cost_units_text(study.problem.cost)}.\n")
+    meets = f"- Does the initial allocation meet the targets? {meets_text(study)}."
     if not study.reachable:
-        return "\n".join([choices, yield_sentence(study),
-                          f"- Does the initial allocation meet the targets? {meets}.",
-                          unreachable_text(study)])
+        return "\n".join([choices, yield_sentence(study), meets, unreachable_text(study)])
+    tighten, relax = advice(study, study.optimum.nearly_free())
+    before, after = _advice_notes(study, tighten + relax)
+    return "\n".join([choices, yield_sentence(study), meets, f"- {cost_sentence(study)}",
+                      *before, f"- Tighten: {tighten or 'none'}.",
+                      f"- May be relaxed: {relax or 'none'}.", *after])
+
+
+def answers_section(study: MachineStudy, later) -> Section:
+    """The report's first screen (:mod:`studies.report.glance`): the answers as a table of
+    numbers beside the outputs figure, the advice as tables, the modelling choices with
+    links to the ``later`` sections, whose summary entries the table reads too."""
+    info = summary(study)
+    rows = glance.glance_rows(study, merged_summary(info, later), meets_text(study))
+    choices = glance.choices_text(study, _frame_text(study),
+                                  _reading(study.machine.distribution),
+                                  box_text(study), cost_units_text(study.problem.cost))
+    if not study.reachable:
+        return glance.answers_section(study, rows, unreachable_text(study)[2:], "",
+                                      choices, info)
+    free = study.optimum.nearly_free()
+    tighten, relax, rates, ratios, groups = _advice_orders(study, free)
+    table = tolerance_table(study.machine, study.problem.reference,
+                            study.optimum.tolerances).set_index("error")
+    tables = [glance.advice_table(table, order, rates, ratios, groups, ADVICE_SHOWN)
+              for order in (tighten, relax)]
+    before, after = _advice_notes(study, " ".join(
+        " ".join(frame["item"]) for frame in tables))
+    notes = "\n".join([f"- {cost_sentence(study)}", *before, *after])
+    return glance.answers_section(
+        study, rows, glance.advice_text(*tables, (len(tighten), len(relax))), notes,
+        choices, info)
+
+
+def meets_text(study: MachineStudy) -> str:
+    """Whether the initial allocation meets the targets: ``**yes**: every output meets its
+    target``, or ``**no**: dx 98.680% < 99 %; …``."""
+    worst = study.initial_fosm.worst(study.side)
+    short = [f"{o} {PERCENT(p)} < {100 * t:g} %"
+             for o, p, t in zip(OUTPUTS, worst, study.machine.targets) if p < t]
+    return ("**yes**: every output meets its target" if not short else
+            f"**no**: {'; '.join(short)}")
+
+
+def cost_sentence(study: MachineStudy) -> str:
+    """What the cheapest allocation in the box costs, and its certificate."""
     info = summary(study)
     certified = "certified optimal" if info["certified"] else "NOT certified"
+    return (f"The cheapest allocation meeting them within the box costs "
+            f"**{info['relative_cost']:.2%}** of the initial allocation ({certified}, "
+            f"relative duality gap {gap_text(study.optimum.certificate['relative_gap'])}).")
+
+
+def _frame_text(study: MachineStudy) -> str:
+    return ("tool frame (Eq. 18, turning with the rotary axes)"
+            if study.machine.frame == "tool" else "workpiece frame (δ_w = R δ_t, ε_w = R ε_t)")
+
+
+def _grid_reading(study: MachineStudy) -> str:
+    return (f"{study.side.replace('_', '-')} probability, worst case over the "
+            f"{study.points}-point grid of {len(study.problem.poses)} poses")
+
+
+def _advice_notes(study: MachineStudy, advised: str) -> tuple[list[str], list[str]]:
+    """The bullets before the advice (the Monte-Carlo verdict, the nearly free items) and
+    after it (how the advice is ranked and, when ``advised`` names a group, what a group
+    is)."""
+    machine, free = study.machine, study.optimum.nearly_free()
     mc = study.checks["optimum"].worst_poses
     below = mc[mc["mc_upper"] < machine.targets]
     verdict = ("every output's Monte-Carlo interval at its worst pose reaches its target"
                if below.empty else
                "Monte-Carlo at the worst pose is significantly below target for "
                + ", ".join(below["output"]))
-    free = study.optimum.nearly_free()
-    tighten, relax = advice(study, free)
-    group_note = ("- A group is a set of errors that cannot be told apart (the allocation "
-                  "section's table): only their summed variance matters, so none of them can "
-                  "be changed alone; the cost decides how the group's variance is shared."
-                  if GROUP_WORD in tighten + relax else "")
-    free_note = (f"- {len(free)} items sit at a bound carrying under 0.1 % of the cost each "
-                 f"(nearly free with t in {' and '.join(study.problem.cost.units or ('mm', 'rad'))}"
-                 f" inside the cost): their tolerance is "
-                 f"decided by the box, not by cost, so they are left out of the advice "
-                 f"below." if free else "")
-    return "\n".join([
-        choices,
-        yield_sentence(study),
-        f"- Does the initial allocation meet the targets? {meets}.",
-        f"- The cheapest allocation meeting them within the box costs "
-        f"**{info['relative_cost']:.2%}** of the "
-        f"initial allocation ({certified}, relative duality gap "
-        f"{gap_text(study.optimum.certificate['relative_gap'])}).",
-        f"- Monte-Carlo of that allocation ({info['samples']} samples at each output's "
-        f"{_sampled_pose(study)}, Wilson 95 %): {verdict}; "
-        + ", ".join(f"{row.output} {PERCENT(row.mc_estimate)}" for row in mc.itertuples())
-        + ".",
-        *([free_note] if free_note else []),
-        f"- Tighten: {tighten or 'none'}.",
-        f"- May be relaxed: {relax or 'none'}.",
-        RANKING_NOTE,
-        *([group_note] if group_note else []),
-    ])
+    notes = [f"- Monte-Carlo of that allocation ({summary(study)['samples']} samples at each "
+             f"output's {_sampled_pose(study)}, Wilson 95 %): {verdict}; "
+             + ", ".join(f"{row.output} {PERCENT(row.mc_estimate)}"
+                         for row in mc.itertuples()) + "."]
+    if free:
+        notes.append(
+            f"- {len(free)} items sit at a bound carrying under 0.1 % of the cost each "
+            f"(nearly free with t in {' and '.join(study.problem.cost.units or ('mm', 'rad'))}"
+            f" inside the cost): their tolerance is decided by the box, not by cost, so "
+            f"they are left out of the advice below.")
+    after = [RANKING_NOTE]
+    if GROUP_WORD in advised:
+        after.append("- A group is a set of errors that cannot be told apart (the allocation "
+                     "section's table): only their summed variance matters, so none of them "
+                     "can be changed alone; the cost decides how the group's variance is "
+                     "shared.")
+    return notes, after
 
 
 RANKING_NOTE = (
@@ -165,12 +209,19 @@ def advice(study: MachineStudy, free=(), n: int = ADVICE_SHOWN) -> tuple[str, st
     cost), relaxing smallest first (the most cost saved per unit of failure probability
     added); the first ``n`` of each are shown.
     """
+    tighten, relax, rates, ratios, groups = _advice_orders(study, free)
+    return (_changes_text(study, tighten, rates, ratios, groups, n),
+            _changes_text(study, relax, rates, ratios, groups, n))
+
+
+def _advice_orders(study: MachineStudy, free) -> tuple:
+    """The tighten and the relax entries in rank order (see :func:`advice`), with every
+    entry's relative change, :func:`buy_ratios` and the groups by name."""
     rates, groups = _advice_rates(study, free)
     ratios = buy_ratios(study, groups).reindex(rates.index)
     tighten = ratios[rates < -UNCHANGED].sort_values(ascending=False, kind="stable")
     relax = ratios[rates > UNCHANGED].sort_values(kind="stable")
-    return (_changes_text(study, tighten.index, rates, ratios, groups, n),
-            _changes_text(study, relax.index, rates, ratios, groups, n))
+    return tighten.index, relax.index, rates, ratios, groups
 
 
 def buy_ratios(study: MachineStudy, groups: dict) -> pd.Series:
@@ -288,10 +339,9 @@ def sections(study: MachineStudy, extra=()) -> list[Section]:
     """
     allocation = allocation_section(study) if study.reachable else unreachable_section(study)
     workspace = [workspace_section(study)] if study.continuous is not None else []
-    return [Section("Answers", answers(study), summary=summary(study)),
-            yield_section(study), machine_section(study), fosm_section(study), allocation,
-            *workspace,
-            verification_section(study), *(make(study) for make in extra)]
+    later = [yield_section(study), machine_section(study), fosm_section(study), allocation,
+             *workspace, verification_section(study), *(make(study) for make in extra)]
+    return [answers_section(study, later), *later]
 
 
 def workspace_section(study: MachineStudy) -> Section:
