@@ -63,8 +63,11 @@ LAYOUT_SCRIPT = (
     "  if (e.scrollWidth > e.clientWidth + 1 || r.right > window.innerWidth + 0.5"
     "      || r.left < -0.5) cut.push(e.tagName + ': ' + e.textContent.slice(0, 60));"
     " });"
+    " var img = document.querySelector('img');"
+    " var pic = img ? img.getBoundingClientRect() : null;"
     " var out = {window: [window.innerWidth, window.innerHeight],"
-    "  table: box ? [box.left, box.top, box.right, box.bottom] : null, cut: cut};"
+    "  table: box ? [box.left, box.top, box.right, box.bottom] : null,"
+    "  figure: pic ? [pic.left, pic.top, pic.right, pic.bottom] : null, cut: cut};"
     f' document.documentElement.setAttribute("{LAYOUT_ATTRIBUTE}", JSON.stringify(out));'
     "});</script>")
 
@@ -132,8 +135,8 @@ def page_height(html_path, width: int = 1200, *, browser: str | None = None,
 def first_screen_layout(html_path, width: int = 1400, height: int = 900, *,
                         browser: str | None = None, timeout: float = 120.0) -> dict:
     """How the first screen of ``html_path`` lays out in a ``width`` × ``height`` window:
-    ``window`` (its inner size), ``table`` (the page's first table as [left, top, right,
-    bottom] in pixels, None without one) and ``cut`` (the elements on the first screen whose
+    ``window`` (its inner size), ``table`` and ``figure`` (the page's first table and
+    first image as [left, top, right, bottom] in pixels, None without one) and ``cut`` (the elements on the first screen whose
     content is wider than their box or that pass the window's edges, each as ``"TAG:
     text"``), measured by :data:`LAYOUT_SCRIPT` in a copy of the page, as
     :func:`page_height` measures the height.

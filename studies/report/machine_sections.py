@@ -31,7 +31,7 @@ from reliability.model.machine import OUTPUTS
 from studies.workflows.machine_study import UNCHANGED, MachineStudy, summary
 
 from . import glance, plots
-from .markdown import (interval_formats, markdown_table, percent_bound,
+from .markdown import (details, interval_formats, markdown_table, percent_bound,
                        significant_bound)
 from .section import Section
 from .writer import merged_summary
@@ -462,29 +462,32 @@ def allocation_section(study: MachineStudy) -> Section:
     for column in requirements.columns[requirements.columns.str.startswith("dlncost/")]:
         requirements[column] = as_written(requirements[column], MULTIPLIER_DIGITS)
     info = summary(study)
-    text = (f"The cheapest allocation (cost model Eq. 28, k1 = k2 = k3 = 1) meeting every "
-            f"target at every grid pose (Eq. 34), tolerances within the box "
-            f"({box_text(study)}). Cost {optimum.cost:.6g} against "
-            f"{info['initial_cost']:.6g} initially ({info['relative_cost']:.2%}); "
-            f"{'certified' if info['certified'] else 'not certified'} optimum, relative "
-            f"duality gap {gap_text(optimum.certificate['relative_gap'])}.\n\n"
-            f"Which requirements bind, and what they cost: `dlncost/dln_limit` is the "
-            f"relative cost change per relative change of the limit (from the Lagrange "
-            f"multipliers; {MULTIPLIER_DIGITS} significant digits, what the dual solve "
-            f"fixes), `dlncost/dln_target` the same for the target probability. Where "
-            f"outputs bind together (equal or dependent constraint gradients, e.g. at "
-            f"symmetric poses) only "
-            f"their joint change is determined: such an output shows the cost's change when "
-            f"its limit alone is relaxed and when it is tightened, `bound_with` names the "
-            f"group and `dlncost/dln_group_limit` gives relaxing the group's limits together "
-            f"(docs/non-unique.md; all in `requirements_elasticity.csv`).\n\n"
-            f"{markdown_table(requirement_text(optimum).reset_index(), index=False)}\n\n"
-            f"Allocation in the machine file's units (`change` = allocated / initial − 1; "
-            f"`status` says which bound holds; `allocation.csv` and `allocation_detail.csv` "
-            f"hold mm and rad):\n\n"
-            f"{markdown_table(people, index=False)}"
-            f"\n\n{cost_text(study)}\n\n{drawing_text(study)}\n\n"
-            f"{groups_text(machine, groups)}")
+    method = (f"The cheapest allocation (cost model Eq. 28, k1 = k2 = k3 = 1) meeting every "
+              f"target at every grid pose (Eq. 34), tolerances within the box "
+              f"({box_text(study)}). Cost {optimum.cost:.6g} against "
+              f"{info['initial_cost']:.6g} initially; relative duality gap "
+              f"{gap_text(optimum.certificate['relative_gap'])}.\n\n"
+              f"`dlncost/dln_limit` is the "
+              f"relative cost change per relative change of the limit (from the Lagrange "
+              f"multipliers; {MULTIPLIER_DIGITS} significant digits, what the dual solve "
+              f"fixes), `dlncost/dln_target` the same for the target probability. Where "
+              f"outputs bind together (equal or dependent constraint gradients, e.g. at "
+              f"symmetric poses) only "
+              f"their joint change is determined: such an output shows the cost's change "
+              f"when its limit alone is relaxed and when it is tightened, `bound_with` names "
+              f"the group and `dlncost/dln_group_limit` gives relaxing the group's limits "
+              f"together (docs/non-unique.md; all in `requirements_elasticity.csv`).")
+    text = "\n\n".join([
+        cost_sentence(study).replace("The cheapest allocation meeting them",
+                                     "The cheapest allocation meeting the targets"),
+        f"Allocation in the machine file's units (`change` = allocated / initial − 1; "
+        f"`status` says which bound holds; `allocation.csv` and `allocation_detail.csv` "
+        f"hold mm and rad):", markdown_table(people, index=False),
+        "Which requirements bind, and what they cost:",
+        markdown_table(requirement_text(optimum).reset_index(), index=False),
+        details("How the allocation is found and what the columns mean", method),
+        cost_text(study), drawing_text(study),
+        details("Errors that cannot be told apart", groups_text(machine, groups))])
     figures = {}
     n_motion = 6 * len(machine.axes)
     shown = {"initial": study.problem.reference, "certified optimum": study.allocated}

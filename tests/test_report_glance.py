@@ -1,0 +1,89 @@
+"""The report's first screen in headless Chromium: the summary table is seen without
+scrolling at 1400 × 900, the figure stands beside it, nothing on it is cut, and the figures
+keep their labels inside the picture; for the paper's machine with acceptance tests and for
+swivel5 with acceptance tests and its measurements."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+from matplotlib import image
+
+from studies import cli
+from studies.benchmarks.screenshot import find_browser, first_screen_layout
+
+ROOT = Path(__file__).resolve().parents[1]
+SWIVEL = ROOT / "tests" / "machines" / "swivel5.toml"
+#: Small reports: the layout, not the numbers, is under test.
+SMALL = ["--repeats", "2", "--samples", "200", "--machines", "50", "--skip", "front",
+         "system", "rare", "profiles", "--seed", "3"]
+REPORTS = {
+    "paper": [str(ROOT / "reliability" / "machines" / "hobbing.toml"), "--points", "2",
+              "--tests", str(ROOT / "docs" / "examples" / "paper_tests.toml")],
+    "swivel5": [str(SWIVEL), "--points", "3", "--tests",
+                str(ROOT / "tests" / "acceptance_tests" / "swivel5.toml")],
+}
+
+pytestmark = pytest.mark.skipif(find_browser() is None, reason="no headless Chromium installed")
+
+
+@pytest.fixture(scope="module")
+def reports(tmp_path_factory):
+    """The two reports' folders; swivel5's measured by ``precrel measure`` first."""
+    where = tmp_path_factory.mktemp("glance")
+    readings = where / "meas.csv"
+    assert cli.main(["measure", str(SWIVEL), "--plan",
+                     str(ROOT / "docs" / "examples" / "swivel5_acceptance_plan.toml"),
+                     "--out", str(readings), "--seed", "3"]) == 0
+    extra = {"paper": [], "swivel5": ["--measurements", str(readings)]}
+    folders = {}
+    for name, arguments in REPORTS.items():
+        folders[name] = where / name
+        assert cli.main(["report", *arguments, *extra[name], *SMALL, "--out",
+                         str(folders[name])]) == 0
+    return folders
+
+
+@pytest.mark.parametrize("name", list(REPORTS))
+def test_summary_table_is_on_the_first_screen_and_nothing_is_cut(reports, name):
+    layout = first_screen_layout(reports[name] / "report.html", 1400, 900)
+    width, height = layout["window"]
+    left, top, right, bottom = layout["table"]
+    assert bottom <= height and right <= width and left >= 0
+    assert layout["cut"] == []
+    # the figure stands beside the table, not under it
+    figure = layout["figure"]
+    assert figure[0] >= right and figure[1] < bottom and figure[2] <= width
+
+
+@pytest.mark.parametrize("name, questions", [
+    ("paper", ["Acceptance tests all passed, initial allocation",
+               "Acceptance tests all passed, certified optimum"]),
+    ("swivel5", ["This machine as measured: every limit at every pose",
+                 "Acceptance runs as measured"])])
+def test_first_screen_answers_in_numbers(reports, name, questions):
+    markdown = (reports[name] / "report.md").read_text()
+    first = markdown[markdown.index("## Answers"):markdown.index("**Tighten**")]
+    rows = [line.split(" | ")[0].lstrip("| ") for line in first.splitlines()
+            if line.startswith("| ") and not line.startswith("| ---")]
+    assert rows[:5] == ["question", "Machine yield, initial allocation",
+                        "Machine yield, certified optimum",
+                        "Cost of the certified optimum against the initial",
+                        "Does the initial allocation meet the targets?"]
+    assert set(questions) <= set(rows)
+    summary = json.loads((reports[name] / "summary.json").read_text())
+    for key in ("yield", "relative_cost", "initial_meets_targets", "acceptance"):
+        assert key in summary  # the keys stay; the table only reads them
+
+
+@pytest.mark.parametrize("name", list(REPORTS))
+@pytest.mark.parametrize("figure", ["answers_outputs.png", "failure_shares.png"])
+def test_figure_labels_stay_inside_the_picture(reports, name, figure):
+    """A label cut by the picture's edge leaves ink on its outermost pixels."""
+    pixels = image.imread(reports[name] / figure)[..., :3]
+    ring = np.concatenate([pixels[:2].reshape(-1, 3), pixels[-2:].reshape(-1, 3),
+                           pixels[:, :2].reshape(-1, 3), pixels[:, -2:].reshape(-1, 3)])
+    assert np.all(ring > 0.95)
