@@ -147,7 +147,8 @@ def advice_text(tighten: pd.DataFrame, relax: pd.DataFrame, counts: tuple[int, i
     for heading, frame, count, what in (
             ("Tighten", tighten, counts[0], "failure probability removed"),
             ("May be relaxed", relax, counts[1], "failure probability added")):
-        more = f"; {count - len(frame)} more in the CSV" if count > len(frame) else ""
+        more = (f"; {count - len(frame)} more: every item in the allocation section"
+                if count > len(frame) else "")
         if len(frame):
             parts.append(f"**{heading}** (ranked; last column: {what} per 1 % of the "
                          f"initial cost{more}):\n\n{markdown_table(frame, index=False)}")

@@ -200,7 +200,7 @@ STYLE = ("body{font-family:sans-serif;max-width:1300px;margin:1em auto;padding:0
          "code{background:#f3f3f3;padding:0 3px}details{margin:.6em 0}"
          "summary{cursor:pointer;color:#245}"
          ".glance{display:flex;flex-wrap:wrap;gap:0 1.5em;align-items:flex-start}"
-         ".glance table{margin-top:0;max-width:720px}.glance td{text-align:left}"
+         ".glance table{margin-top:0;max-width:720px}.glance td,.glance th{text-align:left}"
          ".glance td:first-child{white-space:nowrap}"
          ".glance img{max-width:500px;margin-top:0}")
 
