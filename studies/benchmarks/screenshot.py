@@ -136,9 +136,9 @@ def first_screen_layout(html_path, width: int = 1400, height: int = 900, *,
                         browser: str | None = None, timeout: float = 120.0) -> dict:
     """How the first screen of ``html_path`` lays out in a ``width`` × ``height`` window:
     ``window`` (its inner size), ``table`` and ``figure`` (the page's first table and
-    first image as [left, top, right, bottom] in pixels, None without one) and ``cut`` (the elements on the first screen whose
-    content is wider than their box or that pass the window's edges, each as ``"TAG:
-    text"``), measured by :data:`LAYOUT_SCRIPT` in a copy of the page, as
+    first image as [left, top, right, bottom] in pixels, None without one) and ``cut``
+    (the elements on the first screen whose content is wider than their box or that pass
+    the window's edges, each as ``"TAG: text"``), measured by :data:`LAYOUT_SCRIPT` in a copy of the page, as
     :func:`page_height` measures the height.
 
     Raises
