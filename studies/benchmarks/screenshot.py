@@ -138,8 +138,8 @@ def first_screen_layout(html_path, width: int = 1400, height: int = 900, *,
     ``window`` (its inner size), ``table`` and ``figure`` (the page's first table and
     first image as [left, top, right, bottom] in pixels, None without one) and ``cut``
     (the elements on the first screen whose content is wider than their box or that pass
-    the window's edges, each as ``"TAG: text"``), measured by :data:`LAYOUT_SCRIPT` in a copy of the page, as
-    :func:`page_height` measures the height.
+    the window's edges, each as ``"TAG: text"``), measured by :data:`LAYOUT_SCRIPT` in a
+    copy of the page, as :func:`page_height` measures the height.
 
     Raises
     ------
