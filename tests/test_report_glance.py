@@ -9,9 +9,11 @@ import json
 from pathlib import Path
 
 import numpy as np
+import pandas as pd
 import pytest
 from matplotlib import image
 
+import reliability
 from studies import cli
 from studies.benchmarks.screenshot import find_browser, first_screen_layout
 
@@ -27,7 +29,9 @@ REPORTS = {
                 str(ROOT / "tests" / "acceptance_tests" / "swivel5.toml")],
 }
 
-pytestmark = pytest.mark.skipif(find_browser() is None, reason="no headless Chromium installed")
+#: CI sets PRECREL_REQUIRE_BROWSER=1, where tests/test_screenshot.py fails without a browser.
+needs_browser = pytest.mark.skipif(find_browser() is None,
+                                   reason="no headless Chromium installed")
 
 
 @pytest.fixture(scope="module")
@@ -47,6 +51,7 @@ def reports(tmp_path_factory):
     return folders
 
 
+@needs_browser
 @pytest.mark.parametrize("name", list(REPORTS))
 def test_summary_table_is_on_the_first_screen_and_nothing_is_cut(reports, name):
     layout = first_screen_layout(reports[name] / "report.html", 1400, 900)
@@ -87,3 +92,30 @@ def test_figure_labels_stay_inside_the_picture(reports, name, figure):
     ring = np.concatenate([pixels[:2].reshape(-1, 3), pixels[-2:].reshape(-1, 3),
                            pixels[:, :2].reshape(-1, 3), pixels[:, -2:].reshape(-1, 3)])
     assert np.all(ring > 0.95)
+
+
+def test_report_of_a_given_allocation(tmp_path):
+    """``report --tolerances a.csv`` studies that allocation beside the initial one and
+    seeks none: a supplier's list of the initial tolerances × 0.8 costs 1/0.8² of the
+    initial allocation (Eq. 28, w/t²), and the summary says it is the given one."""
+    mill = ROOT / "tests" / "machines" / "mill3.toml"
+    machine = reliability.load_machine(mill)
+    supplier = tmp_path / "supplier.csv"
+    pd.DataFrame({"error": machine.error_names,
+                  "allocated": 0.8 * machine.initial_allocation}).to_csv(supplier, index=False)
+    out = tmp_path / "report"
+    assert cli.main(["report", str(mill), "--points", "3", "--tolerances", str(supplier),
+                     "--out", str(out), *SMALL]) == 0
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["allocation"] == "given" and str(supplier) in summary["given_source"]
+    assert summary["given_relative_cost"] == pytest.approx(1 / 0.8 ** 2, rel=1e-5)
+    assert summary["reachable"] is None and summary["optimal_cost"] is None
+    assert summary["yield"]["optimal"] is None and 0 < summary["yield"]["given"] <= 1
+    assert not (out / "allocation.csv").exists()
+    given = pd.read_csv(out / "given_allocation.csv")
+    np.testing.assert_allclose(given["allocated"], 0.8 * machine.initial_allocation,
+                               rtol=1e-5)
+    markdown = (out / "report.md").read_text()
+    assert "## Given allocation" in markdown and "## Cheapest certified allocation" not in \
+        markdown
+    assert "| Cost of the given allocation against the initial | **156.25%** |" in markdown

@@ -41,11 +41,12 @@ def as_measured_builder(identification, tests=None, *, source: str):
 
 
 def prior_allocation(study, identification) -> str | None:
-    """The study's allocation (``initial`` or ``optimum``) the identification's prior σ is
-    a third of, or None."""
+    """The study's allocation (``initial``, ``optimum`` or ``given``) the identification's
+    prior σ is a third of, or None."""
     shown = {"initial": study.machine.initial_allocation}
-    if study.reachable:
-        shown["optimum"] = study.allocated
+    if study.compared is not None:
+        name, tolerances = study.compared
+        shown[name] = tolerances
     prior = 3.0 * identification.coefficients.prior_sd
     for label, tolerances in shown.items():
         if prior.shape == np.shape(tolerances) and np.allclose(prior, tolerances, rtol=1e-5,

@@ -28,7 +28,7 @@ from .section import Section
 TITLE = "Answers"
 FIGURE = "answers_outputs.png"
 LABELS = {"initial": "initial allocation", "optimum": "certified optimum",
-          "optimal": "certified optimum"}
+          "optimal": "certified optimum", "given": "given allocation"}
 
 
 def answers_section(study, rows: list, advice: str, notes: str, choices: str,
@@ -36,8 +36,9 @@ def answers_section(study, rows: list, advice: str, notes: str, choices: str,
     """The first section: the table of ``rows`` (question, answer) beside the outputs
     figure, the ``advice`` tables, the modelling ``choices`` and the ``notes`` folded."""
     table = markdown_table(pd.DataFrame(rows, columns=["question", "answer"]), index=False)
+    folded = [details("How the advice is ranked", notes)] if notes else []
     text = "\n\n".join(['<div class="glance">', table, f"![{FIGURE}]({FIGURE})", "</div>",
-                        advice, choices, details("How the advice is ranked", notes)])
+                        advice, choices, *folded])
     return Section(TITLE, text, figures={FIGURE: outputs_figure(study)}, summary=summary)
 
 
@@ -48,7 +49,13 @@ def glance_rows(study, summary: dict, meets: str) -> list[tuple[str, str]]:
     as measured, the compensated cost and the acceptance pass rates."""
     rows = [(f"Machine yield, {LABELS.get(name, name)}",
              f"**{yield_text(value)}** {interval_text(*summary['yield_interval'][name])}")
-            for name, value in summary["yield"].items()]
+            for name, value in summary["yield"].items() if value is not None]
+    if summary["allocation"] == "given":
+        rows += [("Allocation beside the initial one", f"given: {summary['given_source']}"),
+                 ("Cost of the given allocation against the initial",
+                  f"**{summary['given_relative_cost']:.2%}**"),
+                 ("Does the given allocation meet the targets?",
+                  "**yes**" if summary["given_meets_targets"] else "**no**")]
     if summary["reachable"]:
         certified = "certified" if summary["certified"] else "NOT certified"
         rows.append(("Cost of the certified optimum against the initial",
@@ -85,9 +92,9 @@ def measured_rows(summary: dict) -> list[tuple[str, str]]:
 
 def _fosm_results(study) -> list:
     """(name, FOSM result) of the initial and, when reached, the optimal allocation."""
-    found = [("initial", study.initial_fosm)]
-    return found + ([("optimum", study.optimal_fosm)] if study.optimal_fosm is not None
-                    else [])
+    found = [("initial", study.initial_fosm), ("optimum", study.optimal_fosm),
+             ("given", study.given_fosm)]
+    return [(name, result) for name, result in found if result is not None]
 
 
 def failure_ratios(study, result) -> np.ndarray:
@@ -159,14 +166,16 @@ def advice_text(tighten: pd.DataFrame, relax: pd.DataFrame, counts: tuple[int, i
 
 def choices_text(study, frame: str, reading: str, box: str, cost: str) -> str:
     """The modelling choices in one short block, each linking to its section."""
+    allocation = ("Given allocation" if study.given is not None else
+                  "Cheapest certified allocation" if study.reachable else
+                  "Targets out of reach")
     links = {title: f"[{title}](#{anchor(title)})" for title in (
-        "Machine and requirements", "FOSM reliability", "Cheapest certified allocation",
+        "Machine and requirements", "FOSM reliability", allocation,
         "Continuous workspace", "Monte-Carlo verification")}
     workspace = (links["Continuous workspace"] if study.continuous is not None
                  else "the grid")
     return (f"**Modelling choices**: outputs in the {frame} "
             f"({links['Machine and requirements']}); t read as {reading} "
             f"({links['FOSM reliability']}); {study.side.replace('_', '-')}, worst case "
-            f"over {workspace}; {box}; cost {cost} "
-            f"({links['Cheapest certified allocation']}); checked by "
+            f"over {workspace}; {box}; {cost} ({links[allocation]}); checked by "
             f"{links['Monte-Carlo verification']}.")

@@ -55,6 +55,8 @@ def answers(study: MachineStudy) -> str:
                f"{study.workspace_text()}; {box_text(study)}; cost Eq. 28, "
                f"{cost_units_text(study.problem.cost)}.\n")
     meets = f"- Does the initial allocation meet the targets? {meets_text(study)}."
+    if study.given is not None:
+        return "\n".join([choices, yield_sentence(study), meets, f"- {given_sentence(study)}"])
     if not study.reachable:
         return "\n".join([choices, yield_sentence(study), meets, unreachable_text(study)])
     tighten, relax = advice(study, study.optimum.nearly_free())
@@ -73,6 +75,8 @@ def answers_section(study: MachineStudy, later) -> Section:
     choices = glance.choices_text(study, _frame_text(study),
                                   _reading(study.machine.distribution),
                                   box_text(study), cost_units_text(study.problem.cost))
+    if study.given is not None:
+        return glance.answers_section(study, rows, given_sentence(study), "", choices, info)
     if not study.reachable:
         return glance.answers_section(study, rows, unreachable_text(study)[2:], "",
                                       choices, info)
@@ -98,6 +102,15 @@ def meets_text(study: MachineStudy) -> str:
              for o, p, t in zip(OUTPUTS, worst, study.machine.targets) if p < t]
     return ("**yes**: every output meets its target" if not short else
             f"**no**: {'; '.join(short)}")
+
+
+def given_sentence(study: MachineStudy) -> str:
+    """What the given allocation is, what it costs and whether it meets the targets."""
+    info = summary(study)
+    meets = "meets" if info["given_meets_targets"] else "does **not** meet"
+    return (f"The report studies **the given allocation** ({study.given}) beside the "
+            f"initial one, not an optimum: it costs **{info['given_relative_cost']:.2%}** "
+            f"of the initial allocation and {meets} every target at every grid pose.")
 
 
 def cost_sentence(study: MachineStudy) -> str:
@@ -337,7 +350,9 @@ def sections(study: MachineStudy, extra=()) -> list[Section]:
         ``extra_section(study) -> Section``, appended after the standard sections (e.g. the
         cost–reliability front or rare-event estimates).
     """
-    allocation = allocation_section(study) if study.reachable else unreachable_section(study)
+    allocation = (allocation_section(study) if study.reachable else
+                  given_section(study) if study.given is not None else
+                  unreachable_section(study))
     workspace = [workspace_section(study)] if study.continuous is not None else []
     later = [yield_section(study), machine_section(study), fosm_section(study), allocation,
              *workspace, verification_section(study), *(make(study) for make in extra)]
@@ -434,21 +449,38 @@ def fosm_section(study: MachineStudy) -> Section:
     tables = {"fosm_initial.csv": fosm_table(study.machine, study.initial_fosm, study.side)}
     if study.reachable:
         tables["fosm_optimum.csv"] = fosm_table(study.machine, study.optimal_fosm, study.side)
+    if study.given is not None:
+        tables["fosm_given.csv"] = fosm_table(study.machine, study.given_fosm, study.side)
     formats = {"beta": "{:.4f}".format, "worst_one_sided": PERCENT,
                "worst_two_sided": PERCENT}
-    text = (f"First-order second-moment reliability (Eqs. 19–23; tolerances read as "
-            f"{_reading(study.machine.distribution)}) at each "
-            f"output's worst pose of the {study.points}-point grid, given as axis positions "
-            f"(mm, rotary axes in degrees); `sigma` in the output's `unit` (the machine "
-            f"file's units here, mm and rad in the CSV files); "
-            f"`top_contributors` are the errors with the largest share of the output's "
-            f"variance there.")
+    method = (f"First-order second-moment reliability (Eqs. 19–23; tolerances read as "
+              f"{_reading(study.machine.distribution)}) at each "
+              f"output's worst pose of the {study.points}-point grid, given as axis "
+              f"positions (mm, rotary axes in degrees); `sigma` in the output's `unit` (the "
+              f"machine file's units here, mm and rad in the CSV files); "
+              f"`top_contributors` are the errors with the largest share of the output's "
+              f"variance there.")
+    text = f"{fosm_sentence(tables)}\n\n" + details("What the columns are", method)
     for name, heading in (("fosm_initial.csv", "Initial allocation"),
-                          ("fosm_optimum.csv", "Cheapest certified allocation")):
+                          ("fosm_optimum.csv", "Cheapest certified allocation"),
+                          ("fosm_given.csv", "Given allocation")):
         if name in tables:
             shown = in_people_units(study.machine, tables[name], "sigma")
             text += f"\n\n### {heading}\n\n{markdown_table(shown, formats, index=False)}"
     return Section("FOSM reliability", text, tables=tables)
+
+
+def fosm_sentence(tables: dict) -> str:
+    """How many outputs each allocation's FOSM table finds short of their targets at their
+    worst grid pose, and which."""
+    names = {"fosm_initial.csv": "initial", "fosm_optimum.csv": "certified optimum",
+             "fosm_given.csv": "given"}
+    parts = []
+    for name, table in tables.items():
+        short = list(table.loc[~table["meets"].astype(bool), "output"])
+        parts.append(f"{names[name]} allocation **{len(short)} of 6**"
+                     + (f" ({', '.join(short)})" if short else ""))
+    return "Outputs short of their targets at their worst grid pose: " + "; ".join(parts) + "."
 
 
 def allocation_section(study: MachineStudy) -> Section:
@@ -488,9 +520,20 @@ def allocation_section(study: MachineStudy) -> Section:
         details("How the allocation is found and what the columns mean", method),
         cost_text(study), drawing_text(study),
         details("Errors that cannot be told apart", groups_text(machine, groups))])
-    figures = {}
-    n_motion = 6 * len(machine.axes)
-    shown = {"initial": study.problem.reference, "certified optimum": study.allocated}
+    figures = allocation_figures(machine, {"initial": study.problem.reference,
+                                           "certified optimum": study.allocated})
+    return Section("Cheapest certified allocation", text, figures=figures,
+                   tables={"allocation.csv": allocation_frame(optimum, SIGNIFICANT),
+                           "allocation_detail.csv": detail,
+                           "requirements_elasticity.csv": requirements,
+                           "indistinguishable_groups.csv": groups,
+                           DRAWING_FILE: drawing_frame(machine, optimum.tolerances)})
+
+
+def allocation_figures(machine, shown: dict) -> dict:
+    """The motion and the assembly errors' tolerances of ``shown`` (label -> tolerances,
+    the initial allocation first) relative to the initial ones (the paper's Figs. 8–9)."""
+    figures, n_motion = {}, 6 * len(machine.axes)
     for name, part, what in (("allocation_motion.png", slice(0, n_motion), "motion"),
                              ("allocation_assembly.png", slice(n_motion, None), "assembly")):
         figure = Figure(figsize=(max(8, 0.35 * n_motion), 4.5), layout="constrained")
@@ -499,12 +542,30 @@ def allocation_section(study: MachineStudy) -> Section:
                                          title=f"{machine.name}: {what}-error tolerances "
                                                f"relative to the initial allocation")
         figures[name] = figure
-    return Section("Cheapest certified allocation", text, figures=figures,
-                   tables={"allocation.csv": allocation_frame(optimum, SIGNIFICANT),
-                           "allocation_detail.csv": detail,
-                           "requirements_elasticity.csv": requirements,
-                           "indistinguishable_groups.csv": groups,
-                           DRAWING_FILE: drawing_frame(machine, optimum.tolerances)})
+    return figures
+
+
+def given_section(study: MachineStudy) -> Section:
+    """The given allocation (``--tolerances``) studied in the optimum's place: its cost
+    against the initial one, whether it meets the targets, every item beside the initial
+    tolerance, and the figures of the allocation section."""
+    machine, info = study.machine, summary(study)
+    given = study.given_tolerances
+    meets = "meets" if info["given_meets_targets"] else "does **not** meet"
+    people = shown_tolerance_table(machine, study.problem.reference, given)
+    text = "\n\n".join([
+        f"The allocation of {study.given} costs **{info['given_relative_cost']:.2%}** of "
+        f"the initial allocation (cost Eq. 28, {cost_units_text(study.problem.cost)}) and "
+        f"{meets} every target at every grid pose (FOSM). No allocation was sought: this "
+        f"report studies the given one beside the initial one.",
+        "Allocation in the machine file's units (`change` = given / initial − 1; "
+        "`given_allocation.csv` holds mm and rad):", markdown_table(people, index=False)])
+    frame = pd.DataFrame({"error": machine.error_names, "reference": study.problem.reference,
+                          "allocated": given})
+    return Section("Given allocation", text,
+                   figures=allocation_figures(machine, {"initial": study.problem.reference,
+                                                        "given": given}),
+                   tables={"given_allocation.csv": frame})
 
 
 def drawing_text(study: MachineStudy) -> str:
@@ -603,8 +664,8 @@ def verification_section(study: MachineStudy) -> Section:
 
 
 def _last_checked(study: MachineStudy) -> str:
-    """The optimum when there is one, else the initial allocation."""
-    return "optimum" if "optimum" in study.checks else "initial"
+    """The optimum or the given allocation when there is one, else the initial one."""
+    return next((name for name in ("optimum", "given") if name in study.checks), "initial")
 
 
 def pose_columns_of(machine) -> list[str]:
@@ -639,7 +700,8 @@ def _verification_figures(study, grid, repeats) -> dict:
                        ax=figure.subplots())
     figures["grid_repeats.png"] = figure
     last = _last_checked(study)
-    label = "certified optimum" if last == "optimum" else "initial allocation"
+    label = {"optimum": "certified optimum", "given": "given allocation"}.get(
+        last, "initial allocation")
     values = study.checks[last].grid.values[0]
     for index, output in enumerate(OUTPUTS):
         figure = Figure(figsize=(9, 4.5), layout="constrained")

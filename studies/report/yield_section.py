@@ -26,7 +26,7 @@ from .section import Section
 PLOTTED_SHARES = 10
 #: Rows of each allocation's failure-share table in the report text (the CSV has all).
 TABLED_SHARES = 10
-LABELS = {"initial": "initial", "optimum": "optimal"}
+LABELS = {"initial": "initial", "optimum": "optimal", "given": "given"}
 #: Characters per line of a failure region's label: longer ones wrap, so the bars keep
 #: most of the figure's width.
 LABEL_WIDTH = 34
