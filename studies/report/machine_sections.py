@@ -40,6 +40,9 @@ from .yield_section import yield_section, yield_sentence
 PERCENT = "{:.3%}".format
 #: How the advice names a group of errors that cannot be told apart.
 GROUP_WORD = "group"
+#: Each allocation of a study in words.
+ALLOCATION_WORDS = {"initial": "initial allocation", "optimum": "certified optimum",
+                    "given": "given allocation"}
 #: Entries of each advice list shown before "and K more".
 ADVICE_SHOWN = 10
 
@@ -634,6 +637,7 @@ def verification_section(study: MachineStudy) -> Section:
         percent_bound(3), lower=("mc_lower", "lower"), upper=("mc_upper", "upper"))
     check = study.checks[_last_checked(study)]
     text = "\n\n".join([
+        verification_sentence(study, grid),
         f"Errors drawn as {_reading(check.distribution)}; FOSM beside them with the same "
         f"reading. Three checks of the FOSM prediction, each with a 95 % interval:",
         f"Grid experiments ({check.grid.repeats} per allocation, {check.grid.n_poses} poses "
@@ -661,6 +665,21 @@ def verification_section(study: MachineStudy) -> Section:
                    tables={"fosm_vs_mc.csv": grid, "random_pose.csv": random,
                            "worst_pose_mc.csv": worst,
                            "grid_repeats.csv": repeats.set_index(["allocation", "repeat"])})
+
+
+def verification_sentence(study: MachineStudy, grid: pd.DataFrame) -> str:
+    """The verification's answer for the last allocation checked: for how many outputs
+    the Monte-Carlo interval at the worst pose reaches the target, and for how many the
+    grid mean of FOSM lies inside the grid experiments' interval (``grid``: the
+    ``fosm_vs_mc.csv`` table)."""
+    name = _last_checked(study)
+    worst = study.checks[name].worst_poses
+    reach = int((worst["mc_upper"].to_numpy() >= study.machine.targets).sum())
+    own = grid.loc[name]
+    inside = int(own["fosm_two_sided"].between(own["mc_lower"], own["mc_upper"]).sum())
+    return (f"For the {ALLOCATION_WORDS[name]}, the Monte-Carlo interval at each output's "
+            f"worst pose reaches its target for **{reach} of 6** outputs, and the grid mean "
+            f"of FOSM lies inside the grid experiments' 95 % interval for **{inside} of 6**.")
 
 
 def _last_checked(study: MachineStudy) -> str:
@@ -700,8 +719,7 @@ def _verification_figures(study, grid, repeats) -> dict:
                        ax=figure.subplots())
     figures["grid_repeats.png"] = figure
     last = _last_checked(study)
-    label = {"optimum": "certified optimum", "given": "given allocation"}.get(
-        last, "initial allocation")
+    label = ALLOCATION_WORDS[last]
     values = study.checks[last].grid.values[0]
     for index, output in enumerate(OUTPUTS):
         figure = Figure(figsize=(9, 4.5), layout="constrained")
