@@ -119,3 +119,24 @@ def test_report_of_a_given_allocation(tmp_path):
     assert "## Given allocation" in markdown and "## Cheapest certified allocation" not in \
         markdown
     assert "| Cost of the given allocation against the initial | **156.25%** |" in markdown
+
+
+def test_output_ratios_figure_draws_each_output_in_its_colour():
+    from matplotlib.colors import to_rgb
+    from matplotlib.figure import Figure
+
+    from reliability.basics.errors import InputError
+    from studies.report.plots import OUTPUT_COLOURS, plot_output_ratios
+    ratios = {"initial": [2.0, 1.0, 0.5, 0.1, 0.01, 1e-3], "optimum": [1.0] * 6}
+    ax = plot_output_ratios(ratios, ax=Figure().subplots())
+    bars = ax.patches
+    assert len(bars) == 12
+    np.testing.assert_allclose([bar.get_height() for bar in bars],
+                               ratios["initial"] + ratios["optimum"])
+    for index, colour in enumerate(OUTPUT_COLOURS.values()):
+        for bar in (bars[index], bars[6 + index]):
+            assert bar.get_facecolor()[:3] == pytest.approx(to_rgb(colour))
+    low, high = ax.get_ylim()
+    assert low < 1e-3 and high > 2.0  # every bar shows its length on the log axis
+    with pytest.raises(InputError, match="ratios must hold"):
+        plot_output_ratios({"a": [1.0] * 6, "b": [1.0] * 6, "c": [1.0] * 6})

@@ -330,6 +330,10 @@ def plot_output_ratios(ratios: Mapping, *, ax=None, title=None):
                label=label, **ALLOCATION_FILLS[j])
     ax.axhline(1.0, color="k", ls=":", lw=1.2, label="target")
     ax.set_yscale("log")
+    shown = np.concatenate(list(values.values()))
+    shown = shown[shown > 0]
+    if shown.size:  # room below the smallest bar, so every bar shows its length
+        ax.set_ylim(min(shown.min(), 1.0) / 3.0, max(shown.max(), 1.0) * 3.0)
     ax.yaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))
     ax.set_xticks(x, outputs)
     ax.set_xlabel("output (above 1: misses its target; at 1: binds)")
