@@ -18,7 +18,7 @@ from reliability.basics.streams import extra_stream
 from studies.workflows.as_measured import (AS_MEASURED_STREAM, acceptance_table, as_measured,
                                            holds_text, output_table)
 
-from .markdown import markdown_table
+from .markdown import details, markdown_table
 from .section import Section
 
 TITLE = "As measured"
@@ -59,17 +59,19 @@ def as_measured_section(result, *, source: str, label: str | None) -> Section:
     """The section of an :class:`~studies.workflows.as_measured.AsMeasured`."""
     design = (f"the {label} allocation" if label is not None else
               "its own allocation (t = 3 × prior σ; neither the initial nor the optimal one)")
-    parts = [
+    method = (
         f"This machine, identified from {source}: {result.draws} machines drawn from the "
         f"posterior of its errors, each evaluated on the exact chain at the "
         f"{result.workspace} (the further poses: each output's worst pose of the study's "
         f"verification), outputs in the {result.machine.frame} frame. The identification's "
-        f"prior is {design}; the design-time numbers beside are of it.",
+        f"prior is {design}; the design-time numbers beside are of it.")
+    parts = [
         f"**Probability that this machine holds every limit at every pose: "
         f"{holds_text(result.holds)}** (Clopper–Pearson 95 %)"
         + ("" if result.design_yield is None else
            f"; the design-time machine yield of {design}: "
            f"{holds_text(result.design_yield.to_dict())}."),
+        details("How this machine is judged", method),
         "Per output: the share of posterior machines within the limit at every pose, this "
         "machine's worst pose (the largest failure probability from the posterior mean and "
         "σ there) and the share inside there, beside the design's worst pose and its FOSM "
