@@ -129,9 +129,19 @@ def _table(lines) -> str:
     rows = [[cell.strip() for cell in line.strip().strip("|").split("|")] for line in lines
             if not re.fullmatch(r"\|?[\s:|-]+\|?", line.strip())]
     head = "".join(f"<th>{_inline(c)}</th>" for c in rows[0])
-    body = "".join("<tr>" + "".join(f"<td>{_inline(c)}</td>" for c in row) + "</tr>"
-                   for row in rows[1:])
+    body = "".join("<tr>" + "".join(_cell(c) for c in row) + "</tr>" for row in rows[1:])
     return f"<table><thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>"
+
+
+#: A cell that reads as a number (a sign, digits, an exponent, a per cent, an interval's
+#: brackets, or ``–`` for none): right-aligned; any other cell is text, left-aligned.
+_NUMBER = re.compile(r"[-+−]?[\d.,]+(e[-+]?\d+)?\s*%?|–|\[[\d.,\s%e+-]+\]")
+
+
+def _cell(text: str) -> str:
+    if _NUMBER.fullmatch(text.replace("*", "").strip()):
+        return f"<td>{_inline(text)}</td>"
+    return f'<td class="text">{_inline(text)}</td>'
 
 
 def _inline(text: str) -> str:

@@ -195,7 +195,7 @@ STYLE = ("body{font-family:sans-serif;max-width:1300px;margin:1em auto;padding:0
          "line-height:1.45;color:#222}h1{font-size:1.6em;margin:.3em 0}"
          "table{border-collapse:collapse;margin:1em 0;"
          "font-size:90%}td,th{border:1px solid #bbb;padding:3px 8px;text-align:right}"
-         "td:first-child,th:first-child{text-align:left}"
+         "td:first-child,th:first-child,td.text{text-align:left}"
          "th{background:#eee}img{max-width:100%;display:block;margin:1em 0}"
          "code{background:#f3f3f3;padding:0 3px}details{margin:.6em 0}"
          "summary{cursor:pointer;color:#245}"
