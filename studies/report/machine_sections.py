@@ -50,11 +50,12 @@ ADVICE_SHOWN = 10
 def answers(study: MachineStudy) -> str:
     """The designer's questions answered in a few markdown bullets (what ``precrel report``
     prints; the report's first section is :func:`answers_section`)."""
+    held = "the optimum's targets hold" if study.given is None else "worst poses sought"
     choices = (f"Choices behind every number below: outputs in the {_frame_text(study)}; a "
                f"tolerance t read as {_reading(study.machine.distribution)} by FOSM and the "
                f"allocation (distribution '{study.machine.distribution}') and drawn as "
                f"{_reading(next(iter(study.checks.values())).distribution)} by the "
-               f"Monte-Carlo; {_grid_reading(study)}; workspace: the optimum's targets hold "
+               f"Monte-Carlo; {_grid_reading(study)}; workspace: {held} "
                f"{study.workspace_text()}; {box_text(study)}; cost Eq. 28, "
                f"{cost_units_text(study.problem.cost)}.\n")
     meets = f"- Does the initial allocation meet the targets? {meets_text(study)}."
