@@ -160,8 +160,8 @@ def _study(machine, tolerances):
     worst = pd.DataFrame(workspace_grid(machine, 2)[:6], columns=list(machine.axes))
     check = SimpleNamespace(worst_poses=worst, machine_yield=None)
     return SimpleNamespace(machine=machine, checks={"initial": check, "optimum": check},
-                           reachable=True, allocated=tolerances, points=2, machines=50,
-                           seed=0)
+                           reachable=True, allocated=tolerances,
+                           compared=("optimum", tolerances), points=2, machines=50, seed=0)
 
 
 def test_the_as_measured_section_names_the_prior_allocation(mill, mill_readings):

@@ -145,7 +145,7 @@ def test_acceptance_command_prints_and_writes_results_after_compensation(tmp_pat
 def test_report_section_shows_the_compensated_column_and_survives_a_failure(mill3,
                                                                            trunnion5):
     circle = CircularTest("c", "xy", CENTRE, RADIUS, 1e-3)
-    study = SimpleNamespace(machine=mill3, reachable=False, machines=50, seed=0,
+    study = SimpleNamespace(machine=mill3, reachable=False, compared=None, machines=50, seed=0,
                             checks={"initial": SimpleNamespace(
                                 machine_yield=SimpleNamespace(profile="constant"))})
     section = acceptance_builder([circle], suggest=0.9, plan=_mill3_plan(mill3),

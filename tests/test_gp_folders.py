@@ -153,7 +153,7 @@ def test_verify_and_report_identify_measurements_under_the_profile(mill, folder)
 
 
 def test_the_design_allocation_of_a_gp_identification_is_its_prior(mill, direct):
-    study = SimpleNamespace(machine=mill, reachable=False)
+    study = SimpleNamespace(machine=mill, reachable=False, compared=None)
     assert prior_allocation(study, direct) == "initial"
     found = as_measured(mill, direct, points=2, draws=8, rng=0)
     np.testing.assert_allclose(found.tolerances, mill.initial_allocation, rtol=1e-12)

@@ -145,10 +145,6 @@ def test_report_tolerances_mean_what_allocate_tolerances_mean(study, swivel_gp, 
     outside = chosen["error"] != "X.dx"
     np.testing.assert_array_equal(chosen.loc[outside, "allocated"], start[outside])
     assert "keep start.csv" in section.text
-    code = cli.main(["report", SWIVEL, "--out", str(tmp_path / "r"), "--tolerances",
-                     str(start_csv)])
-    assert code == 2 and "--tolerances is used with --catalogue only" in \
-        capsys.readouterr().err
 
 
 @pytest.fixture(scope="module")

@@ -14,6 +14,8 @@ left to the page (which needs none), and the figures appear in the picture.
 from __future__ import annotations
 
 import argparse
+import html
+import json
 import re
 import shutil
 import subprocess
@@ -45,6 +47,31 @@ MEASURE_SCRIPT = (
     "});</script>")
 
 
+#: Set on the page's root element by :func:`first_screen_layout`'s run: JSON of the layout.
+LAYOUT_ATTRIBUTE = "data-first-screen"
+#: Reads, once the page has loaded, where the first table ends and which elements of the
+#: first screen show less than their text (clipped: wider content than box, or past the
+#: window's right edge).
+LAYOUT_SCRIPT = (
+    '<script>window.addEventListener("load", function () {'
+    " var table = document.querySelector('table');"
+    " var box = table ? table.getBoundingClientRect() : null;"
+    " var cut = [];"
+    " document.querySelectorAll('h1,h2,p,li,th,td,summary,img').forEach(function (e) {"
+    "  var r = e.getBoundingClientRect();"
+    "  if (r.top >= window.innerHeight || r.height === 0) return;"
+    "  if (e.scrollWidth > e.clientWidth + 1 || r.right > window.innerWidth + 0.5"
+    "      || r.left < -0.5) cut.push(e.tagName + ': ' + e.textContent.slice(0, 60));"
+    " });"
+    " var img = document.querySelector('img');"
+    " var pic = img ? img.getBoundingClientRect() : null;"
+    " var out = {window: [window.innerWidth, window.innerHeight],"
+    "  table: box ? [box.left, box.top, box.right, box.bottom] : null,"
+    "  figure: pic ? [pic.left, pic.top, pic.right, pic.bottom] : null, cut: cut};"
+    f' document.documentElement.setAttribute("{LAYOUT_ATTRIBUTE}", JSON.stringify(out));'
+    "});</script>")
+
+
 def find_browser() -> str | None:
     """Path of a Chromium-family browser, or None."""
     for name in BROWSERS:
@@ -54,14 +81,15 @@ def find_browser() -> str | None:
     return None
 
 
-def _measuring_copy(html_path: Path) -> str:
+def _measuring_copy(html_path: Path, script: str = MEASURE_SCRIPT) -> str:
     """The page's text with a base address (its links resolve as from its own folder) and
-    a script that writes the laid-out height into the root element once loaded."""
+    ``script``, which writes what it measures into the root element once loaded (by
+    default the laid-out height)."""
     text = html_path.read_text(encoding="utf-8", errors="surrogateescape")
     base = f'<base href="{html_path.parent.as_uri()}/">'
     head = re.search(r"<head[^>]*>", text, flags=re.IGNORECASE)
     text = text[:head.end()] + base + text[head.end():] if head else base + text
-    return text + MEASURE_SCRIPT
+    return text + script
 
 
 def _run(command, browser, timeout) -> subprocess.CompletedProcess:
@@ -102,6 +130,36 @@ def page_height(html_path, width: int = 1200, *, browser: str | None = None,
         raise RuntimeError(f"{browser} reported no page height for {html_path} (exit "
                            f"{done.returncode}): {done.stderr.strip()[-500:]}")
     return int(found.group(1))
+
+
+def first_screen_layout(html_path, width: int = 1400, height: int = 900, *,
+                        browser: str | None = None, timeout: float = 120.0) -> dict:
+    """How the first screen of ``html_path`` lays out in a ``width`` × ``height`` window:
+    ``window`` (its inner size), ``table`` and ``figure`` (the page's first table and
+    first image as [left, top, right, bottom] in pixels, None without one) and ``cut``
+    (the elements on the first screen whose content is wider than their box or that pass
+    the window's edges, each as ``"TAG: text"``), measured by :data:`LAYOUT_SCRIPT` in a
+    copy of the page, as :func:`page_height` measures the height.
+
+    Raises
+    ------
+    InputError, FileNotFoundError, RuntimeError
+        As :func:`page_height`.
+    """
+    html_path = Path(html_path).resolve()
+    browser = _checked(html_path, width, browser)
+    with tempfile.TemporaryDirectory() as folder:
+        probe = Path(folder) / "layout.html"
+        probe.write_text(_measuring_copy(html_path, LAYOUT_SCRIPT), encoding="utf-8",
+                         errors="surrogateescape")
+        done = _run([f"--window-size={width},{height}",
+                     f"--virtual-time-budget={LOAD_BUDGET_MS}", "--dump-dom", probe.as_uri()],
+                    browser, timeout)
+    found = re.search(rf"{LAYOUT_ATTRIBUTE}=\"([^\"]*)\"", done.stdout)
+    if found is None:
+        raise RuntimeError(f"{browser} reported no layout for {html_path} (exit "
+                           f"{done.returncode}): {done.stderr.strip()[-500:]}")
+    return json.loads(html.unescape(found.group(1)))
 
 
 def _checked(html_path: Path, width: int, browser: str | None) -> str:

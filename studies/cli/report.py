@@ -72,11 +72,10 @@ def add_parser(subparsers):
 
 def run(args) -> int:
     bounds = options.check_bounds(args.bounds)
-    if args.tolerances is not None and args.catalogue is None:
-        raise InputError("--tolerances is used with --catalogue only")
     limits = options.loop_limits(args, options.workspace(args))
     out = options.destination(args.out, args.overwrite, folder=True, markers=REPORT_MARKERS)
     machine = options.machine(args)
+    given, given_text = start_tolerances(args, machine)
     tests = None if args.tests is None else options.read_tests(args.tests, machine)
     if args.suggest is not None:
         _check_suggest(args.suggest, tests)
@@ -91,9 +90,8 @@ def run(args) -> int:
                                                          plan_name=args.compensation)))
     if args.catalogue is not None:
         included.append("catalogue")
-        start, start_text = start_tolerances(args, machine)
         extra.append(guarded("catalogue", catalogue_builder(
-            options.read_catalogue(args.catalogue, machine), start, start_text=start_text,
+            options.read_catalogue(args.catalogue, machine), given, start_text=given_text,
             samples=args.samples)))
     if machine.work_zone is not None:
         extra.append(lambda study: zone_section(zone_comparison(
@@ -119,7 +117,9 @@ def run(args) -> int:
                               rng=args.seed, repeats=args.repeats, samples=args.samples,
                               progress=options.say, bar=options.progress_bar,
                               machines=args.machines, workspace=options.workspace(args),
-                              rtol=args.rtol, **limits)
+                              rtol=args.rtol, given=given,
+                              given_text=given_text.removeprefix("the tolerances of "),
+                              **limits)
     options.say("optional sections: " + (", ".join(included) or "none"))
     sections = machine_sections.sections(study, extra=extra)
     missing = not_computed(sections)
@@ -151,7 +151,8 @@ def _check_suggest(probability: float, tests) -> None:
 
 
 def start_tolerances(args, machine) -> tuple:
-    """``--tolerances``: the starting tolerances of the items in no component, and their
+    """``--tolerances``: the allocation the report studies in place of an optimum (and,
+    with ``--catalogue``, the starting tolerances of the items in no component), and its
     source in words (none and the initial allocation when not given)."""
     if args.tolerances is None:
         return None, "the initial allocation"

@@ -16,7 +16,7 @@ from reliability.basics.display import decimals_text, lower_bound_text, upper_bo
 from reliability.basics.streams import acceptance_stream
 from studies.workflows.compensated_acceptance import SUFFIX, comparison_frame
 
-from .markdown import markdown_table
+from .markdown import details, markdown_table
 from .section import Section
 
 TITLE = "Acceptance tests"
@@ -87,6 +87,10 @@ def acceptance_section(machine, tests, allocations: dict, *, machines: int = BUI
                  markdown_table(_shown(result, frame), index=False)]
         summary[label] = {f"{row.test}/{row.quantity}": row.pass_probability
                           for row in frame.itertuples() if not math.isnan(row.pass_probability)}
+    text[0] = ("All tests passed, per allocation: " + "; ".join(
+        f"{label} **{_interval(tables[f'acceptance_{label}.csv'].iloc[-1])}**"
+        for label in results) + f" ({setting}).\n\n"
+        + details("How the machines are built and tested", text[0]))
     extra = {} if not isinstance(compensated, dict) else {"acceptance_compensated": {
         label: _pass_summary(tables[f"acceptance_{label}.csv"], SUFFIX) for label in results}}
     return Section(TITLE, "\n".join(text), figures={FIGURE: plot_results(results)},

@@ -18,7 +18,7 @@ from reliability.basics.streams import extra_stream
 from studies.workflows.as_measured import (AS_MEASURED_STREAM, acceptance_table, as_measured,
                                            holds_text, output_table)
 
-from .markdown import markdown_table
+from .markdown import details, markdown_table
 from .section import Section
 
 TITLE = "As measured"
@@ -41,11 +41,12 @@ def as_measured_builder(identification, tests=None, *, source: str):
 
 
 def prior_allocation(study, identification) -> str | None:
-    """The study's allocation (``initial`` or ``optimum``) the identification's prior σ is
-    a third of, or None."""
+    """The study's allocation (``initial``, ``optimum`` or ``given``) the identification's
+    prior σ is a third of, or None."""
     shown = {"initial": study.machine.initial_allocation}
-    if study.reachable:
-        shown["optimum"] = study.allocated
+    if study.compared is not None:
+        name, tolerances = study.compared
+        shown[name] = tolerances
     prior = 3.0 * identification.coefficients.prior_sd
     for label, tolerances in shown.items():
         if prior.shape == np.shape(tolerances) and np.allclose(prior, tolerances, rtol=1e-5,
@@ -58,17 +59,19 @@ def as_measured_section(result, *, source: str, label: str | None) -> Section:
     """The section of an :class:`~studies.workflows.as_measured.AsMeasured`."""
     design = (f"the {label} allocation" if label is not None else
               "its own allocation (t = 3 × prior σ; neither the initial nor the optimal one)")
-    parts = [
+    method = (
         f"This machine, identified from {source}: {result.draws} machines drawn from the "
         f"posterior of its errors, each evaluated on the exact chain at the "
         f"{result.workspace} (the further poses: each output's worst pose of the study's "
         f"verification), outputs in the {result.machine.frame} frame. The identification's "
-        f"prior is {design}; the design-time numbers beside are of it.",
+        f"prior is {design}; the design-time numbers beside are of it.")
+    parts = [
         f"**Probability that this machine holds every limit at every pose: "
         f"{holds_text(result.holds)}** (Clopper–Pearson 95 %)"
         + ("" if result.design_yield is None else
            f"; the design-time machine yield of {design}: "
            f"{holds_text(result.design_yield.to_dict())}."),
+        details("How this machine is judged", method),
         "Per output: the share of posterior machines within the limit at every pose, this "
         "machine's worst pose (the largest failure probability from the posterior mean and "
         "σ there) and the share inside there, beside the design's worst pose and its FOSM "

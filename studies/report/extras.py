@@ -75,10 +75,12 @@ OPTIONS = {"tests": "--tests", "catalogue": "--catalogue", "sensitivity": "--sen
 
 
 def allocations(study) -> dict:
-    """The initial allocation, and the optimum as written when the targets are reachable."""
+    """The initial allocation, and the optimum as written when the targets are reachable
+    (the given allocation when the study has one)."""
     shown = {"initial": study.machine.initial_allocation}
-    if study.reachable:
-        shown["optimum"] = study.allocated
+    if study.compared is not None:
+        name, tolerances = study.compared
+        shown[name] = tolerances
     return shown
 
 
@@ -90,7 +92,7 @@ def study_profile(study) -> str:
 
 def front(study):
     """Cost against reliability, with the stack and the optimum marked."""
-    marks = {"optimum": study.allocated} if study.reachable else {}
+    marks = dict([study.compared]) if study.compared else {}
     return front_section(study.machine, poses=study.problem.poses,
                          box={"lower": study.problem.lower, "upper": study.problem.upper},
                          box_text=study.problem.box_text(), marks=marks)

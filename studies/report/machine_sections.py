@@ -30,79 +30,140 @@ from reliability.model.iso_names import plain_names
 from reliability.model.machine import OUTPUTS
 from studies.workflows.machine_study import UNCHANGED, MachineStudy, summary
 
-from . import plots
-from .markdown import (interval_formats, markdown_table, percent_bound,
+from . import glance, plots
+from .markdown import (details, interval_formats, markdown_table, percent_bound,
                        significant_bound)
 from .section import Section
+from .writer import merged_summary
 from .yield_section import yield_section, yield_sentence
 
 PERCENT = "{:.3%}".format
 #: How the advice names a group of errors that cannot be told apart.
 GROUP_WORD = "group"
+#: Each allocation of a study in words.
+ALLOCATION_WORDS = {"initial": "initial allocation", "optimum": "certified optimum",
+                    "given": "given allocation"}
 #: Entries of each advice list shown before "and K more".
 ADVICE_SHOWN = 10
 
 
 def answers(study: MachineStudy) -> str:
-    """The designer's questions answered in a few markdown bullets."""
-    machine, side = study.machine, study.side
-    reading = f"{side.replace('_', '-')} probability, worst case over the " \
-              f"{study.points}-point grid of {len(study.problem.poses)} poses"
-    worst = study.initial_fosm.worst(side)
-    short = [f"{o} {PERCENT(p)} < {100 * t:g} %" for o, p, t in zip(OUTPUTS, worst, machine.targets)
-             if p < t]
-    meets = ("**yes**: every output meets its target" if not short else
-             f"**no**: {'; '.join(short)}")
-    frame = ("tool frame (Eq. 18, turning with the rotary axes)"
-             if machine.frame == "tool" else "workpiece frame (δ_w = R δ_t, ε_w = R ε_t)")
-    choices = (f"Choices behind every number below: outputs in the {frame}; a "
-               f"tolerance t read as {_reading(machine.distribution)} by FOSM and the "
-               f"allocation (distribution '{machine.distribution}') and drawn as "
+    """The designer's questions answered in a few markdown bullets (what ``precrel report``
+    prints; the report's first section is :func:`answers_section`)."""
+    held = "the optimum's targets hold" if study.given is None else "worst poses sought"
+    choices = (f"Choices behind every number below: outputs in the {_frame_text(study)}; a "
+               f"tolerance t read as {_reading(study.machine.distribution)} by FOSM and the "
+               f"allocation (distribution '{study.machine.distribution}') and drawn as "
                f"{_reading(next(iter(study.checks.values())).distribution)} by the "
-               f"Monte-Carlo; {reading}; workspace: the optimum's targets hold "
+               f"Monte-Carlo; {_grid_reading(study)}; workspace: {held} "
                f"{study.workspace_text()}; {box_text(study)}; cost Eq. 28, "
                f"{cost_units_text(study.problem.cost)}.\n")
+    meets = f"- Does the initial allocation meet the targets? {meets_text(study)}."
+    if study.given is not None:
+        return "\n".join([choices, yield_sentence(study), meets, f"- {given_sentence(study)}"])
     if not study.reachable:
-        return "\n".join([choices, yield_sentence(study),
-                          f"- Does the initial allocation meet the targets? {meets}.",
-                          unreachable_text(study)])
+        return "\n".join([choices, yield_sentence(study), meets, unreachable_text(study)])
+    tighten, relax = advice(study, study.optimum.nearly_free())
+    before, after = _advice_notes(study, tighten + relax)
+    return "\n".join([choices, yield_sentence(study), meets, f"- {cost_sentence(study)}",
+                      *before, f"- Tighten: {tighten or 'none'}.",
+                      f"- May be relaxed: {relax or 'none'}.", *after])
+
+
+def answers_section(study: MachineStudy, later) -> Section:
+    """The report's first screen (:mod:`studies.report.glance`): the answers as a table of
+    numbers beside the outputs figure, the advice as tables, the modelling choices with
+    links to the ``later`` sections, whose summary entries the table reads too."""
+    info = summary(study)
+    rows = glance.glance_rows(study, merged_summary(info, later), meets_text(study))
+    choices = glance.choices_text(study, _frame_text(study),
+                                  _reading(study.machine.distribution),
+                                  box_text(study), cost_units_text(study.problem.cost))
+    if study.given is not None:
+        return glance.answers_section(study, rows, given_sentence(study), "", choices, info)
+    if not study.reachable:
+        return glance.answers_section(study, rows, unreachable_text(study)[2:], "",
+                                      choices, info)
+    free = study.optimum.nearly_free()
+    tighten, relax, rates, ratios, groups = _advice_orders(study, free)
+    table = tolerance_table(study.machine, study.problem.reference,
+                            study.optimum.tolerances).set_index("error")
+    tables = [glance.advice_table(table, order, rates, ratios, groups, ADVICE_SHOWN)
+              for order in (tighten, relax)]
+    before, after = _advice_notes(study, " ".join(
+        " ".join(frame["item"]) for frame in tables))
+    notes = "\n".join([f"- {cost_sentence(study)}", *before, *after])
+    return glance.answers_section(
+        study, rows, glance.advice_text(*tables, (len(tighten), len(relax))), notes,
+        choices, info)
+
+
+def meets_text(study: MachineStudy) -> str:
+    """Whether the initial allocation meets the targets: ``**yes**: every output meets its
+    target``, or ``**no**: dx 98.680% < 99 %; …``."""
+    worst = study.initial_fosm.worst(study.side)
+    short = [f"{o} {PERCENT(p)} < {100 * t:g} %"
+             for o, p, t in zip(OUTPUTS, worst, study.machine.targets) if p < t]
+    return ("**yes**: every output meets its target" if not short else
+            f"**no**: {'; '.join(short)}")
+
+
+def given_sentence(study: MachineStudy) -> str:
+    """What the given allocation is, what it costs and whether it meets the targets."""
+    info = summary(study)
+    meets = "meets" if info["given_meets_targets"] else "does **not** meet"
+    return (f"The report studies **the given allocation** ({study.given}) beside the "
+            f"initial one, not an optimum: it costs **{info['given_relative_cost']:.2%}** "
+            f"of the initial allocation and {meets} every target at every grid pose.")
+
+
+def cost_sentence(study: MachineStudy) -> str:
+    """What the cheapest allocation in the box costs, and its certificate."""
     info = summary(study)
     certified = "certified optimal" if info["certified"] else "NOT certified"
+    return (f"The cheapest allocation meeting them within the box costs "
+            f"**{info['relative_cost']:.2%}** of the initial allocation ({certified}, "
+            f"relative duality gap {gap_text(study.optimum.certificate['relative_gap'])}).")
+
+
+def _frame_text(study: MachineStudy) -> str:
+    return ("tool frame (Eq. 18, turning with the rotary axes)"
+            if study.machine.frame == "tool" else "workpiece frame (δ_w = R δ_t, ε_w = R ε_t)")
+
+
+def _grid_reading(study: MachineStudy) -> str:
+    return (f"{study.side.replace('_', '-')} probability, worst case over the "
+            f"{study.points}-point grid of {len(study.problem.poses)} poses")
+
+
+def _advice_notes(study: MachineStudy, advised: str) -> tuple[list[str], list[str]]:
+    """The bullets before the advice (the Monte-Carlo verdict, the nearly free items) and
+    after it (how the advice is ranked and, when ``advised`` names a group, what a group
+    is)."""
+    machine, free = study.machine, study.optimum.nearly_free()
     mc = study.checks["optimum"].worst_poses
     below = mc[mc["mc_upper"] < machine.targets]
     verdict = ("every output's Monte-Carlo interval at its worst pose reaches its target"
                if below.empty else
                "Monte-Carlo at the worst pose is significantly below target for "
                + ", ".join(below["output"]))
-    free = study.optimum.nearly_free()
-    tighten, relax = advice(study, free)
-    group_note = ("- A group is a set of errors that cannot be told apart (the allocation "
-                  "section's table): only their summed variance matters, so none of them can "
-                  "be changed alone; the cost decides how the group's variance is shared."
-                  if GROUP_WORD in tighten + relax else "")
-    free_note = (f"- {len(free)} items sit at a bound carrying under 0.1 % of the cost each "
-                 f"(nearly free with t in {' and '.join(study.problem.cost.units or ('mm', 'rad'))}"
-                 f" inside the cost): their tolerance is "
-                 f"decided by the box, not by cost, so they are left out of the advice "
-                 f"below." if free else "")
-    return "\n".join([
-        choices,
-        yield_sentence(study),
-        f"- Does the initial allocation meet the targets? {meets}.",
-        f"- The cheapest allocation meeting them within the box costs "
-        f"**{info['relative_cost']:.2%}** of the "
-        f"initial allocation ({certified}, relative duality gap "
-        f"{gap_text(study.optimum.certificate['relative_gap'])}).",
-        f"- Monte-Carlo of that allocation ({info['samples']} samples at each output's "
-        f"{_sampled_pose(study)}, Wilson 95 %): {verdict}; "
-        + ", ".join(f"{row.output} {PERCENT(row.mc_estimate)}" for row in mc.itertuples())
-        + ".",
-        *([free_note] if free_note else []),
-        f"- Tighten: {tighten or 'none'}.",
-        f"- May be relaxed: {relax or 'none'}.",
-        RANKING_NOTE,
-        *([group_note] if group_note else []),
-    ])
+    notes = [f"- Monte-Carlo of that allocation ({summary(study)['samples']} samples at each "
+             f"output's {_sampled_pose(study)}, Wilson 95 %): {verdict}; "
+             + ", ".join(f"{row.output} {PERCENT(row.mc_estimate)}"
+                         for row in mc.itertuples()) + "."]
+    if free:
+        notes.append(
+            f"- {len(free)} items sit at a bound carrying under 0.1 % of the cost each "
+            f"(nearly free with t in {' and '.join(study.problem.cost.units or ('mm', 'rad'))}"
+            f" inside the cost): their tolerance is decided by the box, not by cost, so "
+            f"they are left out of the advice below.")
+    after = [RANKING_NOTE]
+    if GROUP_WORD in advised:
+        after.append("- A group is a set of errors that cannot be told apart (the allocation "
+                     "section's table): only their summed variance matters, so none of them "
+                     "can be changed alone; the cost decides how the group's variance is "
+                     "shared.")
+    return notes, after
 
 
 RANKING_NOTE = (
@@ -165,12 +226,19 @@ def advice(study: MachineStudy, free=(), n: int = ADVICE_SHOWN) -> tuple[str, st
     cost), relaxing smallest first (the most cost saved per unit of failure probability
     added); the first ``n`` of each are shown.
     """
+    tighten, relax, rates, ratios, groups = _advice_orders(study, free)
+    return (_changes_text(study, tighten, rates, ratios, groups, n),
+            _changes_text(study, relax, rates, ratios, groups, n))
+
+
+def _advice_orders(study: MachineStudy, free) -> tuple:
+    """The tighten and the relax entries in rank order (see :func:`advice`), with every
+    entry's relative change, :func:`buy_ratios` and the groups by name."""
     rates, groups = _advice_rates(study, free)
     ratios = buy_ratios(study, groups).reindex(rates.index)
     tighten = ratios[rates < -UNCHANGED].sort_values(ascending=False, kind="stable")
     relax = ratios[rates > UNCHANGED].sort_values(kind="stable")
-    return (_changes_text(study, tighten.index, rates, ratios, groups, n),
-            _changes_text(study, relax.index, rates, ratios, groups, n))
+    return tighten.index, relax.index, rates, ratios, groups
 
 
 def buy_ratios(study: MachineStudy, groups: dict) -> pd.Series:
@@ -286,12 +354,13 @@ def sections(study: MachineStudy, extra=()) -> list[Section]:
         ``extra_section(study) -> Section``, appended after the standard sections (e.g. the
         cost–reliability front or rare-event estimates).
     """
-    allocation = allocation_section(study) if study.reachable else unreachable_section(study)
+    allocation = (allocation_section(study) if study.reachable else
+                  given_section(study) if study.given is not None else
+                  unreachable_section(study))
     workspace = [workspace_section(study)] if study.continuous is not None else []
-    return [Section("Answers", answers(study), summary=summary(study)),
-            yield_section(study), machine_section(study), fosm_section(study), allocation,
-            *workspace,
-            verification_section(study), *(make(study) for make in extra)]
+    later = [yield_section(study), machine_section(study), fosm_section(study), allocation,
+             *workspace, verification_section(study), *(make(study) for make in extra)]
+    return [answers_section(study, later), *later]
 
 
 def workspace_section(study: MachineStudy) -> Section:
@@ -384,21 +453,38 @@ def fosm_section(study: MachineStudy) -> Section:
     tables = {"fosm_initial.csv": fosm_table(study.machine, study.initial_fosm, study.side)}
     if study.reachable:
         tables["fosm_optimum.csv"] = fosm_table(study.machine, study.optimal_fosm, study.side)
+    if study.given is not None:
+        tables["fosm_given.csv"] = fosm_table(study.machine, study.given_fosm, study.side)
     formats = {"beta": "{:.4f}".format, "worst_one_sided": PERCENT,
                "worst_two_sided": PERCENT}
-    text = (f"First-order second-moment reliability (Eqs. 19–23; tolerances read as "
-            f"{_reading(study.machine.distribution)}) at each "
-            f"output's worst pose of the {study.points}-point grid, given as axis positions "
-            f"(mm, rotary axes in degrees); `sigma` in the output's `unit` (the machine "
-            f"file's units here, mm and rad in the CSV files); "
-            f"`top_contributors` are the errors with the largest share of the output's "
-            f"variance there.")
+    method = (f"First-order second-moment reliability (Eqs. 19–23; tolerances read as "
+              f"{_reading(study.machine.distribution)}) at each "
+              f"output's worst pose of the {study.points}-point grid, given as axis "
+              f"positions (mm, rotary axes in degrees); `sigma` in the output's `unit` (the "
+              f"machine file's units here, mm and rad in the CSV files); "
+              f"`top_contributors` are the errors with the largest share of the output's "
+              f"variance there.")
+    text = f"{fosm_sentence(tables)}\n\n" + details("What the columns are", method)
     for name, heading in (("fosm_initial.csv", "Initial allocation"),
-                          ("fosm_optimum.csv", "Cheapest certified allocation")):
+                          ("fosm_optimum.csv", "Cheapest certified allocation"),
+                          ("fosm_given.csv", "Given allocation")):
         if name in tables:
             shown = in_people_units(study.machine, tables[name], "sigma")
             text += f"\n\n### {heading}\n\n{markdown_table(shown, formats, index=False)}"
     return Section("FOSM reliability", text, tables=tables)
+
+
+def fosm_sentence(tables: dict) -> str:
+    """How many outputs each allocation's FOSM table finds short of their targets at their
+    worst grid pose, and which."""
+    names = {"fosm_initial.csv": "initial", "fosm_optimum.csv": "certified optimum",
+             "fosm_given.csv": "given"}
+    parts = []
+    for name, table in tables.items():
+        short = list(table.loc[~table["meets"].astype(bool), "output"])
+        parts.append(f"{names[name]} allocation **{len(short)} of 6**"
+                     + (f" ({', '.join(short)})" if short else ""))
+    return "Outputs short of their targets at their worst grid pose: " + "; ".join(parts) + "."
 
 
 def allocation_section(study: MachineStudy) -> Section:
@@ -416,32 +502,46 @@ def allocation_section(study: MachineStudy) -> Section:
     for column in requirements.columns[requirements.columns.str.startswith("dlncost/")]:
         requirements[column] = as_written(requirements[column], MULTIPLIER_DIGITS)
     info = summary(study)
-    text = (f"The cheapest allocation (cost model Eq. 28, k1 = k2 = k3 = 1) meeting every "
-            f"target at every grid pose (Eq. 34), tolerances within the box "
-            f"({box_text(study)}). Cost {optimum.cost:.6g} against "
-            f"{info['initial_cost']:.6g} initially ({info['relative_cost']:.2%}); "
-            f"{'certified' if info['certified'] else 'not certified'} optimum, relative "
-            f"duality gap {gap_text(optimum.certificate['relative_gap'])}.\n\n"
-            f"Which requirements bind, and what they cost: `dlncost/dln_limit` is the "
-            f"relative cost change per relative change of the limit (from the Lagrange "
-            f"multipliers; {MULTIPLIER_DIGITS} significant digits, what the dual solve "
-            f"fixes), `dlncost/dln_target` the same for the target probability. Where "
-            f"outputs bind together (equal or dependent constraint gradients, e.g. at "
-            f"symmetric poses) only "
-            f"their joint change is determined: such an output shows the cost's change when "
-            f"its limit alone is relaxed and when it is tightened, `bound_with` names the "
-            f"group and `dlncost/dln_group_limit` gives relaxing the group's limits together "
-            f"(docs/non-unique.md; all in `requirements_elasticity.csv`).\n\n"
-            f"{markdown_table(requirement_text(optimum).reset_index(), index=False)}\n\n"
-            f"Allocation in the machine file's units (`change` = allocated / initial − 1; "
-            f"`status` says which bound holds; `allocation.csv` and `allocation_detail.csv` "
-            f"hold mm and rad):\n\n"
-            f"{markdown_table(people, index=False)}"
-            f"\n\n{cost_text(study)}\n\n{drawing_text(study)}\n\n"
-            f"{groups_text(machine, groups)}")
-    figures = {}
-    n_motion = 6 * len(machine.axes)
-    shown = {"initial": study.problem.reference, "certified optimum": study.allocated}
+    method = (f"The cheapest allocation (cost model Eq. 28, k1 = k2 = k3 = 1) meeting every "
+              f"target at every grid pose (Eq. 34), tolerances within the box "
+              f"({box_text(study)}). Cost {optimum.cost:.6g} against "
+              f"{info['initial_cost']:.6g} initially; relative duality gap "
+              f"{gap_text(optimum.certificate['relative_gap'])}.\n\n"
+              f"`dlncost/dln_limit` is the "
+              f"relative cost change per relative change of the limit (from the Lagrange "
+              f"multipliers; {MULTIPLIER_DIGITS} significant digits, what the dual solve "
+              f"fixes), `dlncost/dln_target` the same for the target probability. Where "
+              f"outputs bind together (equal or dependent constraint gradients, e.g. at "
+              f"symmetric poses) only "
+              f"their joint change is determined: such an output shows the cost's change "
+              f"when its limit alone is relaxed and when it is tightened, `bound_with` names "
+              f"the group and `dlncost/dln_group_limit` gives relaxing the group's limits "
+              f"together (docs/non-unique.md; all in `requirements_elasticity.csv`).")
+    text = "\n\n".join([
+        cost_sentence(study).replace("The cheapest allocation meeting them",
+                                     "The cheapest allocation meeting the targets"),
+        f"Allocation in the machine file's units (`change` = allocated / initial − 1; "
+        f"`status` says which bound holds; `allocation.csv` and `allocation_detail.csv` "
+        f"hold mm and rad):", markdown_table(people, index=False),
+        "Which requirements bind, and what they cost:",
+        markdown_table(requirement_text(optimum).reset_index(), index=False),
+        details("How the allocation is found and what the columns mean", method),
+        cost_text(study), drawing_text(study),
+        details("Errors that cannot be told apart", groups_text(machine, groups))])
+    figures = allocation_figures(machine, {"initial": study.problem.reference,
+                                           "certified optimum": study.allocated})
+    return Section("Cheapest certified allocation", text, figures=figures,
+                   tables={"allocation.csv": allocation_frame(optimum, SIGNIFICANT),
+                           "allocation_detail.csv": detail,
+                           "requirements_elasticity.csv": requirements,
+                           "indistinguishable_groups.csv": groups,
+                           DRAWING_FILE: drawing_frame(machine, optimum.tolerances)})
+
+
+def allocation_figures(machine, shown: dict) -> dict:
+    """The motion and the assembly errors' tolerances of ``shown`` (label -> tolerances,
+    the initial allocation first) relative to the initial ones (the paper's Figs. 8–9)."""
+    figures, n_motion = {}, 6 * len(machine.axes)
     for name, part, what in (("allocation_motion.png", slice(0, n_motion), "motion"),
                              ("allocation_assembly.png", slice(n_motion, None), "assembly")):
         figure = Figure(figsize=(max(8, 0.35 * n_motion), 4.5), layout="constrained")
@@ -450,12 +550,30 @@ def allocation_section(study: MachineStudy) -> Section:
                                          title=f"{machine.name}: {what}-error tolerances "
                                                f"relative to the initial allocation")
         figures[name] = figure
-    return Section("Cheapest certified allocation", text, figures=figures,
-                   tables={"allocation.csv": allocation_frame(optimum, SIGNIFICANT),
-                           "allocation_detail.csv": detail,
-                           "requirements_elasticity.csv": requirements,
-                           "indistinguishable_groups.csv": groups,
-                           DRAWING_FILE: drawing_frame(machine, optimum.tolerances)})
+    return figures
+
+
+def given_section(study: MachineStudy) -> Section:
+    """The given allocation (``--tolerances``) studied in the optimum's place: its cost
+    against the initial one, whether it meets the targets, every item beside the initial
+    tolerance, and the figures of the allocation section."""
+    machine, info = study.machine, summary(study)
+    given = study.given_tolerances
+    meets = "meets" if info["given_meets_targets"] else "does **not** meet"
+    people = shown_tolerance_table(machine, study.problem.reference, given)
+    text = "\n\n".join([
+        f"The allocation of {study.given} costs **{info['given_relative_cost']:.2%}** of "
+        f"the initial allocation (cost Eq. 28, {cost_units_text(study.problem.cost)}) and "
+        f"{meets} every target at every grid pose (FOSM). No allocation was sought: this "
+        f"report studies the given one beside the initial one.",
+        "Allocation in the machine file's units (`change` = given / initial − 1; "
+        "`given_allocation.csv` holds mm and rad):", markdown_table(people, index=False)])
+    frame = pd.DataFrame({"error": machine.error_names, "reference": study.problem.reference,
+                          "allocated": given})
+    return Section("Given allocation", text,
+                   figures=allocation_figures(machine, {"initial": study.problem.reference,
+                                                        "given": given}),
+                   tables={"given_allocation.csv": frame})
 
 
 def drawing_text(study: MachineStudy) -> str:
@@ -524,6 +642,7 @@ def verification_section(study: MachineStudy) -> Section:
         percent_bound(3), lower=("mc_lower", "lower"), upper=("mc_upper", "upper"))
     check = study.checks[_last_checked(study)]
     text = "\n\n".join([
+        verification_sentence(study, grid),
         f"Errors drawn as {_reading(check.distribution)}; FOSM beside them with the same "
         f"reading. Three checks of the FOSM prediction, each with a 95 % interval:",
         f"Grid experiments ({check.grid.repeats} per allocation, {check.grid.n_poses} poses "
@@ -553,9 +672,24 @@ def verification_section(study: MachineStudy) -> Section:
                            "grid_repeats.csv": repeats.set_index(["allocation", "repeat"])})
 
 
+def verification_sentence(study: MachineStudy, grid: pd.DataFrame) -> str:
+    """The verification's answer for the last allocation checked: for how many outputs
+    the Monte-Carlo interval at the worst pose reaches the target, and for how many the
+    grid mean of FOSM lies inside the grid experiments' interval (``grid``: the
+    ``fosm_vs_mc.csv`` table)."""
+    name = _last_checked(study)
+    worst = study.checks[name].worst_poses
+    reach = int((worst["mc_upper"].to_numpy() >= study.machine.targets).sum())
+    own = grid.loc[name]
+    inside = int(own["fosm_two_sided"].between(own["mc_lower"], own["mc_upper"]).sum())
+    return (f"For the {ALLOCATION_WORDS[name]}, the Monte-Carlo interval at each output's "
+            f"worst pose reaches its target for **{reach} of 6** outputs, and the grid mean "
+            f"of FOSM lies inside the grid experiments' 95 % interval for **{inside} of 6**.")
+
+
 def _last_checked(study: MachineStudy) -> str:
-    """The optimum when there is one, else the initial allocation."""
-    return "optimum" if "optimum" in study.checks else "initial"
+    """The optimum or the given allocation when there is one, else the initial one."""
+    return next((name for name in ("optimum", "given") if name in study.checks), "initial")
 
 
 def pose_columns_of(machine) -> list[str]:
@@ -590,7 +724,7 @@ def _verification_figures(study, grid, repeats) -> dict:
                        ax=figure.subplots())
     figures["grid_repeats.png"] = figure
     last = _last_checked(study)
-    label = "certified optimum" if last == "optimum" else "initial allocation"
+    label = ALLOCATION_WORDS[last]
     values = study.checks[last].grid.values[0]
     for index, output in enumerate(OUTPUTS):
         figure = Figure(figsize=(9, 4.5), layout="constrained")

@@ -2,7 +2,9 @@
 
 :func:`markdown_table` writes a GitHub-flavoured table; :func:`markdown_to_html` renders the
 subset the report sections use (paragraphs, ``-`` lists, pipe tables, ``###`` headings,
-``**bold**`` and ``code``) for the self-contained ``report.html``.
+``**bold**``, ``code``, ``[links](#anchor)``, ``![figure](name.png)`` and the raw HTML
+block lines of :data:`RAW_HTML`) for the self-contained ``report.html``. GitHub renders the
+same raw blocks in ``report.md``, so a ``<details>`` block folds there too.
 """
 
 from __future__ import annotations
@@ -15,6 +17,24 @@ import pandas as pd
 
 from reliability.basics.display import (lower_bound_text, percent_number,
                                         probability_bound_text, upper_bound_text)
+
+
+#: Opening of the lines passed to HTML as they are: the folding blocks (``<details>``,
+#: ``<summary>``) and the boxes (``<div class="...">``) the first screen lays out.
+RAW_HTML = ("<details", "</details>", "<summary", "<div", "</div>")
+
+
+def anchor(title: str) -> str:
+    """The anchor of a section heading as GitHub makes it (and ``report.html`` sets it):
+    lower case, punctuation dropped but for ``-`` and ``_``, spaces as ``-``."""
+    kept = re.sub(r"[^\w\- ]", "", title.strip().lower())
+    return kept.replace(" ", "-")
+
+
+def details(summary: str, body: str) -> str:
+    """``body`` (markdown) folded under ``summary`` in a ``<details>`` block: shut in
+    ``report.html`` and on GitHub, opened with a click."""
+    return f"<details><summary>{html.escape(summary)}</summary>\n\n{body.strip()}\n\n</details>"
 
 
 def markdown_table(frame: pd.DataFrame, formats: dict | None = None,
@@ -71,13 +91,18 @@ def format_cell(value) -> str:
     return str(value)
 
 
-def markdown_to_html(text: str) -> str:
+def markdown_to_html(text: str, images: dict | None = None) -> str:
     """The markdown the report sections use: paragraphs, ``-`` lists, pipe tables,
-    ``###`` headings, ``**bold**`` and ``code``."""
+    ``###`` headings, ``**bold**``, ``code``, links, the raw lines of :data:`RAW_HTML`, and
+    figures ``![alt](name)`` drawn from ``images`` (name -> ``src``, e.g. a data URI)."""
     blocks, out = re.split(r"\n\s*\n", text.strip()), []
     for block in blocks:
         lines = block.strip().splitlines()
-        if all(line.lstrip().startswith("|") for line in lines):
+        if all(line.lstrip().startswith(RAW_HTML) for line in lines):
+            out.append("\n".join(lines))
+        elif all(_FIGURE.fullmatch(line.strip()) for line in lines):
+            out += [_figure(line.strip(), images or {}) for line in lines]
+        elif all(line.lstrip().startswith("|") for line in lines):
             out.append(_table(lines))
         elif all(line.lstrip().startswith("- ") for line in lines):
             out.append("<ul>" + "".join(f"<li>{_inline(line.lstrip()[2:])}</li>"
@@ -92,16 +117,35 @@ def markdown_to_html(text: str) -> str:
     return "\n".join(out)
 
 
+_FIGURE = re.compile(r"!\[([^\]]*)\]\(([^)\s]+)\)")
+
+
+def _figure(line: str, images: dict) -> str:
+    alt, name = _FIGURE.fullmatch(line).groups()
+    return f'<img alt="{html.escape(alt)}" src="{html.escape(images.get(name, name))}">'
+
+
 def _table(lines) -> str:
     rows = [[cell.strip() for cell in line.strip().strip("|").split("|")] for line in lines
             if not re.fullmatch(r"\|?[\s:|-]+\|?", line.strip())]
     head = "".join(f"<th>{_inline(c)}</th>" for c in rows[0])
-    body = "".join("<tr>" + "".join(f"<td>{_inline(c)}</td>" for c in row) + "</tr>"
-                   for row in rows[1:])
+    body = "".join("<tr>" + "".join(_cell(c) for c in row) + "</tr>" for row in rows[1:])
     return f"<table><thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>"
+
+
+#: A cell that reads as a number (a sign, digits, an exponent, a per cent, an interval's
+#: brackets, or ``–`` for none): right-aligned; any other cell is text, left-aligned.
+_NUMBER = re.compile(r"[-+−]?[\d.,]+(e[-+]?\d+)?\s*%?|–|\[[\d.,\s%e+-]+\]")
+
+
+def _cell(text: str) -> str:
+    if _NUMBER.fullmatch(text.replace("*", "").strip()):
+        return f"<td>{_inline(text)}</td>"
+    return f'<td class="text">{_inline(text)}</td>'
 
 
 def _inline(text: str) -> str:
     text = html.escape(text)
     text = re.sub(r"\*\*(.+?)\*\*", r"<strong>\1</strong>", text)
+    text = re.sub(r"\[([^\]]+)\]\((#[\w-]+)\)", r'<a href="\2">\1</a>', text)
     return re.sub(r"`(.+?)`", r"<code>\1</code>", text)

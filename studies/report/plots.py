@@ -25,6 +25,7 @@ from reliability.basics.streams import generator
 
 __all__ = [
     "plot_allocation_comparison",
+    "plot_output_ratios",
     "plot_comprehensive_error_scatter",
     "plot_convergence",
     "plot_front",
@@ -35,6 +36,12 @@ __all__ = [
 #: Units of the six comprehensive errors, by the design's component names.
 UNITS = {"dx": "mm", "dy": "mm", "dz": "mm", "ex": "rad", "ey": "rad", "ez": "rad"}
 INSIDE_COLOR, OUTSIDE_COLOR = "tab:blue", "tab:red"
+#: One colour per output, the same in every report figure that tells outputs apart.
+OUTPUT_COLOURS = {"dx": "tab:blue", "dy": "tab:orange", "dz": "tab:green",
+                  "ex": "tab:purple", "ey": "tab:brown", "ez": "tab:pink"}
+#: Fill of each allocation in a figure that sets allocations side by side by output:
+#: the first light and hatched, the next solid.
+ALLOCATION_FILLS = ({"alpha": 0.35, "hatch": "//"}, {"alpha": 0.95, "hatch": ""})
 
 
 # --------------------------------------------------------------------------- titles
@@ -289,6 +296,54 @@ def plot_allocation_comparison(
     ax.set_ylabel(f"{compared} / {ref_label} (log scale)")
     ax.set_title(title or f"Tolerance allocation relative to {ref_label} ({len(names)} items)")
     _legend_beside(ax)
+    return ax
+
+
+def plot_output_ratios(ratios: Mapping, *, ax=None, title=None):
+    """Each output's failure probability at its worst pose over the one its target allows,
+    ``(1 − P_o) / (1 − R_o)`` (Eqs. 21–23), one bar per allocation in the output's colour
+    (:data:`OUTPUT_COLOURS`), on a logarithmic axis with the target at 1: a bar above the
+    line misses the target, one on it binds, one below has room.
+
+    Parameters
+    ----------
+    ratios : Mapping[str, array_like (6,)]
+        Allocation label -> the six ratios (dx, dy, dz, ex, ey, ez), at most two labels.
+    ax : matplotlib.axes.Axes, optional
+    title : str, optional
+
+    Returns
+    -------
+    matplotlib.axes.Axes
+    """
+    if not 1 <= len(ratios) <= len(ALLOCATION_FILLS):
+        raise InputError(f"ratios must hold 1 or {len(ALLOCATION_FILLS)} allocations; got "
+                         f"{list(ratios)}")
+    outputs = list(OUTPUT_COLOURS)
+    values = {label: _finite_1d(f"ratios[{label!r}]", v) for label, v in ratios.items()}
+    ax = _axes(ax, (6.0, 3.4))
+    x, width = np.arange(len(outputs)), 0.8 / len(values)
+    colours = [OUTPUT_COLOURS[o] for o in outputs]
+    for j, (label, value) in enumerate(values.items()):
+        offset = (j - (len(values) - 1) / 2) * width
+        ax.bar(x + offset, value, width, color=colours, edgecolor=colours,
+               label=label, **ALLOCATION_FILLS[j])
+    ax.axhline(1.0, color="k", ls=":", lw=1.2, label="target")
+    ax.set_yscale("log")
+    shown = np.concatenate(list(values.values()))
+    shown = shown[shown > 0]
+    if shown.size:  # room below the smallest bar, so every bar shows its length
+        ax.set_ylim(min(shown.min(), 1.0) / 3.0, max(shown.max(), 1.0) * 3.0)
+    ax.yaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))
+    ax.set_xticks(x, outputs)
+    ax.set_xlabel("output (above 1: misses its target; at 1: binds)")
+    ax.set_ylabel("(1 − P) / (1 − target)")
+    ax.set_title(title or "Worst-pose failure probability over the target's",
+                 fontsize=10)
+    handles = [plt.Rectangle((0, 0), 1, 1, facecolor="0.4", edgecolor="0.4", **fill)
+               for fill in ALLOCATION_FILLS[:len(values)]]
+    ax.legend([*handles, ax.get_lines()[-1]], [*values, "target"], fontsize="small",
+              loc="lower center", bbox_to_anchor=(0.5, 1.08), ncols=3, frameon=False)
     return ax
 
 

@@ -25,7 +25,7 @@ import numpy as np
 from reliability.basics.files import (SIGNIFICANT, atomic_write_bytes, atomic_write_text,
                                       check_destination, make_temporary_folder, write_csv)
 
-from .markdown import markdown_to_html
+from .markdown import anchor, markdown_to_html
 from .plots import fit_titles
 
 #: Files whose presence marks a folder as holding an earlier report.
@@ -176,32 +176,45 @@ def png_bytes(figure, dpi: int = FIGURE_DPI) -> bytes:
 
 # ----- markdown ------------------------------------------------------------------------
 def render_markdown(title: str, sections) -> str:
-    """``report.md``: the title, then each section's text and its figures."""
+    """``report.md``: the title, then each section's text and the figures its text does
+    not place itself (``![name](name)``)."""
     parts = [f"# {title}"]
     for section in sections:
         parts.append(f"## {section.title}\n\n{section.text.strip()}")
-        parts += [f"![{name}]({name})" for name in section.figures]
+        parts += [f"![{name}]({name})" for name in trailing_figures(section)]
     return "\n\n".join(parts) + "\n"
 
 
+def trailing_figures(section) -> list[str]:
+    """The section's figures its text does not place, in order: they follow the text."""
+    return [name for name in section.figures if f"]({name})" not in section.text]
+
+
 # ----- HTML ----------------------------------------------------------------------------
-STYLE = ("body{font-family:sans-serif;max-width:1100px;margin:2em auto;padding:0 1em;"
-         "line-height:1.45;color:#222}table{border-collapse:collapse;margin:1em 0;"
+STYLE = ("body{font-family:sans-serif;max-width:1300px;margin:1em auto;padding:0 1em;"
+         "line-height:1.45;color:#222}h1{font-size:1.6em;margin:.3em 0}"
+         "table{border-collapse:collapse;margin:1em 0;"
          "font-size:90%}td,th{border:1px solid #bbb;padding:3px 8px;text-align:right}"
+         "td:first-child,th:first-child,td.text{text-align:left}"
          "th{background:#eee}img{max-width:100%;display:block;margin:1em 0}"
-         "code{background:#f3f3f3;padding:0 3px}")
+         "code{background:#f3f3f3;padding:0 3px}details{margin:.6em 0}"
+         "summary{cursor:pointer;color:#245}"
+         ".glance{display:flex;flex-wrap:wrap;gap:0 1.5em;align-items:flex-start}"
+         ".glance table{margin-top:0;max-width:720px}.glance td,.glance th{text-align:left}"
+         ".glance td:first-child{white-space:nowrap}"
+         ".glance img{max-width:500px;margin-top:0}")
 
 
 def render_html(title: str, sections, images: dict[str, bytes]) -> str:
     """``report.html``: the sections' markdown as HTML, figures inline as data URIs."""
     body = [f"<h1>{html.escape(title)}</h1>"]
+    sources = {name: "data:image/png;base64," + base64.b64encode(data).decode("ascii")
+               for name, data in images.items()}
     for section in sections:
-        body.append(f"<h2>{html.escape(section.title)}</h2>")
-        body.append(markdown_to_html(section.text))
-        for name in section.figures:
-            data = base64.b64encode(images[name]).decode("ascii")
-            body.append(f'<img alt="{html.escape(name)}" '
-                        f'src="data:image/png;base64,{data}">')
+        body.append(f'<h2 id="{anchor(section.title)}">{html.escape(section.title)}</h2>')
+        body.append(markdown_to_html(section.text, sources))
+        for name in trailing_figures(section):
+            body.append(f'<img alt="{html.escape(name)}" src="{sources[name]}">')
     return ("<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">"
             f"<title>{html.escape(title)}</title><style>{STYLE}</style></head>\n<body>\n"
             + "\n".join(body) + "\n</body></html>\n")

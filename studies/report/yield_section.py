@@ -8,6 +8,8 @@ pose region) fails first in the machines that fail.
 
 from __future__ import annotations
 
+import textwrap
+
 import numpy as np
 import pandas as pd
 from matplotlib.figure import Figure
@@ -15,14 +17,19 @@ from matplotlib.figure import Figure
 from reliability.sampling.yield_estimate import yield_text
 from reliability.basics.display import interval_text
 
-from .markdown import interval_formats, markdown_table, percent_bound, probability_bound
+from .markdown import (details, interval_formats, markdown_table, percent_bound,
+                       probability_bound)
+from .plots import OUTPUT_COLOURS
 from .section import Section
 
 #: Regions drawn per allocation in the failure-share figure (largest shares).
 PLOTTED_SHARES = 10
 #: Rows of each allocation's failure-share table in the report text (the CSV has all).
 TABLED_SHARES = 10
-LABELS = {"initial": "initial", "optimum": "optimal"}
+LABELS = {"initial": "initial", "optimum": "optimal", "given": "given"}
+#: Characters per line of a failure region's label: longer ones wrap, so the bars keep
+#: most of the figure's width.
+LABEL_WIDTH = 34
 
 
 def yield_table(study) -> pd.DataFrame:
@@ -73,7 +80,7 @@ def yield_section(study) -> Section:
                "cov": "{:.3g}".format} | interval_formats(
         probability_bound, lower=("lower", "first_order_lower"),
         upper=("upper", "first_order_upper"))
-    parts = [
+    method = (
         f"The share of built machines that keep all six outputs within their limits at "
         f"every pose of the {first.workspace} at once, under the error profile "
         f"**{first.profile}** ({_profile_words(first.profile)}) and the reading "
@@ -85,8 +92,10 @@ def yield_section(study) -> Section:
         f"yield of the linearised model (union bound over every pose and output; the best "
         f"single one). Why each method: "
         + "; ".join(f"{LABELS.get(n, n)}: {c.machine_yield.method_reason}"
-                    for n, c in study.checks.items()) + ".",
-        markdown_table(shown, formats, index=False),
+                    for n, c in study.checks.items()) + ".")
+    parts = [
+        yield_sentence(study)[2:], markdown_table(shown, formats, index=False),
+        details("How the yield is estimated", method),
         "What fails first in the machines that fail: the output and pose region with the "
         "largest |y|/I over the grid (regions: the worst pose's third of the stroke along "
         "the axes that change that output's spread most; mm and degrees). `share`: of the "
@@ -139,12 +148,13 @@ def plot_failure_shares(estimate, *, ax=None, title: str = "", count: int = PLOT
     if ax is None:
         ax = Figure(figsize=(10, 5), layout="constrained").subplots()
     shares = estimate.failure_shares.head(count).iloc[::-1]
-    labels = [f"{row.output}: {row.region}" for row in shares.itertuples()]
+    labels = [textwrap.fill(f"{row.output}: {row.region}", LABEL_WIDTH,
+                            break_long_words=False) for row in shares.itertuples()]
     share = 100 * shares["share"].to_numpy(dtype=float)
     error = np.vstack([share - 100 * shares["lower"].to_numpy(dtype=float),
                        100 * shares["upper"].to_numpy(dtype=float) - share])
-    ax.barh(np.arange(len(shares)), share, xerr=error, capsize=3, color="tab:red",
-            alpha=0.75)
+    ax.barh(np.arange(len(shares)), share, xerr=error, capsize=3,
+            color=[OUTPUT_COLOURS[o] for o in shares["output"]], alpha=0.85)
     ax.set_yticks(np.arange(len(shares)), labels, fontsize=8)
     ax.set_xlabel(f"share of failing machines [%] ({estimate.confidence:.0%} interval)")
     ax.set_xlim(0, 100)

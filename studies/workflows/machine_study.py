@@ -55,17 +55,29 @@ class MachineStudy:
     machines: int = DEFAULT_MACHINES  # built machines per allocation's machine yield
     workspace: str = "grid"  # 'continuous' or 'grid'
     continuous: object = None  # the ContinuousAllocation under workspace 'continuous'
+    given: str | None = None  # the given allocation's source in words, when one is given
+    given_tolerances: object = None  # its tolerances (mm, rad), studied in the optimum's place
+    given_fosm: object = None
 
     @property
     def reachable(self) -> bool:
-        """Whether an allocation inside the box meets the targets."""
-        return self.unreachable is None
+        """Whether the study found an allocation inside the box that meets the targets
+        (False when it was given an allocation instead of seeking one)."""
+        return self.unreachable is None and self.given is None
 
     @property
     def allocated(self):
         """The optimal tolerances exactly as ``allocation.csv`` holds them (what every
         later step of the study verifies); None when the targets are out of reach."""
         return None if self.optimum is None else written_tolerances(self.optimum)
+
+    @property
+    def compared(self) -> tuple[str, object] | None:
+        """The allocation set beside the initial one, as ``(name, tolerances)``: the optimum
+        as written, or the given allocation; None when the targets are out of reach."""
+        if self.given is not None:
+            return "given", self.given_tolerances
+        return ("optimum", self.allocated) if self.reachable else None
 
     def summary(self) -> str:
         """The study's choices and its headline numbers, one line each."""
@@ -80,6 +92,8 @@ class MachineStudy:
             f"cheapest allocation: {info['relative_cost']:.4%} of the initial cost "
             f"({'certified' if info['certified'] else 'NOT certified'}, relative gap "
             f"≤ {info['relative_gap']:.0e})" if self.reachable else
+            f"given allocation ({self.given}): {info['given_relative_cost']:.4%} of the "
+            f"initial cost" if self.given is not None else
             f"targets out of reach in the box: {self.unreachable}",
             *(f"{name}: {check.summary()}" for name, check in self.checks.items())])
 
@@ -100,7 +114,8 @@ class MachineStudy:
 def run(machine, *, points: int = 5, side: str = "two_sided", bounds=None,
         rng: int | None = 0, repeats: int = 20, samples: int = 20_000, progress=None,
         bar=None, machines: int = DEFAULT_MACHINES, workspace: str = "continuous",
-        rtol: float = DEFAULT_RTOL, time_limit: float | None = None) -> MachineStudy:
+        rtol: float = DEFAULT_RTOL, time_limit: float | None = None, given=None,
+        given_text: str = "the given allocation") -> MachineStudy:
     """Run the study of ``machine``.
 
     Parameters
@@ -147,6 +162,13 @@ def run(machine, *, points: int = 5, side: str = "two_sided", bounds=None,
         (:func:`allocation.per_pose.continuous.solve_continuous`'s ``time_limit``): past
         them, or at Ctrl-C, it stops with the best allocation so far, not certified, and
         the study goes on with it. None: no limit. Refused (InputError) with the grid.
+    given : array_like (n_errors,), optional
+        An allocation (mm, rad; e.g. ``precrel allocate --yield``'s, ``choose``'s or a
+        supplier's, as ``--tolerances`` reads it) studied beside the initial one in place
+        of the optimum: FOSM and the Monte-Carlo verification of it as given, and no
+        allocation is sought (``optimum`` None, ``reachable`` False).
+    given_text : str
+        Where ``given`` comes from, in words (``given`` in the result).
 
     When no allocation inside the bounds meets the targets the study still runs for the
     initial allocation: ``optimum`` and ``optimal_fosm`` are None and ``unreachable``
@@ -165,21 +187,16 @@ def run(machine, *, points: int = 5, side: str = "two_sided", bounds=None,
                                       bounds=bounds)
     initial = fosm(machine, problem.reference, problem.poses, jacobian=problem.jacobian,
                    distribution=machine.distribution)
-    progress(f"certified cheapest allocation (convex solver, workspace '{workspace}')")
     verified = [("initial", problem.reference, initial)]
-    optimum = optimal = unreachable = continuous = None
-    try:
-        if workspace == "continuous":
-            limits = {} if time_limit is None else {"time_limit": time_limit}
-            continuous = solve_continuous(problem, rtol=rtol,
-                                          progress=lambda text: progress(f"  {text}"),
-                                          **limits)
-            optimum = continuous.result
-        else:
-            optimum = problem.solve_exact()
-    except TargetUnreachableError as exc:
-        unreachable = exc
-        progress(f"targets out of reach in the box: {exc}")
+    optimum = optimal = unreachable = continuous = given_fosm = None
+    if given is not None:
+        given = machine.check_tolerances(given)
+        given_fosm = fosm(machine, given, problem.poses, jacobian=problem.jacobian,
+                          distribution=machine.distribution)
+        verified.append(("given", given, given_fosm))
+    else:
+        optimum, continuous, unreachable = _optimum(problem, workspace, rtol, progress,
+                                                    time_limit)
     if optimum is not None:
         written = written_tolerances(optimum)
         optimal = fosm(machine, written, problem.poses, jacobian=problem.jacobian,
@@ -196,7 +213,31 @@ def run(machine, *, points: int = 5, side: str = "two_sided", bounds=None,
                         bounds=None if bounds is None else tuple(bounds),
                         seed=seed, problem=problem, initial_fosm=initial, optimum=optimum,
                         optimal_fosm=optimal, checks=checks, unreachable=unreachable,
-                        machines=machines, workspace=workspace, continuous=continuous)
+                        machines=machines, workspace=workspace, continuous=continuous,
+                        given=None if given is None else given_text,
+                        given_tolerances=given, given_fosm=given_fosm)
+
+
+def _optimum(problem, workspace: str, rtol: float, progress, time_limit=None) -> tuple:
+    """The certified cheapest allocation of ``problem`` (Eq. 34) as ``(optimum,
+    continuous, unreachable)``: the ContinuousAllocation under workspace 'continuous'
+    (its loop stopped after ``time_limit`` seconds, if given), and the
+    TargetUnreachableError (optimum None) when the box cannot meet the targets."""
+    progress(f"certified cheapest allocation (convex solver, workspace '{workspace}')")
+    optimum = unreachable = continuous = None
+    try:
+        if workspace == "continuous":
+            limits = {} if time_limit is None else {"time_limit": time_limit}
+            continuous = solve_continuous(problem, rtol=rtol,
+                                          progress=lambda text: progress(f"  {text}"),
+                                          **limits)
+            optimum = continuous.result
+        else:
+            optimum = problem.solve_exact()
+    except TargetUnreachableError as exc:
+        unreachable = exc
+        progress(f"targets out of reach in the box: {exc}")
+    return optimum, continuous, unreachable
 
 
 def summary(study: MachineStudy) -> dict:
@@ -206,7 +247,10 @@ def summary(study: MachineStudy) -> dict:
     ``reachable`` says whether an allocation inside the box meets the targets; when it is
     false, ``optimal_cost``, ``relative_cost``, ``relative_gap`` and
     ``optimal_meets_targets`` are None and ``reaching_factor`` is the largest lower-bound
-    factor with which the targets can be reached.
+    factor with which the targets can be reached. ``allocation`` says which allocation
+    stands beside the initial one: ``"certified optimum"``, ``"given"`` (then
+    ``reachable`` is None, not sought, and :func:`given_summary` adds its entries) or None
+    when the targets are out of reach.
     """
     initial_cost = float(study.problem.cost.total(study.problem.reference))
     optimum = study.optimum
@@ -221,8 +265,11 @@ def summary(study: MachineStudy) -> dict:
         "workspace": study.workspace,
         "bounds": None if study.bounds is None else list(study.bounds),
         "bounds_source": _bounds_source(study.problem),
-        "reachable": study.reachable,
-        "reaching_factor": None if study.reachable else study.problem.reaching_factor(),
+        "reachable": None if study.given is not None else study.reachable,
+        "reaching_factor": None if study.reachable or study.given is not None else
+        study.problem.reaching_factor(),
+        "allocation": "given" if study.given is not None else
+        "certified optimum" if study.reachable else None,
         "initial_cost": initial_cost,
         "optimal_cost": None if optimum is None else optimum.cost,
         "relative_cost": None if optimum is None else optimum.cost / initial_cost,
@@ -235,16 +282,33 @@ def summary(study: MachineStudy) -> dict:
         "seed": study.seed,
         "repeats": checked.grid.repeats,
         "samples": int(checked.worst_poses["samples"].iloc[0]),
+        **given_summary(study),
     }
 
 
+def given_summary(study: MachineStudy) -> dict:
+    """The given allocation's entries (none without one): ``given_source`` (where it
+    comes from), ``given_cost`` (Eq. 28), ``given_relative_cost`` (over the initial
+    cost) and ``given_meets_targets`` (every target at every grid pose, FOSM)."""
+    if study.given is None:
+        return {}
+    cost = float(study.problem.cost.total(study.given_tolerances))
+    return {"given_source": study.given, "given_cost": cost,
+            "given_relative_cost": cost / float(study.problem.cost.total(
+                study.problem.reference)),
+            "given_meets_targets": bool(study.given_fosm.meets_targets(study.side).all())}
+
+
 def yield_summary(study: MachineStudy) -> dict:
-    """``yield``, ``yield_interval`` (``optimal`` None when the targets are out of reach),
+    """``yield``, ``yield_interval`` (``optimal`` None when the targets are out of reach or
+    an allocation is given; ``given``, that allocation's, only then),
     ``yield_profile``, ``yield_machines`` (built machines asked for per allocation; fewer
     when importance sampling reached its CoV), and ``yield_method`` and
     ``yield_first_order`` (first-order bounds of the linearised model) per allocation."""
+    names = [("initial", "initial"), ("optimal", "optimum")] + \
+        ([("given", "given")] if "given" in study.checks else [])
     estimates = {name: study.checks[check].machine_yield if check in study.checks else None
-                 for name, check in (("initial", "initial"), ("optimal", "optimum"))}
+                 for name, check in names}
 
     def each(value):
         return {name: None if y is None else value(y) for name, y in estimates.items()}
