@@ -11,7 +11,7 @@ from dataclasses import fields, replace
 import numpy as np
 import pytest
 
-from allocation.per_pose.elasticity import requirement_table, requirement_text
+from allocation.per_pose.elasticity import UNIQUE_WIDTH, requirement_table, requirement_text
 from allocation.per_pose.problem import AllocationProblem, ScreenedRows
 from allocation.solvers.convex import solve_convex_allocation
 from allocation.solvers.dual_face import dual_face
@@ -207,7 +207,9 @@ def test_case_study_dx_dz_table_does_not_depend_on_the_row_order(hobbing_continu
     again = _permuted(result.problem, order).solve_exact()
     one, two = requirement_table(result), requirement_table(again)
     numbers = one.columns[one.dtypes.map(lambda d: d.kind) == "f"]
+    # the face is held to the optimum's accuracy, so a determined value is fixed to
+    # UNIQUE_WIDTH (relative), far finer than the three digits it is printed with
     np.testing.assert_allclose(one[numbers].to_numpy(), two[numbers].to_numpy(),
-                               rtol=1e-5, atol=1e-6)
+                               rtol=UNIQUE_WIDTH, atol=1e-6)
     assert one["bound_with"].tolist() == two["bound_with"].tolist()
     assert requirement_text(result).equals(requirement_text(again))
