@@ -17,7 +17,8 @@ MACHINE_DIR = Path(__file__).parent / "machines"
 
 #: Modules whose tests take longest, longest first. They run first, so that the two
 #: workers share them from the start and no long test is left for one worker at the end.
-LONG_MODULES = ("test_reproduce", "test_cli", "test_trust", "test_continuous", "test_rare",
+LONG_MODULES = ("test_other_computers", "test_reproduce", "test_cli", "test_trust",
+                "test_continuous", "test_rare",
                 "test_plots", "test_sampling", "test_acceptance", "test_system",
                 "test_combinations", "test_bounds_table", "test_report_study",
                 "test_correlation", "test_pose_sampling", "test_yield_target",

@@ -118,18 +118,8 @@ def page_height(html_path, width: int = 1200, *, browser: str | None = None,
     """
     html_path = Path(html_path).resolve()
     browser = _checked(html_path, width, browser)
-    with tempfile.TemporaryDirectory() as folder:
-        probe = Path(folder) / "measure.html"
-        probe.write_text(_measuring_copy(html_path), encoding="utf-8",
-                         errors="surrogateescape")
-        done = _run([f"--window-size={width},{PROBE_HEIGHT}",
-                     f"--virtual-time-budget={LOAD_BUDGET_MS}", "--dump-dom", probe.as_uri()],
-                    browser, timeout)
-    found = re.search(rf'{HEIGHT_ATTRIBUTE}="(\d+)"', done.stdout)
-    if found is None:
-        raise RuntimeError(f"{browser} reported no page height for {html_path} (exit "
-                           f"{done.returncode}): {done.stderr.strip()[-500:]}")
-    return int(found.group(1))
+    return int(_probe(html_path, MEASURE_SCRIPT, HEIGHT_ATTRIBUTE, r"\d+", "page height",
+                      (width, PROBE_HEIGHT), browser, timeout))
 
 
 def first_screen_layout(html_path, width: int = 1400, height: int = 900, *,
@@ -148,18 +138,28 @@ def first_screen_layout(html_path, width: int = 1400, height: int = 900, *,
     """
     html_path = Path(html_path).resolve()
     browser = _checked(html_path, width, browser)
+    found = _probe(html_path, LAYOUT_SCRIPT, LAYOUT_ATTRIBUTE, r'[^"]*', "layout",
+                   (width, height), browser, timeout)
+    return json.loads(html.unescape(found))
+
+
+def _probe(html_path: Path, script: str, attribute: str, pattern: str, what: str, window,
+           browser: str, timeout: float) -> str:
+    """Load a copy of the page with ``script`` (:func:`_measuring_copy`) in a window of
+    ``window`` (width, height) pixels and return the value ``script`` wrote into the root
+    element's ``attribute`` (matching ``pattern``); RuntimeError naming ``what`` if none."""
     with tempfile.TemporaryDirectory() as folder:
-        probe = Path(folder) / "layout.html"
-        probe.write_text(_measuring_copy(html_path, LAYOUT_SCRIPT), encoding="utf-8",
+        probe = Path(folder) / "probe.html"
+        probe.write_text(_measuring_copy(html_path, script), encoding="utf-8",
                          errors="surrogateescape")
-        done = _run([f"--window-size={width},{height}",
+        done = _run([f"--window-size={window[0]},{window[1]}",
                      f"--virtual-time-budget={LOAD_BUDGET_MS}", "--dump-dom", probe.as_uri()],
                     browser, timeout)
-    found = re.search(rf"{LAYOUT_ATTRIBUTE}=\"([^\"]*)\"", done.stdout)
+    found = re.search(rf'{attribute}="({pattern})"', done.stdout)
     if found is None:
-        raise RuntimeError(f"{browser} reported no layout for {html_path} (exit "
+        raise RuntimeError(f"{browser} reported no {what} for {html_path} (exit "
                            f"{done.returncode}): {done.stderr.strip()[-500:]}")
-    return json.loads(html.unescape(found.group(1)))
+    return found.group(1)
 
 
 def _checked(html_path: Path, width: int, browser: str | None) -> str:
