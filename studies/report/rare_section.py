@@ -12,7 +12,7 @@ from reliability.basics.streams import spawn
 from reliability.sampling.pose_sampling import sample_at_poses
 from reliability.sampling.verification import rare_event_table
 
-from .markdown import interval_formats, markdown_table, significant_bound
+from .markdown import details, interval_formats, markdown_table, significant_bound
 from .section import Section
 
 SCIENTIFIC = "{:.3e}".format
@@ -42,16 +42,22 @@ def rare_section(machine, tolerances, *, label: str = "allocation", samples: int
     verification = sample_at_poses(machine, tolerances, samples=samples, precision=precision,
                                    k=k, distribution=distribution, rng=mc_stream)
     mc = verification.to_frame()
-    text = [f"Crude Monte-Carlo on the exact model at each output's worst pose of the "
-            f"workspace grid, {verification.n_samples} independent error draws per pose "
-            f"({distribution} errors, t = ±{k:g}σ), {100 * verification.confidence:.0f} % "
-            f"Wilson intervals on the failure probability, beside the linear-Gaussian "
-            f"(FOSM two-sided; system: six-dimensional normal rectangle) answer.", "",
+    worst = mc.iloc[int(mc["mc_failure"].to_numpy().argmax())]
+    text = [f"The largest failure probability by crude Monte-Carlo at the worst poses is "
+            f"**{SCIENTIFIC(worst['mc_failure'])}** ({worst['event']} at {worst['pose']}; "
+            f"FOSM {SCIENTIFIC(worst['fosm_failure'])}).", "",
             markdown_table(mc[["pose", "event", *verification.axes, "mc_failure", "lower",
                                "upper", "fosm_failure"]],
                            {c: SCIENTIFIC for c in ("mc_failure", "fosm_failure")}
                            | interval_formats(significant_bound(4), lower=("lower",),
-                                              upper=("upper",)), index=False)]
+                                              upper=("upper",)), index=False), "",
+            details("How it is computed", (
+                f"Crude Monte-Carlo on the exact model at each output's worst pose of the "
+                f"workspace grid, {verification.n_samples} independent error draws per pose "
+                f"({distribution} errors, t = ±{k:g}σ), "
+                f"{100 * verification.confidence:.0f} % Wilson intervals on the failure "
+                f"probability, beside the linear-Gaussian (FOSM two-sided; system: "
+                f"six-dimensional normal rectangle) answer."))]
     tables = {f"{label}_worst_pose_mc.csv": mc}
     summary = {f"{label}_worst_pose_mc": {
         "samples": verification.n_samples, "precision": precision,
@@ -61,17 +67,23 @@ def rare_section(machine, tolerances, *, label: str = "allocation", samples: int
         table = rare_event_table(machine, tolerances, target_cov=target_cov,
                                  max_evaluations=max_evaluations, k=k,
                                  distribution=distribution, rng=rare_stream)
-        text += ["", f"Failure probability of each output and of the system at its worst grid "
-                 f"pose by importance sampling on the exact model (target CoV {target_cov:g}, "
-                 f"at most {max_evaluations} evaluations); the interval is estimate ± 1.96 "
-                 f"standard errors. fosm_probability is the linear two-sided answer (for the "
-                 f"system the union bound Σ_o, an upper bound).", "",
+        largest = table["probability"].idxmax()
+        text += ["", f"By importance sampling, the largest failure probability at the "
+                 f"worst grid poses is **{SCIENTIFIC(table.loc[largest, 'probability'])}** "
+                 f"({largest}, CoV {table.loc[largest, 'cov']:.3f}).", "",
                  markdown_table(table[["probability", "cov", "lower", "upper",
                                        "n_evaluations", "fosm_probability"]],
                                 {c: SCIENTIFIC for c in ("probability", "fosm_probability")}
                                 | interval_formats(significant_bound(4), lower=("lower",),
                                                    upper=("upper",))
-                                | {"cov": "{:.3f}".format})]
+                                | {"cov": "{:.3f}".format}), "",
+                 details("How the rare events are estimated", (
+                     f"Failure probability of each output and of the system at its worst "
+                     f"grid pose by importance sampling on the exact model (target CoV "
+                     f"{target_cov:g}, at most {max_evaluations} evaluations); the interval "
+                     f"is estimate ± 1.96 standard errors. fosm_probability is the linear "
+                     f"two-sided answer (for the system the union bound Σ_o, an upper "
+                     f"bound)."))]
         tables[f"{label}_rare_events.csv"] = table
         summary[f"{label}_rare_events"] = {
             event: {"probability": row["probability"], "cov": row["cov"],

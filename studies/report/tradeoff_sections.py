@@ -19,6 +19,7 @@ from reliability.basics.streams import spawn
 from reliability.first_order.system_reliability import worst_system_reliability
 from reliability.model.poses import workspace_grid
 
+from .markdown import details
 from .plots import plot_front
 from .section import Section
 
@@ -72,33 +73,38 @@ def front_section(machine, *, targets=DEFAULT_TARGETS, reliability: float = 0.99
                "front_certified": bool(front.loc[front["feasible"], "certified"].all()),
                f"relative_cost_at_{reliability:g}":
                    float(at["relative_cost"]) if at["feasible"] else None}
-    text = f"In the {words}. "
+    stack_text = (f"The worst-case stack (every output inside its limit for every "
+                  f"combination of errors within their tolerances, Σ|∂y/∂x| t ≤ I at every "
+                  f"pose)")
     if "error" in stack:
-        text += (f"The worst-case stack cannot be held in this box: "
-                 f"{stack['error'].split(';')[0]}.")
+        answer = (f"The worst-case stack cannot be held in the {words}: "
+                  f"{stack['error'].split(';')[0]}.")
+        method = f"{stack_text} has no allocation in this box."
     elif not at["feasible"]:
-        text += (f"The worst-case stack costs {stack['relative_cost']:.3g} × the initial "
-                 f"allocation (certified, relative duality gap "
-                 f"{gap_text(stack['relative_gap'])}); {reliability:g} two-sided at every "
-                 f"pose is not reachable in this box.")
+        answer = (f"{reliability:g} two-sided at every pose is not reachable in the {words}; "
+                  f"the worst-case stack costs **{stack['relative_cost']:.3g} ×** the "
+                  f"initial allocation.")
+        method = (f"{stack_text} is a certified optimum, relative duality gap "
+                  f"{gap_text(stack['relative_gap'])}.")
     else:
         ratio = stack["relative_cost"] / at["relative_cost"]
         summary.update(stack_relative_cost=float(stack["relative_cost"]),
                        stack_certified=bool(stack["certified"]),
                        stack_over_target_cost=float(ratio))
-        text += (f"Holding every output inside its limit for every combination of errors "
-                f"within their tolerances (the classical worst-case stack, Σ|∂y/∂x| t ≤ I "
-                f"at every pose) costs {stack['relative_cost']:.3g} × the initial "
-                f"allocation (certified optimum, relative duality gap "
-                f"{gap_text(stack['relative_gap'])}). The cheapest allocation meeting "
-                f"{reliability:g} two-sided at every pose costs "
-                f"{at['relative_cost']:.3g} × the initial allocation: the worst-case "
-                f"machine is **{ratio:.3g} times** as expensive.")
-    text += (f"\n\nThe front below gives the certified optimal cost for the {reached} of "
-             f"{len(front)} targets this box can reach (the same target for all six outputs "
-             f"at every pose; `relative_gap` is an upper bound); the dashed line is the "
-             f"stack. Marked allocations sit at their worst reliability over outputs and "
-             f"poses.")
+        answer = (f"The worst-case machine is **{ratio:.3g} times** as expensive as the "
+                  f"cheapest one meeting {reliability:g} two-sided at every pose "
+                  f"({stack['relative_cost']:.3g} against {at['relative_cost']:.3g} × the "
+                  f"initial allocation, in the {words}).")
+        method = (f"{stack_text} costs {stack['relative_cost']:.3g} × the initial allocation "
+                  f"(certified optimum, relative duality gap "
+                  f"{gap_text(stack['relative_gap'])}); the cheapest allocation meeting "
+                  f"{reliability:g} two-sided at every pose costs {at['relative_cost']:.3g} ×.")
+    method += (f" The front gives the certified optimal cost for the {reached} of "
+               f"{len(front)} targets this box can reach (the same target for all six "
+               f"outputs at every pose; `relative_gap` in `front.csv` is an upper bound); "
+               f"the dashed line is the stack. Marked allocations sit at their worst "
+               f"reliability over outputs and poses.")
+    text = f"{answer}\n\n" + details("How the front is computed", method)
     return Section(title="Cost against reliability", text=text,
                    figures={"front.png": ax.figure}, tables={"front.csv": table},
                    summary=summary)
@@ -137,14 +143,18 @@ def system_section(machine, allocations, *, poses=None, rng=None) -> Section:
              f"{bound_text(row['bonferroni'])} | "
              f"{decimals_text(row['least_output'], 6, 'upper')} |"
              for label, row in table.iterrows()]
-    text = ("A part is good only when all six outputs are inside their limits at once. "
-            "For the linearised model this is a six-dimensional normal rectangle "
-            "probability, computed exactly up to the stated numerical standard error; "
-            "the product of the per-output probabilities is a lower bound (Šidák), "
-            "Bonferroni a weaker one, and the least reliable output an upper bound. "
-            "Worst pose of the grid, as axis positions:\n\n"
+    answer = "All six outputs inside at once at the worst grid pose: " + ", ".join(
+        f"**{row['system']:.6f}** ({label})" for label, row in table.iterrows()) + "."
+    method = ("A part is good only when all six outputs are inside their limits at once. "
+              "For the linearised model this is a six-dimensional normal rectangle "
+              "probability, computed exactly up to the stated numerical standard error; "
+              "the product of the per-output probabilities is a lower bound (Šidák), "
+              "Bonferroni a weaker one, and the least reliable output an upper bound. "
+              "The worst pose of the grid is given as axis positions.")
+    text = (f"{answer}\n\n"
             "| allocation | worst pose | all six inside | product | Bonferroni | least output |\n"
-            "|---|---|---|---|---|---|\n" + "\n".join(lines))
+            "|---|---|---|---|---|---|\n" + "\n".join(lines) + "\n\n"
+            + details("How it is computed", method))
     summary = {f"system_worst_{label}": float(value) for label, value in table["system"].items()}
     return Section(title="System reliability", text=text,
                    tables={"system_reliability.csv": table}, summary=summary)
