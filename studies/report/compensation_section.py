@@ -10,7 +10,7 @@ from reliability.basics.display import (decimals_text, percentage_text,
                                         tolerance_numbers)
 from reliability.model.iso_names import plain_names
 
-from .markdown import markdown_table
+from .markdown import details, markdown_table
 from .section import Section
 
 TITLE = "After compensation"
@@ -34,12 +34,14 @@ def compensation_section(study, plan, plan_name: str) -> Section:
     tight = shown[table["limited_by"].isin(("targets", "lower bound"))]
     formats = {"posterior_share": "{:.4g}".format, "change": percentage_text}
     text = "\n\n".join([
-        _opening(found, plan, plan_name, len(study.problem.poses)),
+        _answer(found),
         f"**What compensation lets you relax** ({len(relaxed)} items; the largest; "
         f"tolerances in the machine file's units, `compensation.csv` in mm and rad):",
         markdown_table(relaxed.head(SHOWN_ROWS), formats, index=False),
         _tight_text(tight), markdown_table(tight.head(SHOWN_ROWS), formats, index=False)
-        if len(tight) else "", _model_text()])
+        if len(tight) else "",
+        details("How it is computed", _method(found, plan, plan_name,
+                                              len(study.problem.poses)) + " " + _model_text())])
     return Section(TITLE, text, tables={"compensation.csv": table},
                    summary={"compensation_cost_ratio": found.cost / found.cost_without,
                             "compensation_lower_bound_ratio":
@@ -60,15 +62,20 @@ def _for_people(table, machine):
     return shown
 
 
-def _opening(found, plan, plan_name, poses) -> str:
+def _answer(found) -> str:
+    return (f"After compensation the cheapest allocation found costs "
+            f"**{found.cost / found.cost_without:.4f} ×** the certified optimum without "
+            f"compensation, and meets every target at every pose: "
+            f"{'yes' if found.feasible else 'NO'}.")
+
+
+def _method(found, plan, plan_name, poses) -> str:
     return (f"Machines measured under `{plan_name}` ({len(plan.runs)} runs), identified and "
             f"compensated ({int(plan.tabled.sum())} of {len(plan.tabled)} items tabled, every "
-            f"{plan.spacing_mm:g} mm and {plan.spacing_deg:g} degrees). The cheapest "
-            f"allocation found after compensation costs **{found.cost / found.cost_without:.4f}"
-            f"** × the certified optimum without compensation on the same {poses} poses and "
-            f"box, with a certified lower bound of "
-            f"{decimals_text(found.lower_bound / found.cost_without, 4, 'lower')} ×; it meets every target after compensation at every pose: "
-            f"{'yes' if found.feasible else 'NO'}.")
+            f"{plan.spacing_mm:g} mm and {plan.spacing_deg:g} degrees); both allocations on "
+            f"the same {poses} poses and box, with a certified lower bound of "
+            f"{decimals_text(found.lower_bound / found.cost_without, 4, 'lower')} × on the "
+            f"cost ratio.")
 
 
 def _tight_text(tight) -> str:

@@ -368,13 +368,16 @@ def workspace_section(study: MachineStudy) -> Section:
     poses added to the grid, the certificate per output (docs/continuous-allocation.md)."""
     continuous = study.continuous
     machine = study.machine
-    text = (f"{continuous.statement[0].upper()}{continuous.statement[1:]}. Starting from "
-            f"the {study.points}-point grid, the worst pose of every output short of its "
-            f"target (found by a local search, then by the certificate's branch and bound "
-            f"over the whole stroke box) was added as a constraint and the problem solved "
-            f"again: {continuous.solves} convex solve(s), {len(continuous.added)} pose(s) "
-            f"added, {continuous.certificate_calls} certificate call(s). The optimum costs "
-            f"{continuous.cost_ratio:.6f} × the grid optimum's.")
+    answer = (f"The optimum over the continuous workspace costs "
+              f"**{continuous.cost_ratio:.6f} ×** the grid optimum's; "
+              f"{continuous.statement}.")
+    method = (f"Starting from the {study.points}-point grid, the worst pose of every output "
+              f"short of its target (found by a local search, then by the certificate's "
+              f"branch and bound over the whole stroke box) was added as a constraint and the "
+              f"problem solved again: {continuous.solves} convex solve(s), "
+              f"{len(continuous.added)} pose(s) added, {continuous.certificate_calls} "
+              f"certificate call(s).")
+    text = answer
     tables = {}
     if len(continuous.added):
         tables["workspace_added_poses.csv"] = continuous.added
@@ -398,6 +401,7 @@ def workspace_section(study: MachineStudy) -> Section:
                  "`excess`: bound / allowed − 1; `gap`: the certificate's own bound / σ − 1):"
                  "\n\n" + markdown_table(shown, interval_formats(
                      significant_bound(5), upper=(bound, "excess", "gap")), index=False))
+    text += "\n\n" + details("How it is certified", method)
     entries = {"workspace_certified": continuous.certified, "workspace_rtol": continuous.rtol,
                "workspace_solves": continuous.solves,
                "workspace_certificate_calls": continuous.certificate_calls,

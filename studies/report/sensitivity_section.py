@@ -14,7 +14,7 @@ from reliability.sampling.machine_yield import DEFAULT_MACHINES, YieldModel
 from reliability.sampling.yield_sensitivity import yield_sensitivity
 
 from .extras import allocations
-from .markdown import markdown_table
+from .markdown import details, markdown_table
 from .section import Section
 
 #: The tightening the table speaks of: every tolerance of the row times this factor.
@@ -50,15 +50,20 @@ def sensitivity_section(machine, tolerances, *, label: str, points: int = 5,
                "cost change [%]": "{:+.2f}".format}
     how = ("the score function on the yield's own draws" if result.method == "score" else
            "central differences on common random numbers")
-    text = "\n\n".join([
-        f"What each tolerance buys at the {label} allocation: the change of the machine "
-        f"yield (profile {model.profile}, {model.workspace}, {result.machines} built "
-        f"machines, yield {result.yield_estimate:.4f}) when the tolerances of one item, or "
-        f"of a group of items no pose tells apart, are tightened by 10 %, to first order in "
-        f"ln t ({how}), beside the change of the machine's cost (Eq. 28). `se`: the standard "
-        f"error of the yield change. Items whose yield change is within about two standard "
-        f"errors of 0 buy nothing measurable at this number of machines.",
-        markdown_table(table.head(SHOWN_ROWS), formats, index=False)])
+    top = table.iloc[0]
+    answer = (f"Tightening **{top['tighten by 10 %']}** by 10 % buys the most yield at the "
+              f"{label} allocation: **{formats['yield change [%]'](top['yield change [%]'])} "
+              f"%** (se {formats['se [%]'](top['se [%]'])} %), for "
+              f"{formats['cost change [%]'](top['cost change [%]'])} % of cost.")
+    method = (f"The change of the machine yield (profile {model.profile}, {model.workspace}, "
+              f"{result.machines} built machines, yield {result.yield_estimate:.4f}) when the "
+              f"tolerances of one item, or of a group of items no pose tells apart, are "
+              f"tightened by 10 %, to first order in ln t ({how}), beside the change of the "
+              f"machine's cost (Eq. 28). `se`: the standard error of the yield change. Items "
+              f"whose yield change is within about two standard errors of 0 buy nothing "
+              f"measurable at this number of machines.")
+    text = "\n\n".join([answer, markdown_table(table.head(SHOWN_ROWS), formats, index=False),
+                         details("How it is computed", method)])
     return Section(title="What each tolerance buys", text=text,
                    tables={"yield_sensitivity.csv": result.to_frame()},
                    summary={"yield_sensitivity": {"allocation": label,
