@@ -19,7 +19,7 @@ from reliability.basics.files import SIGNIFICANT
 from reliability.model.machine import OUTPUTS
 from reliability.sampling.pose_sampling import sample_at_poses
 
-from .markdown import interval_formats, markdown_table, percent_bound
+from .markdown import details, interval_formats, markdown_table, percent_bound
 from .section import Section
 
 PERCENT = "{:.3%}".format
@@ -45,18 +45,21 @@ def catalogue_section(result, *, samples: int = 20_000, rng=None,
     choice = result.to_frame()
     worst = result.worst.reset_index()
     binding = result.binding()
-    text = [f"The cheapest choice of one class per component of the catalogue "
-            f"({len(catalogue.components)} components, {catalogue.n_choices:,} possible "
-            f"choices) that meets every target at every one of {len(problem.poses)} poses "
-            f"(workspace 'grid': a choice of classes is made on the grid poses only; "
-            f"{problem.side.replace('_', '-')} reading, tolerances ±{problem.k:g}σ). Items in "
-            f"no component keep {start_text}; classes are used as given (no "
-            f"search box). Solved by HiGHS (scipy.optimize.milp) to a proved relative gap of "
-            f"**{result.gap:.1e}**: total price **{result.price:.6g}{currency}** "
-            f"(dual bound {result.dual_bound:.6g}), re-checked on every row "
-            f"(largest load {result.details['max_load']:.6f}"
-            f"{'' if result.feasible else ', ABOVE 1: NOT FEASIBLE'}).", "",
-            markdown_table(choice, index=False), ""]
+    answer = (f"The cheapest choice of catalogue classes that meets every target at every "
+              f"grid pose costs **{result.price:.6g}{currency}** in total, proved within a "
+              f"relative gap of {result.gap:.1e}"
+              f"{'' if result.feasible else ', but its re-check is ABOVE 1: NOT FEASIBLE'}.")
+    method = (f"One class per component of the catalogue ({len(catalogue.components)} "
+              f"components, {catalogue.n_choices:,} possible choices), meeting every target "
+              f"at every one of {len(problem.poses)} poses (workspace 'grid': a choice of "
+              f"classes is made on the grid poses only; {problem.side.replace('_', '-')} "
+              f"reading, tolerances ±{problem.k:g}σ). Items in no component keep "
+              f"{start_text}; classes are used as given (no search box). Solved by HiGHS "
+              f"(scipy.optimize.milp) to a proved relative gap of {result.gap:.1e} (dual "
+              f"bound {result.dual_bound:.6g}), re-checked on every row (largest load "
+              f"{result.details['max_load']:.6f}).")
+    text = [answer, "", markdown_table(choice, index=False), "",
+            details("How the choice is found", method), ""]
     if len(binding):
         text += ["What binds: the requirements that forbid loosening a component by one "
                  "class (load = σ² over the σ² the target allows, at the choice).", "",

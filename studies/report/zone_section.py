@@ -17,7 +17,7 @@ from reliability.basics.display import (OUTPUT_UNITS, axis_units, interval_text,
 from reliability.model.work_zone import tool_frames
 from reliability.sampling.yield_estimate import yield_text
 
-from .markdown import markdown_table
+from .markdown import details, markdown_table
 from .section import Section
 
 WORKSPACE_WORDS = {"zone": "in the work zone", "strokes": "over the whole strokes"}
@@ -27,17 +27,24 @@ def zone_section(comparison) -> Section:
     """The section of a :class:`~studies.workflows.zone_comparison.ZoneComparison`."""
     machine = comparison.machine
     inside = len(comparison.zone_poses)
+    rows = allocation_rows(comparison)
+    last = rows.iloc[-1]
+    answer = (f"**{inside} of the {comparison.grid_poses} poses** of the "
+              f"{comparison.points}-point grid lie in the work zone; solved there, the "
+              f"{last['allocation']} allocation costs **{last['cost (× initial)']} ×** the "
+              f"initial one.")
+    method = (f"Workspace: the {machine.work_zone.text()} (tool point and tilt in the "
+              f"workpiece frame). FOSM, the allocation, the grid experiment and the machine "
+              f"yield of this report use the poses inside only. The table sets the same "
+              f"machine without its zone (every pose of the strokes) beside it; both optima "
+              f"are solved on the grid poses of their workspace, in the same box. The worst "
+              f"poses are the initial allocation's, with the tool point (mm, workpiece frame) "
+              f"and tool tilt.")
     text = "\n\n".join([
-        f"Workspace: the {machine.work_zone.text()} (tool point and tilt in the workpiece "
-        f"frame). **{inside} of the {comparison.grid_poses} poses** of the "
-        f"{comparison.points}-point grid are inside; FOSM, the allocation, the grid "
-        f"experiment and the machine yield of this report use those poses only. Below, the "
-        f"same machine without its zone (every pose of the strokes) beside it; both "
-        f"optima are solved on the grid poses of their workspace, in the same box.",
-        markdown_table(allocation_rows(comparison), index=False),
-        "Worst pose of each output for the initial allocation, with its tool point "
-        "(mm, workpiece frame) and tool tilt:",
-        markdown_table(worst_rows(comparison), index=False)])
+        answer, markdown_table(rows, index=False),
+        "Worst pose of each output for the initial allocation:",
+        markdown_table(worst_rows(comparison), index=False),
+        details("How the zone is used", method)])
     return Section(
         title="The work zone", text=text, figures={"zone.png": zone_figure(comparison)},
         tables={"zone_allocations.csv": comparison.allocations,
