@@ -5,7 +5,7 @@ from __future__ import annotations
 import matplotlib.pyplot as plt
 import numpy as np
 
-from .markdown import markdown_table
+from .markdown import details, markdown_table
 from .section import Section
 
 TITLE = "Errors along travel: independent, smooth or constant"
@@ -96,15 +96,21 @@ def _comparison_text(comparison, longest, study_profile=None) -> str:
     columns = ["allocation", "profile", "yield", "yield_lower", "yield_upper",
                *(["machines"] if "machines" in rows else []),
                "std_dx", "std_ex", "std_ey", "mean_dx", "mean_ex", "mean_ey"]
-    return (
+    low, high = rows["yield"].idxmin(), rows["yield"].idxmax()
+    answer = (f"The machine-level yield ranges from **{rows.loc[low, 'yield']:.3f}** "
+              f"({rows.loc[low, 'allocation']}, {rows.loc[low, 'profile']} errors) to "
+              f"**{rows.loc[high, 'yield']:.3f}** ({rows.loc[high, 'allocation']}, "
+              f"{rows.loc[high, 'profile']} errors) over the error profiles along travel.")
+    method = (
         "The paper's grid experiment draws each axis' motion errors independently at each "
         "of its grid points. Real motion errors are smooth along travel. Here they are also "
         "drawn as Gaussian-process profiles of a given correlation length, and as constant "
         "along travel, with the same marginal distribution at every point. The per-pose "
         "reliability (the mean fractions) does not change; the machine-level yield and the "
         f"spread between experiments do. {longest} experiments per row"
-        + _study_rows_text(study_profile, longest) + ":\n\n"
-        + markdown_table(rows[columns], index=False) + "\n\n" + _findings(rows))
+        + _study_rows_text(study_profile, longest) + ".")
+    return "\n\n".join([answer, markdown_table(rows[columns], index=False), _findings(rows),
+                         details("How the profiles are drawn", method)])
 
 
 def _study_rows_text(study_profile, longest) -> str:
