@@ -77,8 +77,12 @@ def front_section(machine, *, targets=DEFAULT_TARGETS, reliability: float = 0.99
                   f"combination of errors within their tolerances, Σ|∂y/∂x| t ≤ I at every "
                   f"pose)")
     if "error" in stack:
-        answer = (f"The worst-case stack cannot be held in the {words}: "
+        answer = ((f"The cheapest allocation meeting {reliability:g} two-sided at every "
+                   f"pose costs **{at['relative_cost']:.3g} ×** the initial allocation; "
+                   if at["feasible"] else "") +
+                  f"the worst-case stack cannot be held in the {words}: "
                   f"{stack['error'].split(';')[0]}.")
+        answer = answer[0].upper() + answer[1:]
         method = f"{stack_text} has no allocation in this box."
     elif not at["feasible"]:
         answer = (f"{reliability:g} two-sided at every pose is not reachable in the {words}; "
