@@ -51,7 +51,7 @@ def sensitivity_section(machine, tolerances, *, label: str, points: int = 5,
     how = ("the score function on the yield's own draws" if result.method == "score" else
            "central differences on common random numbers")
     top = table.iloc[0]
-    answer = (f"Tightening **{top['tighten by 10 %']}** by 10 % buys the most yield at the "
+    answer = (f"Tightening **{top['tighten by 10 %']}** by 10 % changes the machine yield most at the "
               f"{label} allocation: **{formats['yield change [%]'](top['yield change [%]'])} "
               f"%** (se {formats['se [%]'](top['se [%]'])} %), for "
               f"{formats['cost change [%]'](top['cost change [%]'])} % of cost.")
