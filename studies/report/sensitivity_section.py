@@ -51,8 +51,8 @@ def sensitivity_section(machine, tolerances, *, label: str, points: int = 5,
     how = ("the score function on the yield's own draws" if result.method == "score" else
            "central differences on common random numbers")
     top = table.iloc[0]
-    answer = (f"Tightening **{top['tighten by 10 %']}** by 10 % changes the machine yield most at the "
-              f"{label} allocation: **{formats['yield change [%]'](top['yield change [%]'])} "
+    answer = (f"Tightening **{top['tighten by 10 %']}** by 10 % changes the machine yield "
+              f"most at the {label} allocation: **{formats['yield change [%]'](top['yield change [%]'])} "
               f"%** (se {formats['se [%]'](top['se [%]'])} %), for "
               f"{formats['cost change [%]'](top['cost change [%]'])} % of cost.")
     method = (f"The change of the machine yield (profile {model.profile}, {model.workspace}, "
