@@ -28,11 +28,8 @@ def zone_section(comparison) -> Section:
     machine = comparison.machine
     inside = len(comparison.zone_poses)
     rows = allocation_rows(comparison)
-    last = rows.iloc[-1]
     answer = (f"**{inside} of the {comparison.grid_poses} poses** of the "
-              f"{comparison.points}-point grid lie in the work zone; solved there, the "
-              f"{last['allocation']} allocation costs **{last['cost (× initial)']} ×** the "
-              f"initial one.")
+              f"{comparison.points}-point grid lie in the work zone; " + _zone_cost(rows))
     method = (f"Workspace: the {machine.work_zone.text()} (tool point and tilt in the "
               f"workpiece frame). FOSM, the allocation, the grid experiment and the machine "
               f"yield of this report use the poses inside only. The table sets the same "
@@ -54,6 +51,15 @@ def zone_section(comparison) -> Section:
                  "zone_yield": comparison.allocations["yield zone"].to_dict(),
                  "strokes_yield": comparison.allocations["yield strokes"].to_dict(),
                  "zone_relative_cost": comparison.allocations["cost"].to_dict()})
+
+
+def _zone_cost(rows: pd.DataFrame) -> str:
+    """The cost of the optimum for the zone as :func:`allocation_rows` shows it."""
+    zone = rows[rows["allocation"] == "optimum for the zone"]
+    if not len(zone):
+        return "no allocation in the box meets the targets there."
+    return (f"the optimum for the zone costs **{zone['cost (× initial)'].iloc[0]} ×** the "
+            f"initial allocation.")
 
 
 def allocation_rows(comparison) -> pd.DataFrame:
