@@ -719,13 +719,14 @@ def _verification_figures(study, grid, repeats) -> dict:
     axes = figure.subplots(1, len(study.checks), sharey=True, squeeze=False).ravel()
     for ax, name in zip(axes, study.checks):
         plots.plot_reliability_comparison(grid.loc[name].reset_index(),
-                                          target=float(machine.targets.min()), ax=ax)
+                                          target=float(machine.targets.min()), ax=ax,
+                                          output_colours=plots.OUTPUT_COLOURS)
         ax.set_title(f"{name} allocation: grid-mean FOSM vs\n"
                      f"{study.checks[name].grid.repeats} grid experiments")
     figures["fosm_vs_mc.png"] = figure
     figure = Figure(figsize=(11, 4.5), layout="constrained")
     plots.plot_repeats(repeats, by="allocation", target=float(machine.targets.min()),
-                       ax=figure.subplots())
+                       ax=figure.subplots(), output_colours=plots.OUTPUT_COLOURS)
     figures["grid_repeats.png"] = figure
     last = _last_checked(study)
     label = ALLOCATION_WORDS[last]
@@ -734,7 +735,8 @@ def _verification_figures(study, grid, repeats) -> dict:
         figure = Figure(figsize=(9, 4.5), layout="constrained")
         ax = figure.subplots()
         plots.plot_comprehensive_error_scatter(values[:, index], machine.limits[index],
-                                               output_label=output, ax=ax)
+                                               output_label=output, ax=ax,
+                                               colour=plots.OUTPUT_COLOURS[output])
         ax.set_title(f"{ax.get_title()}\n{machine.name}, {label}, grid experiment 1")
         figures[f"scatter_{output}.png"] = figure
     return figures

@@ -377,7 +377,8 @@ def _shown_inside(outside, max_points, rng):
 
 
 def plot_comprehensive_error_scatter(
-    values, limit, *, output_label, unit=None, ax=None, max_points=None, rng=None
+    values, limit, *, output_label, unit=None, ax=None, max_points=None, rng=None,
+    colour=None
 ):
     """Scatter of one comprehensive error over the poses of a grid experiment (Figs. 10-15).
 
@@ -404,6 +405,10 @@ def plot_comprehensive_error_scatter(
         inside ones. All points if None.
     rng : None, int or numpy.random.Generator
         Seed or generator for that subset (through :func:`reliability.basics.streams.generator`).
+    colour : str, optional
+        Colour of the points within the limit, e.g. the output's in
+        :data:`OUTPUT_COLOURS`; the points outside are then red crosses, told apart by
+        shape from any output's colour. Blue dots within, red dots outside if None.
 
     Returns
     -------
@@ -423,11 +428,12 @@ def plot_comprehensive_error_scatter(
     inside = _shown_inside(outside, max_points, rng)
     shown = "" if inside.size == n_in else f", {inside.size} drawn"
     ax = _axes(ax, (8.0, 4.0))
-    ax.scatter(inside, values[inside], s=3, color=INSIDE_COLOR, linewidths=0,
+    ax.scatter(inside, values[inside], s=3, color=colour or INSIDE_COLOR, linewidths=0,
                label=f"within limit: {n_in} poses{shown}")
     out_idx = np.flatnonzero(outside)
-    ax.scatter(out_idx, values[out_idx], s=8, color=OUTSIDE_COLOR, linewidths=0,
-               label=f"outside limit: {n_out} poses")
+    crosses = {} if colour is None else {"marker": "x", "linewidths": 0.8, "s": 12}
+    ax.scatter(out_idx, values[out_idx], **({"s": 8, "linewidths": 0} | crosses),
+               color=OUTSIDE_COLOR, label=f"outside limit: {n_out} poses")
     ax.axhline(limit, color="k", ls="--", lw=1.0, label=f"limit ±{limit:g} {unit}")
     ax.axhline(-limit, color="k", ls="--", lw=1.0)
     span = 1.15 * max(limit, float(np.abs(values).max()))
@@ -542,7 +548,8 @@ def _interval_name(frame, interval):
     return str(name)
 
 
-def plot_reliability_comparison(frame, *, target=None, ax=None, interval=None):
+def plot_reliability_comparison(frame, *, target=None, ax=None, interval=None,
+                                output_colours=None):
     """Per output: FOSM-predicted probabilities beside the Monte-Carlo estimate.
 
     The FOSM values (Eqs. 19-23) are drawn as markers, one-sided ``Φ(I/σ)`` as in the
@@ -565,6 +572,10 @@ def plot_reliability_comparison(frame, *, target=None, ax=None, interval=None):
         Name of the interval ``mc_lower``–``mc_upper``, printed in the legend; by default
         ``frame.attrs["mc_interval"]`` (95 % Wilson score interval on Kish's effective
         sample size for :func:`~reliability.sampling.fosm_comparison.fosm_versus_monte_carlo`).
+    output_colours : mapping, optional
+        Output -> colour (:data:`OUTPUT_COLOURS`): each output's Monte-Carlo estimate and
+        tick label in its colour, the FOSM markers in black and grey (told apart by shape).
+        One colour per method if None.
 
     Returns
     -------
@@ -583,21 +594,35 @@ def plot_reliability_comparison(frame, *, target=None, ax=None, interval=None):
     est = frame["mc_estimate"].to_numpy(float)
     yerr = np.vstack([est - frame["mc_lower"], frame["mc_upper"] - est])
     ax = _axes(ax, (7.0, 4.0))
-    ax.plot(x - 0.2, frame["fosm_one_sided"], "v", color="tab:orange",
+    methods = (("tab:orange", "tab:green") if output_colours is None else ("0.55", "k"))
+    ax.plot(x - 0.2, frame["fosm_one_sided"], "v", color=methods[0],
             label="FOSM one-sided Φ(I/σ) (paper)")
-    ax.plot(x, frame["fosm_two_sided"], "^", color="tab:green",
+    ax.plot(x, frame["fosm_two_sided"], "^", color=methods[1],
             label="FOSM two-sided P(|y| < I)")
-    ax.errorbar(x + 0.2, est, yerr=yerr, fmt="o", color=INSIDE_COLOR, capsize=3,
-                label=textwrap.fill(f"Monte Carlo mean, {interval}", 34,
-                                    break_on_hyphens=False))
+    label = textwrap.fill(f"Monte Carlo mean, {interval}", 34, break_on_hyphens=False)
+    if output_colours is None:
+        ax.errorbar(x + 0.2, est, yerr=yerr, fmt="o", color=INSIDE_COLOR, capsize=3,
+                    label=label)
+    else:
+        _coloured_estimates(ax, x + 0.2, est, yerr, frame["output"], output_colours, label)
     _target_line(ax, target)
     ax.set_xticks(x, frame["output"].astype(str))
+    _colour_ticks(ax, output_colours)
     ax.set_xlabel("comprehensive error")
     ax.set_ylabel("probability within limit (%)")
     ax.yaxis.set_major_formatter(PercentFormatter(xmax=1.0))
     ax.set_title("Precision reliability: FOSM prediction vs Monte Carlo")
     _legend_beside(ax)
     return ax
+
+
+def _coloured_estimates(ax, x, est, yerr, outputs, colours, label) -> None:
+    """Each output's estimate with its interval and its tick label in its colour; one
+    legend entry (grey) for them all."""
+    for i, output in enumerate(outputs):
+        ax.errorbar(x[i], est[i], yerr=yerr[:, i:i + 1], fmt="o", capsize=3,
+                    color=colours[output])
+    ax.errorbar([], [], yerr=[[], []], fmt="o", capsize=3, color="0.4", label=label)
 
 
 # --------------------------------------------------------------------------- Table 9
@@ -621,11 +646,24 @@ def _repeat_groups(frame, outputs, by):
     return outputs, groups
 
 
+#: Markers of the groups of :func:`plot_repeats` when the colours tell the outputs apart.
+GROUP_MARKERS = ("o", "s", "^", "D")
+
+
+def _colour_ticks(ax, output_colours) -> None:
+    """Each x tick label (an output's name) in its colour, when colours are given."""
+    if output_colours is None:
+        return
+    for tick in ax.get_xticklabels():
+        tick.set_color(output_colours.get(tick.get_text(), "k"))
+
+
 #: Summary rows of :meth:`GridExperimentResult.table9`, which are not experiments.
 SUMMARY_ROWS = ("Avg", "Min", "Max")
 
 
-def plot_repeats(frame, *, outputs=None, by=None, target=0.99, ax=None):
+def plot_repeats(frame, *, outputs=None, by=None, target=0.99, ax=None,
+                 output_colours=None):
     """Per-experiment fractions within limit, per output (the paper's Table 9 as a figure).
 
     For each output a box (quartiles, whiskers to the extremes) summarises the repeated
@@ -647,6 +685,10 @@ def plot_repeats(frame, *, outputs=None, by=None, target=0.99, ax=None):
         Reliability target drawn as a dotted line; None for no line.
     ax : matplotlib.axes.Axes, optional
         Axes to draw on; a new figure if None.
+    output_colours : mapping, optional
+        Output -> colour (:data:`OUTPUT_COLOURS`): each output's points and tick label in
+        its colour, the groups told apart by marker shape (legend in grey). One colour per
+        group if None.
 
     Returns
     -------
@@ -671,9 +713,18 @@ def plot_repeats(frame, *, outputs=None, by=None, target=0.99, ax=None):
         xs = np.concatenate([p + spread for p in pos])
         ys = np.concatenate(data)
         name = "one grid experiment" if label is None else f"{label} (n = {len(sub)})"
-        ax.scatter(xs, ys, s=12, alpha=0.7, color=f"C{j}", linewidths=0, label=name, zorder=3)
+        if output_colours is None:
+            ax.scatter(xs, ys, s=12, alpha=0.7, color=f"C{j}", linewidths=0, label=name,
+                       zorder=3)
+        else:
+            marker = GROUP_MARKERS[j % len(GROUP_MARKERS)]
+            colours = np.repeat([output_colours[c] for c in outputs], len(sub))
+            ax.scatter(xs, ys, s=12, alpha=0.7, c=colours, marker=marker, linewidths=0,
+                       zorder=3)
+            ax.scatter([], [], s=12, color="0.4", marker=marker, label=name)
     _target_line(ax, target)
     ax.set_xticks(x, outputs)
+    _colour_ticks(ax, output_colours)
     ax.set_xlabel("comprehensive error")
     ax.set_ylabel("fraction of poses within limit (%)")
     ax.yaxis.set_major_formatter(PercentFormatter(xmax=1.0))
