@@ -369,7 +369,7 @@ def workspace_section(study: MachineStudy) -> Section:
     continuous = study.continuous
     machine = study.machine
     answer = (f"The optimum over the continuous workspace costs "
-              f"**{continuous.cost_ratio:.6f} ×** the grid optimum's; "
+              f"**{continuous.cost_ratio:.6g} ×** the grid optimum's; "
               f"{continuous.statement}.")
     method = (f"Starting from the {study.points}-point grid, the worst pose of every output "
               f"short of its target (found by a local search, then by the certificate's "
