@@ -617,12 +617,12 @@ def plot_reliability_comparison(frame, *, target=None, ax=None, interval=None,
 
 
 def _coloured_estimates(ax, x, est, yerr, outputs, colours, label) -> None:
-    """Each output's estimate with its interval and its tick label in its colour; one
-    legend entry (grey) for them all."""
-    for i, output in enumerate(outputs):
-        ax.errorbar(x[i], est[i], yerr=yerr[:, i:i + 1], fmt="o", capsize=3,
-                    color=colours[output])
-    ax.errorbar([], [], yerr=[[], []], fmt="o", capsize=3, color="0.4", label=label)
+    """The estimates with their intervals, one error-bar container, each output's point
+    and bar in its colour (caps and the legend entry grey)."""
+    shown = [colours[o] for o in outputs]
+    bars = ax.errorbar(x, est, yerr=yerr, fmt="none", ecolor="0.4", capsize=3, label=label)
+    bars.lines[2][0].set_color(shown)
+    ax.scatter(x, est, c=shown, zorder=3)
 
 
 # --------------------------------------------------------------------------- Table 9
