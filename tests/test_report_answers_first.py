@@ -163,3 +163,28 @@ def test_evaluation_opens_with_the_tests_passed(reports):
                 if v is not None]
     assert f"**{sum(verdicts)} of {len(verdicts)}**" in first and one_sentence(first)
     assert folded(reports["measured"], "Acceptance as measured", "The percentile is")
+
+
+def test_verification_figures_colour_each_output_as_every_report_figure():
+    from matplotlib.colors import to_rgba
+    from matplotlib.figure import Figure
+
+    from studies.report.plots import (OUTPUT_COLOURS, plot_comprehensive_error_scatter,
+                                      plot_reliability_comparison, plot_repeats)
+    outputs = list(OUTPUT_COLOURS)
+    expected = [to_rgba(OUTPUT_COLOURS[o]) for o in outputs]
+    repeats = pd.DataFrame({o: [0.98, 1.0] for o in outputs}).assign(allocation="a")
+    ax = plot_repeats(repeats, by="allocation", ax=Figure().subplots(),
+                      output_colours=OUTPUT_COLOURS)
+    colours = ax.collections[-2].get_facecolors()[:, :3]  # the points (last: legend)
+    assert [tuple(c) for c in colours[::2]] == [c[:3] for c in expected]
+    assert [t.get_color() for t in ax.get_xticklabels()] == list(OUTPUT_COLOURS.values())
+    frame = pd.DataFrame({"output": outputs, "fosm_one_sided": 0.995, "fosm_two_sided": 0.99,
+                          "mc_estimate": 0.99, "mc_lower": 0.98, "mc_upper": 0.995})
+    ax = plot_reliability_comparison(frame, ax=Figure().subplots(), interval="95 %",
+                                     output_colours=OUTPUT_COLOURS)
+    assert [tuple(c) for c in ax.collections[-1].get_facecolors()] == expected
+    ax = plot_comprehensive_error_scatter([0.0, 0.5, 2.0], 1.0, output_label="ez",
+                                          ax=Figure().subplots(),
+                                          colour=OUTPUT_COLOURS["ez"])
+    assert tuple(ax.collections[0].get_facecolors()[0]) == to_rgba(OUTPUT_COLOURS["ez"])
