@@ -244,3 +244,11 @@ def test_the_largest_contributors_keep_the_error_order_on_shares_equal_but_for_r
     shares = pd.DataFrame({"dz": [61.0, 10.0, 10.0 * (1 + 1e-15), 19.0 - 1e-15]},
                           index=["Y.ex", "X.ey", "Y-X.ey", "Z.ez"])
     assert top_contributors(shares, "dz") == "Y.ex 61%, Z.ez 19%, X.ey 10%"
+
+
+def test_decreasing_order_keeps_the_given_order_among_values_equal_but_for_rounding():
+    from reliability.basics.ties import decreasing_order
+
+    values = np.array([0.3, 0.7, 0.3 * (1 + 2e-16), 0.7 * (1 - 1e-15), 0.3 * (1 + 1e-6)])
+    assert decreasing_order(values).tolist() == [1, 3, 4, 0, 2]
+    assert decreasing_order(np.zeros(0)).tolist() == []

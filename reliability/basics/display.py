@@ -38,6 +38,7 @@ import numpy as np
 import pandas as pd
 
 from .files import SIGNIFICANT, rounded_down, rounded_up
+from .ties import decreasing_order
 
 #: Unit of each comprehensive error: translations in mm, rotations in rad.
 OUTPUT_UNITS = ("mm", "mm", "mm", "rad", "rad", "rad")
@@ -225,9 +226,7 @@ def top_contributors(contributions: pd.DataFrame, output: str, n: int = 3) -> st
     n : int
     """
     column = contributions[output]
-    # shares equal but for rounding (symmetric items) keep the error order
-    level = np.round(column / max(float(column.abs().max()), 1e-300), 9)
-    column = column.iloc[np.argsort(-level.to_numpy(), kind="stable")].head(n)
+    column = column.iloc[decreasing_order(column.to_numpy())].head(n)  # ties: error order
     return ", ".join(f"{name} {share:.0f}%" for name, share in column.items())
 
 

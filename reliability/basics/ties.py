@@ -56,6 +56,27 @@ def worst_rows(values, poses, *, rtol: float = TIE_RTOL, largest: bool = True) -
     return int(rows[0]) if single else rows
 
 
+
+def decreasing_order(values) -> np.ndarray:
+    """Indices of ``values`` from the largest down; values equal to :data:`TIE_RTOL` of the
+    largest magnitude (equal but for rounding, e.g. of symmetric items) keep their order.
+
+    Parameters
+    ----------
+    values : array_like (n,)
+
+    Returns
+    -------
+    ndarray of int (n,)
+    """
+    values = np.asarray(values, dtype=float)
+    if not len(values):
+        return np.arange(0)
+    digits = round(-np.log10(TIE_RTOL))
+    level = np.round(values / max(float(np.abs(values).max()), 1e-300), digits)
+    return np.argsort(-level, kind="stable")
+
+
 def lexicographic_rank(poses) -> np.ndarray:
     """Rank of each pose in lexicographic order (first axis first, smallest first)."""
     poses = np.asarray(poses, dtype=float).reshape(len(poses), -1)

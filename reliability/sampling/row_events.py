@@ -28,7 +28,7 @@ from scipy.special import ndtr, ndtri
 
 from ..basics.chunks import chunks
 from ..basics.pass_rule import passes
-from ..basics.ties import first_of_equal_rows
+from ..basics.ties import decreasing_order, first_of_equal_rows
 from ..first_order.fosm import two_sided_failure
 
 #: α, the plain-normal share of the importance proposal; weights are at most 1/α.
@@ -78,8 +78,7 @@ class RowEvents:
         distinct = candidates[first_of_equal_rows(signatures / SIGNATURE_RESOLUTION)]
         # decreasing p_r; p_r equal but for rounding (symmetric rows) keep the row order,
         # so that the events, and which event a draw comes from, are the same everywhere
-        level = np.round(failure[distinct] / failure[distinct].max(), 9)
-        distinct = distinct[np.argsort(-level, kind="stable")]
+        distinct = distinct[decreasing_order(failure[distinct])]
         cumulative = np.cumsum(failure[distinct])
         total = cumulative[-1]
         count = min(MAX_EVENTS, int(np.searchsorted(cumulative, EVENT_MASS * total)) + 1)
