@@ -28,6 +28,7 @@ from ..basics import checks
 from ..basics.display import number_text
 from ..basics.errors import InputError, InputTypeError, MachineDescriptionError
 from . import kinematics
+from .drift import Drift
 from .correlation import check_correlation_matrix, correlation_to_toml, with_correlation
 from .error_draws import DISTRIBUTIONS
 from .iso_names import iso_names
@@ -147,6 +148,7 @@ class Machine:
     distribution: str = "normal"
     profile: str = "constant"
     work_zone: WorkZone | None = None
+    drift: Drift | None = field(default=None, repr=False)
     _index: Mapping[str, int] = field(init=False, repr=False, compare=False)
 
     def __post_init__(self):
@@ -171,6 +173,8 @@ class Machine:
         if self.work_zone is not None and not isinstance(self.work_zone, WorkZone):
             raise InputTypeError(f"work_zone must be a WorkZone or None; got "
                                  f"{type(self.work_zone).__name__}")
+        if self.drift is not None:
+            _check_drift(self.drift, self.n_errors)
 
     def __reduce__(self):
         """Pickle and copy through the constructor (the name index is rebuilt)."""
@@ -416,7 +420,18 @@ def machine_to_dict(machine: Machine) -> dict:
         table["requirements"]["frame"] = machine.frame
     if machine.work_zone is not None:
         table["workzone"] = machine.work_zone.to_dict()
+    if machine.drift is not None:
+        table["drift"] = machine.drift.to_dict(machine.error_names)
     return table
+
+
+def _check_drift(drift, n_errors: int) -> None:
+    """A :class:`~reliability.model.drift.Drift` with one value per error, or raise."""
+    if not isinstance(drift, Drift):
+        raise InputTypeError(f"drift must be a Drift or None; got {type(drift).__name__}")
+    if drift.rate.shape != (n_errors,):
+        raise InputError(f"drift must give one rate per error ({n_errors}); got "
+                         f"{drift.rate.shape[0]}")
 
 
 def _bounds_to_dict(machine: Machine) -> dict:

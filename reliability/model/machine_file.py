@@ -23,6 +23,7 @@ from ..basics import checks
 from ..basics.errors import InputError, MachineDescriptionError
 from . import kinematics
 from .correlation import parse_correlation
+from .drift import KINDS as DRIFT_KINDS, Drift
 from .error_draws import DISTRIBUTIONS
 from .iso_names import iso_names
 from .machine import (COST_ANGLE_UNITS, COST_LENGTH_UNITS, OUTPUTS, POSITIONING_KEYS, Axis,
@@ -86,7 +87,7 @@ def machine_from_toml(text: str, source: str = "machine") -> Machine:
 def machine_from_dict(data: Mapping, source: str = "machine") -> Machine:
     """Validate a parsed description (the TOML layout) and build a :class:`Machine`."""
     _only_keys(data, {"name", "axes", "requirements", "initial_allocation", "cost",
-                      "tool_offset", "correlation", "bounds", "workzone"}, source)
+                      "tool_offset", "correlation", "bounds", "workzone", "drift"}, source)
     axes = _parse_axes(_require(data, "axes", source), source)
     names = tuple(a.name for a in axes)
     requirements = _require(data, "requirements", source)
@@ -108,6 +109,7 @@ def machine_from_dict(data: Mapping, source: str = "machine") -> Machine:
         profile=_parse_profile(requirements, source),
         work_zone=None if "workzone" not in data else
         _parse_work_zone(data["workzone"], f"{source}: workzone"),
+        drift=None if "drift" not in data else _parse_drift(data["drift"], names, source),
     )
     if "correlation" in data:
         machine = parse_correlation(machine, data["correlation"], source)
@@ -336,6 +338,40 @@ def _parse_bounds(table, axes: tuple[str, ...], source: str) -> np.ndarray:
     """``[bounds]``: ``translation = [lo, hi]`` (mm), ``rotation = [lo, hi]`` (rad) and
     ``items = { "X.dx" = [lo, hi] }``, the achievable tolerances; ``(2, n_errors)``."""
     return _per_error(table, axes, f"{source}: bounds", _pair).T
+
+
+def _parse_drift(table, axes: tuple[str, ...], source: str) -> Drift:
+    """``[drift]``: ``kind`` (``"linear"``, the default, or ``"wear"``) and per-error values
+    like ``[initial_allocation]``'s, in mm or rad per year: the standard deviation of the
+    rate (linear) or the pair ``[mean, sd]`` of one year's wear (:mod:`.drift`)."""
+    where = f"{source}: drift"
+    _only_keys(table, {"kind", "translation", "rotation", "items"}, where)
+    kind = table.get("kind", "linear")
+    if kind not in DRIFT_KINDS:
+        raise MachineDescriptionError(f"{where}.kind: expected one of "
+                                      f"{', '.join(map(repr, DRIFT_KINDS))}; got {kind!r}")
+    values = {key: value for key, value in table.items() if key != "kind"}
+    if kind == "linear":
+        return Drift(kind, _per_error(values, axes, where, _drift_rate))
+    pairs = _per_error(values, axes, where, _wear_pair)
+    return Drift(kind, pairs[:, 0], pairs[:, 1])
+
+
+def _drift_rate(value, where: str) -> float:
+    """A standard deviation of a drift rate ≥ 0 (mm or rad per year)."""
+    rate = _number(value, where)
+    if rate < 0:
+        raise MachineDescriptionError(f"{where}: a drift rate's standard deviation must be "
+                                      f"≥ 0 (mm or rad per year); got {value!r}")
+    return rate
+
+
+def _wear_pair(value, where: str) -> tuple[float, float]:
+    """``[mean, sd]`` of one year's wear, both ≥ 0 (mm or rad per year)."""
+    if isinstance(value, (str, bytes)) or not hasattr(value, "__len__") or len(value) != 2:
+        raise MachineDescriptionError(f"{where}: expected [mean, sd] of one year's wear (mm "
+                                      f"or rad per year, kind \"wear\"); got {value!r}")
+    return tuple(_drift_rate(v, where) for v in value)
 
 
 def _per_error(table, axes: tuple[str, ...], where: str, read) -> np.ndarray:
