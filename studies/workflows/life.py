@@ -1,0 +1,219 @@
+"""Accuracy over time (docs/over-time.md): each output's life reliability at its worst
+pose, the machine yield over the life and the recalibration interval, for ``precrel life``
+and the report's "Over time" section.
+
+:func:`life_study` runs the first-order life reliability
+(:func:`reliability.life.life_fosm.life_reliability`) and the machine yield over the life on
+the exact chain (:func:`reliability.life.life_yield.life_yield`) on one age grid, and reads
+the recalibration interval off the yield (:mod:`reliability.life.recalibration`). Its
+result, :class:`LifeStudy`, gives the long table of ``life.csv`` (``to_frame``), its
+verdicts for reading (``summary``), and is saved as JSON (``life_summary.json``) through
+:mod:`reliability.basics.saved_fields`, reloaded with every derived field checked.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+
+from reliability.basics import streams
+from reliability.basics.saved_fields import (Array, Integer, Number, Text, load_fields,
+                                             save_fields)
+from reliability.basics.statistics import binomial_interval
+from reliability.life.life_fosm import age_grid, life_reliability
+from reliability.life.life_yield import DEFAULT_LIFE_MACHINES, life_yield
+from reliability.life.recalibration import age_text, crossing_age, crossing_interval
+from reliability.model.machine import OUTPUTS
+from reliability.model.poses import workspace_grid
+
+#: The format tag of ``life_summary.json``.
+SAVED_FORMAT = "precrel.life_study"
+#: ``life.csv``'s columns, exactly.
+CSV_COLUMNS = ("age_years", "output", "probability")
+#: The ``output`` of the machine yield's rows in ``life.csv``.
+MACHINE = "machine"
+#: Relative tolerance within which saved derived fields must follow from the saved counts.
+CONSISTENCY_RTOL = 1e-9
+
+FIELDS = (Text("machine"), Text("kind", ("linear", "wear")), Text("level_source"),
+          Text("method"),
+          Array("ages", ("A",), low=0.0), Array("targets", (6,), low=0.0, high=1.0),
+          Array("at_age", ("A", 6), low=0.0, high=1.0),
+          Array("life", ("A", 6), low=0.0, high=1.0), Array("life_se", ("A", 6), low=0.0),
+          Array("worst_pose", ("A", 6, None)),
+          Integer("machines", low=1), Array("passed", ("A",), dtype=int, low=0),
+          Array("yield_lower", ("A",), low=0.0, high=1.0),
+          Array("yield_upper", ("A",), low=0.0, high=1.0),
+          Number("level", low=0.0, high=1.0), Number("confidence", low=0.0, high=1.0),
+          Array("interval", (3,), nan=True), Array("output_ages", (6,), nan=True))
+
+
+@dataclass(frozen=True)
+class LifeStudy:
+    """Reliability and machine yield over a service life.
+
+    Attributes
+    ----------
+    machine : str
+    kind : {'linear', 'wear'}
+        The machine file's drift model.
+    level_source : str
+        Where the yield level came from (``--yield`` or the smallest target).
+    method : str
+        How the life reliability was computed.
+    ages : ndarray (A,)
+    targets : ndarray (6,)
+    at_age, life, life_se : ndarray (A, 6)
+        Each output at its worst grid pose: at the age alone, over ``[0, age]``, and the
+        latter's Monte-Carlo standard error (0 where exact).
+    worst_pose : ndarray (A, 6, n_axes)
+        The axis positions of ``life``'s pose.
+    machines : int
+    passed : ndarray (A,) of int
+        Built machines within every limit at every grid pose and age up to each age.
+    yield_lower, yield_upper : ndarray (A,)
+        Clopper–Pearson interval of the machine yield at ``confidence``.
+    level, confidence : float
+    interval : ndarray (3,)
+        Recalibration interval ``[earliest, age, latest]`` in years: where the yield's
+        interval ends and the yield fall below ``level`` (NaN: beyond the horizon).
+    output_ages : ndarray (6,)
+        Per output, the age its worst-pose life reliability falls below its target.
+    """
+
+    machine: str
+    kind: str
+    level_source: str
+    method: str
+    ages: np.ndarray
+    targets: np.ndarray
+    at_age: np.ndarray
+    life: np.ndarray
+    life_se: np.ndarray
+    worst_pose: np.ndarray
+    machines: int
+    passed: np.ndarray
+    yield_lower: np.ndarray
+    yield_upper: np.ndarray
+    level: float
+    confidence: float
+    interval: np.ndarray
+    output_ages: np.ndarray
+
+    @property
+    def machine_yield(self) -> np.ndarray:
+        """The machine yield over ``[0, age]`` at each age."""
+        return self.passed / self.machines
+
+    @property
+    def horizon(self) -> float:
+        return float(self.ages[-1])
+
+    def to_frame(self) -> pd.DataFrame:
+        """``life.csv``: one row per age and output (``dx`` … ``ez``: the life reliability at
+        the worst pose; ``machine``: the machine yield), columns :data:`CSV_COLUMNS`."""
+        values = np.column_stack([self.life, self.machine_yield])
+        names = list(OUTPUTS) + [MACHINE]
+        return pd.DataFrame({
+            "age_years": np.repeat(self.ages, len(names)),
+            "output": np.tile(names, len(self.ages)),
+            "probability": values.ravel()})
+
+    def summary(self) -> str:
+        """The recalibration interval first, then the curves at a few ages."""
+        earliest, age, latest = self.interval
+        lines = [f"Recalibration interval of {self.machine}: {age_text(age, self.horizon)} "
+                 f"(the age at which the machine yield over the life falls below "
+                 f"{self.level:.4g}, {self.level_source}); "
+                 f"{self.confidence:.0%} interval {age_text(earliest, self.horizon)} to "
+                 f"{age_text(latest, self.horizon)}",
+                 f"Drift model {self.kind!r}; {self.machines:,} built machines on the exact "
+                 f"chain; life reliability: {self.method}", ""]
+        lines.append(self.table().to_string())
+        lines.append("")
+        lines.append("Age at which each output's worst-pose life reliability falls below its "
+                     "target: " + ", ".join(f"{o} {age_text(a, self.horizon)}"
+                                             for o, a in zip(OUTPUTS, self.output_ages)))
+        return "\n".join(lines)
+
+    def table(self, rows: int = 6) -> pd.DataFrame:
+        """The curves at up to ``rows`` ages of the grid (always the last), as printed:
+        probabilities to the digits their computation fixes."""
+        pick = np.unique(np.linspace(0, len(self.ages) - 1, rows).round().astype(int))
+        estimate = self.machine_yield
+        frame = pd.DataFrame({o: [f"{v:.4f}" for v in self.life[pick, i]]
+                              for i, o in enumerate(OUTPUTS)},
+                             index=pd.Index(self.ages[pick], name="age [years]"))
+        frame["machine yield"] = [f"{estimate[i]:.3f} [{self.yield_lower[i]:.3f}, "
+                                  f"{self.yield_upper[i]:.3f}]" for i in pick]
+        return frame
+
+    def save(self, path, overwrite: bool = False):
+        """Save as JSON (:mod:`reliability.basics.saved_fields`); returns the path."""
+        return save_fields(self, path, SAVED_FORMAT, FIELDS, overwrite)
+
+    @classmethod
+    def load(cls, path) -> "LifeStudy":
+        """Reload a study written by :meth:`save`; the yield interval, the recalibration
+        interval and the outputs' ages must follow from the saved counts and curves
+        (SavedResultError naming the field otherwise)."""
+        data, values = load_fields(path, SAVED_FORMAT, FIELDS)
+        lower, upper = binomial_interval(values["passed"], values["machines"],
+                                         values["confidence"], "clopper-pearson")
+        _check(data, "yield_lower", values["yield_lower"], lower)
+        _check(data, "yield_upper", values["yield_upper"], upper)
+        study = cls(**values)
+        _check(data, "interval", study.interval, crossing_interval(
+            study.ages, study.yield_lower, study.machine_yield, study.yield_upper,
+            study.level))
+        _check(data, "output_ages", study.output_ages,
+               crossing_age(study.ages, study.life, study.targets))
+        return study
+
+
+def _check(data, name, saved, expected) -> None:
+    if not np.allclose(saved, expected, rtol=CONSISTENCY_RTOL, atol=0, equal_nan=True):
+        raise data.error(name, "does not follow from the saved counts and curves")
+
+
+def yield_level(machine, level=None) -> tuple[float, str]:
+    """The level the machine yield is judged against and where it came from: ``level``
+    (``--yield``) or the smallest of the machine file's per-output targets."""
+    if level is not None:
+        return float(level), "--yield"
+    return float(np.min(machine.targets)), "the smallest of the machine file's targets"
+
+
+def life_study(machine, tolerances, *, until: float, step: float = 0.5, level=None,
+               points: int = 5, machines: int = DEFAULT_LIFE_MACHINES, seed: int = 0,
+               paths: int | None = None, confidence: float = 0.95,
+               memory: int | None = None) -> LifeStudy:
+    """The life reliability, the machine yield over the life and the recalibration
+    interval of ``tolerances`` on ``machine`` (with a ``[drift]`` table), on the ages
+    ``0, step, …, until``.
+
+    The FOSM part uses the grid ``points`` and the machine's reading; the yield draws
+    ``machines`` built machines from stream 0 of ``seed`` and the wear paths (wear only)
+    from stream 1 (:func:`reliability.basics.streams.spawn`).
+    """
+    ages = age_grid(until, step)
+    level, source = yield_level(machine, level)
+    yield_rng, path_rng = streams.spawn(seed, 2)
+    poses = workspace_grid(machine, points)
+    options = {} if paths is None else {"paths": paths}
+    fosm = life_reliability(machine, tolerances, poses, ages,
+                            distribution=machine.distribution, rng=path_rng, memory=memory,
+                            **options)
+    curve = life_yield(machine, tolerances, ages, points=points, machines=machines,
+                       rng=yield_rng, confidence=confidence, memory=memory)
+    interval = crossing_interval(ages, curve.lower, curve.estimate, curve.upper, level)
+    return LifeStudy(
+        machine=machine.name, kind=machine.drift.kind, level_source=source,
+        method=fosm.method, ages=ages, targets=np.asarray(machine.targets, dtype=float),
+        at_age=fosm.at_age, life=fosm.life, life_se=fosm.life_se,
+        worst_pose=poses[fosm.worst_pose], machines=curve.machines, passed=curve.passed,
+        yield_lower=curve.lower, yield_upper=curve.upper, level=level,
+        confidence=curve.confidence, interval=interval,
+        output_ages=crossing_age(ages, fosm.life, machine.targets))
