@@ -84,6 +84,14 @@ def positive_float(text: str) -> float:
     return value
 
 
+def nonnegative_age(text: str) -> float:
+    """A finite number of years ≥ 0 (``--age``)."""
+    value = _float(text)
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"expected a number of years >= 0, got {text!r}")
+    return value
+
+
 def _integer(text: str) -> int:
     try:
         return int(text)

@@ -68,6 +68,14 @@ def answer(study) -> str:
             f"{study.yield_upper[index]:.3f}]; saved in `life.csv`.")
 
 
+def life_builder(study) -> Section:
+    """The section of a machine report (:mod:`studies.workflows.machine_study`): the
+    optimal allocation's life (the given or the initial one when there is none)."""
+    tolerances = study.compared[1] if study.compared is not None else \
+        study.machine.initial_allocation
+    return life_section(study.machine, tolerances, points=study.points, seed=study.seed)
+
+
 def life_section(machine, tolerances, *, points: int = 5, seed: int = 0) -> Section:
     """The section for a machine file with ``[drift]``, at the report's modest sizes."""
     study = life_study(machine, tolerances, until=REPORT_HORIZON, step=REPORT_STEP,
