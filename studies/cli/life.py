@@ -7,6 +7,7 @@ import time
 
 from reliability.basics.errors import InputError
 from reliability.basics.files import SIGNIFICANT, write_csv
+from reliability.compensation.compensation_plans import read_compensation_plan
 from reliability.life.life_yield import DEFAULT_LIFE_MACHINES
 from studies.report.life_section import life_figure
 from studies.workflows.life import LifeStudy, life_study
@@ -35,6 +36,9 @@ def add_parser(subparsers):
                         metavar="P", help="the machine yield below which the machine is "
                                           "recalibrated (default: the smallest of the "
                                           "machine file's targets)")
+    options.add_input_file(parser, "--compensation", "a compensation plan (docs/compensation.md): "
+                           "also the intervals between recalibrations of machines re-measured "
+                           "and re-compensated under it")
     options.add_points(parser)
     options.add_machines(parser, DEFAULT_LIFE_MACHINES)
     options.add_seed(parser)
@@ -55,11 +59,14 @@ def run(args) -> int:
                          f"change with age, docs/over-time.md)")
     t = machine.initial_allocation if args.tolerances is None else \
         options.read_tolerances(args.tolerances, machine)
+    plan = None if args.compensation is None else \
+        read_compensation_plan(args.compensation, machine)
     options.say(f"life of {machine.name!r} to {args.until:g} years: first order at every "
                 f"grid pose, then {args.machines:,} built machines on the exact chain")
     start = time.perf_counter()
     study = life_study(machine, t, until=args.until, step=args.step, level=args.level,
-                       points=args.points, machines=args.machines, seed=args.seed)
+                       points=args.points, machines=args.machines, seed=args.seed,
+                       plan=plan)
     seconds = time.perf_counter() - start
     out.mkdir(exist_ok=True)
     write_csv(study.to_frame(), out / "life.csv", args.overwrite,

@@ -22,6 +22,7 @@ from reliability.basics import streams
 from reliability.basics.saved_fields import (Array, Integer, Number, Text, load_fields,
                                              save_fields)
 from reliability.basics.statistics import binomial_interval
+from reliability.life.compensated_life import compensated_life, first_cycle_covariance
 from reliability.life.life_fosm import age_grid, life_reliability
 from reliability.life.life_yield import DEFAULT_LIFE_MACHINES, life_yield
 from reliability.life.recalibration import age_text, crossing_age, crossing_interval
@@ -47,7 +48,10 @@ FIELDS = (Text("machine"), Text("kind", ("linear", "wear")), Text("level_source"
           Array("yield_lower", ("A",), low=0.0, high=1.0),
           Array("yield_upper", ("A",), low=0.0, high=1.0),
           Number("level", low=0.0, high=1.0), Number("confidence", low=0.0, high=1.0),
-          Array("interval", (3,), nan=True), Array("output_ages", (6,), nan=True))
+          Array("interval", (3,), nan=True), Array("output_ages", (6,), nan=True),
+          Array("recalibrations", ("C",), optional=True, low=0.0),
+          Array("compensated_intervals", ("C", 3), optional=True, nan=True),
+          Array("compensated_life", ("A", 6), optional=True, low=0.0, high=1.0))
 
 
 @dataclass(frozen=True)
@@ -81,6 +85,13 @@ class LifeStudy:
         interval ends and the yield fall below ``level`` (NaN: beyond the horizon).
     output_ages : ndarray (6,)
         Per output, the age its worst-pose life reliability falls below its target.
+    recalibrations, compensated_intervals : ndarray (C,), (C, 3) or None
+        With a compensation plan: the age of each recalibration (0 first) and the interval
+        to the next, ``[earliest, interval, latest]`` years after it
+        (:mod:`reliability.life.compensated_life`).
+    compensated_life : ndarray (A, 6) or None
+        With a plan: each output's first-order life reliability at its worst pose after
+        compensation at acceptance (the first cycle).
     """
 
     machine: str
@@ -101,6 +112,9 @@ class LifeStudy:
     confidence: float
     interval: np.ndarray
     output_ages: np.ndarray
+    recalibrations: np.ndarray | None = None
+    compensated_intervals: np.ndarray | None = None
+    compensated_life: np.ndarray | None = None
 
     @property
     def machine_yield(self) -> np.ndarray:
@@ -132,6 +146,15 @@ class LifeStudy:
                  f"Drift model {self.kind!r}; {self.machines:,} built machines on the exact "
                  f"chain; life reliability: {self.method}", ""]
         lines.append(self.table().to_string())
+        if self.recalibrations is not None:
+            lines += ["", "With the compensation plan (re-measured and re-compensated at each "
+                          "recalibration): " + "; ".join(
+                              f"after {start:g} years, next in "
+                              f"{age_text(interval[1], self.horizon - start)} "
+                              f"[{age_text(interval[0], self.horizon - start)}, "
+                              f"{age_text(interval[2], self.horizon - start)}]"
+                              for start, interval in zip(self.recalibrations,
+                                                         self.compensated_intervals))]
         lines.append("")
         lines.append("Age at which each output's worst-pose life reliability falls below its "
                      "target: " + ", ".join(f"{o} {age_text(a, self.horizon)}"
@@ -188,7 +211,7 @@ def yield_level(machine, level=None) -> tuple[float, str]:
 
 def life_study(machine, tolerances, *, until: float, step: float = 0.5, level=None,
                points: int = 5, machines: int = DEFAULT_LIFE_MACHINES, seed: int = 0,
-               paths: int | None = None, confidence: float = 0.95,
+               paths: int | None = None, confidence: float = 0.95, plan=None,
                memory: int | None = None) -> LifeStudy:
     """The life reliability, the machine yield over the life and the recalibration
     interval of ``tolerances`` on ``machine`` (with a ``[drift]`` table), on the ages
@@ -196,11 +219,13 @@ def life_study(machine, tolerances, *, until: float, step: float = 0.5, level=No
 
     The FOSM part uses the grid ``points`` and the machine's reading; the yield draws
     ``machines`` built machines from stream 0 of ``seed`` and the wear paths (wear only)
-    from stream 1 (:func:`reliability.basics.streams.spawn`).
+    from stream 1 (:func:`reliability.basics.streams.spawn`). With a compensation
+    ``plan`` the recalibrations of compensated machines are added
+    (:func:`reliability.life.compensated_life.compensated_life`, stream 2).
     """
     ages = age_grid(until, step)
     level, source = yield_level(machine, level)
-    yield_rng, path_rng = streams.spawn(seed, 2)
+    yield_rng, path_rng, plan_rng = streams.spawn(seed, 3)
     poses = workspace_grid(machine, points)
     options = {} if paths is None else {"paths": paths}
     fosm = life_reliability(machine, tolerances, poses, ages,
@@ -209,6 +234,9 @@ def life_study(machine, tolerances, *, until: float, step: float = 0.5, level=No
     curve = life_yield(machine, tolerances, ages, points=points, machines=machines,
                        rng=yield_rng, confidence=confidence, memory=memory)
     interval = crossing_interval(ages, curve.lower, curve.estimate, curve.upper, level)
+    compensated = {} if plan is None else _compensated(
+        machine, plan, tolerances, ages, level, poses, points=points, machines=machines,
+        rng=plan_rng, confidence=confidence, memory=memory)
     return LifeStudy(
         machine=machine.name, kind=machine.drift.kind, level_source=source,
         method=fosm.method, ages=ages, targets=np.asarray(machine.targets, dtype=float),
@@ -216,4 +244,15 @@ def life_study(machine, tolerances, *, until: float, step: float = 0.5, level=No
         worst_pose=poses[fosm.worst_pose], machines=curve.machines, passed=curve.passed,
         yield_lower=curve.lower, yield_upper=curve.upper, level=level,
         confidence=curve.confidence, interval=interval,
-        output_ages=crossing_age(ages, fosm.life, machine.targets))
+        output_ages=crossing_age(ages, fosm.life, machine.targets), **compensated)
+
+
+def _compensated(machine, plan, tolerances, ages, level, poses, **options) -> dict:
+    """The recalibrations of compensated machines and the first cycle to first order."""
+    cycles = compensated_life(machine, plan, tolerances, ages, level, **options)
+    first = life_reliability(machine, tolerances, poses, ages,
+                             start_covariance=first_cycle_covariance(machine, plan,
+                                                                     tolerances),
+                             rng=options["rng"], memory=options["memory"])
+    return {"recalibrations": cycles.starts, "compensated_intervals": cycles.intervals,
+            "compensated_life": first.life}
