@@ -32,10 +32,9 @@ def add_parser(subparsers):
                         metavar="YEARS", help="the horizon in years")
     parser.add_argument("--step", type=options.positive_float, default=0.5,
                         metavar="YEARS", help="the age grid's step (default %(default)s)")
-    parser.add_argument("--yield", dest="level", type=options.probability, default=None,
-                        metavar="P", help="the machine yield below which the machine is "
-                                          "recalibrated (default: the smallest of the "
-                                          "machine file's targets)")
+    options.add_yield(parser, "level", "the level below which the machine is recalibrated "
+                                       "(default: the smallest of the machine file's "
+                                       "targets)")
     options.add_input_file(parser, "--compensation", "a compensation plan (docs/compensation.md): "
                            "also the intervals between recalibrations of machines re-measured "
                            "and re-compensated under it")

@@ -246,6 +246,14 @@ def add_tolerances(parser, *, required: bool = False):
              "by default"), "add_tolerances")
 
 
+def add_yield(parser, dest: str, use: str):
+    """``--yield Y``: a machine yield in (0, 1) (the share of built machines within every
+    limit at every grid pose); ``use`` says what the command does with it."""
+    return _shared(parser.add_argument(
+        "--yield", dest=dest, type=probability, metavar="Y",
+        help=f"a machine yield Y in (0, 1): {use}"), "add_yield")
+
+
 def add_target(parser, *, many: bool = False):
     """``--target R`` (with ``many``, ``--target R ...``): reliability targets."""
     return _shared(parser.add_argument(
