@@ -59,6 +59,13 @@ def answer(study) -> str:
     horizon."""
     earliest, age, latest = study.interval
     index = len(study.ages) - 1
+    if age == 0:
+        return (f"**The machine yield is below {study.level:.4g} already at acceptance** "
+                f"({study.machine_yield[0]:.3f} [{study.yield_lower[0]:.3f}, "
+                f"{study.yield_upper[0]:.3f}]; {study.level_source}): no recalibration "
+                f"interval. Over {study.horizon:g} years it is "
+                f"{study.machine_yield[index]:.3f} [{study.yield_lower[index]:.3f}, "
+                f"{study.yield_upper[index]:.3f}]; saved in `life.csv`.")
     return (f"**Recalibrate after {age_text(age, study.horizon)}** ({study.confidence:.0%} "
             f"interval {age_text(earliest, study.horizon)} to "
             f"{age_text(latest, study.horizon)}): the machine yield over the life falls "
