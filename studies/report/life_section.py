@@ -55,24 +55,22 @@ def life_figure(study):
 
 
 def answer(study) -> str:
-    """The section's first sentence: the recalibration interval and the yield at the
-    horizon."""
+    """The section's first sentence: the recalibration interval (the age at which the
+    machine yield over the life falls below the level) and the yield at the horizon."""
     earliest, age, latest = study.interval
-    index = len(study.ages) - 1
+    last = len(study.ages) - 1
+    horizon = (f"over {study.horizon:g} years the machine yield is "
+               f"{study.machine_yield[last]:.3f} [{study.yield_lower[last]:.3f}, "
+               f"{study.yield_upper[last]:.3f}] (`life.csv`)")
     if age == 0:
         return (f"**The machine yield is below {study.level:.4g} already at acceptance** "
                 f"({study.machine_yield[0]:.3f} [{study.yield_lower[0]:.3f}, "
-                f"{study.yield_upper[0]:.3f}]; {study.level_source}): no recalibration "
-                f"interval. Over {study.horizon:g} years it is "
-                f"{study.machine_yield[index]:.3f} [{study.yield_lower[index]:.3f}, "
-                f"{study.yield_upper[index]:.3f}]; saved in `life.csv`.")
+                f"{study.yield_upper[0]:.3f}], level: {study.level_source}), so there is no "
+                f"recalibration interval, and {horizon}.")
     return (f"**Recalibrate after {age_text(age, study.horizon)}** ({study.confidence:.0%} "
             f"interval {age_text(earliest, study.horizon)} to "
-            f"{age_text(latest, study.horizon)}): the machine yield over the life falls "
-            f"below {study.level:.4g} ({study.level_source}) then. Over "
-            f"{study.horizon:g} years the machine yield is "
-            f"{study.machine_yield[index]:.3f} [{study.yield_lower[index]:.3f}, "
-            f"{study.yield_upper[index]:.3f}]; saved in `life.csv`.")
+            f"{age_text(latest, study.horizon)}), when the machine yield over the life falls "
+            f"below {study.level:.4g} ({study.level_source}), and {horizon}.")
 
 
 def life_builder(study) -> Section:

@@ -51,7 +51,8 @@ FIELDS = (Text("machine"), Text("kind", ("linear", "wear")), Text("level_source"
           Array("interval", (3,), nan=True), Array("output_ages", (6,), nan=True),
           Array("recalibrations", ("C",), optional=True, low=0.0),
           Array("compensated_intervals", ("C", 3), optional=True, nan=True),
-          Array("compensated_life", ("A", 6), optional=True, low=0.0, high=1.0))
+          Array("compensated_life", ("A", 6), optional=True, low=0.0, high=1.0),
+          Array("rice", ("A", 6), optional=True, low=0.0, high=1.0))
 
 
 @dataclass(frozen=True)
@@ -92,6 +93,9 @@ class LifeStudy:
     compensated_life : ndarray (A, 6) or None
         With a plan: each output's first-order life reliability at its worst pose after
         compensation at acceptance (the first cycle).
+    rice : ndarray (A, 6) or None
+        Wear only: the out-crossing (Rice) approximation of ``life`` at the same poses, its
+        check (:mod:`reliability.life.wear_paths`).
     """
 
     machine: str
@@ -115,6 +119,7 @@ class LifeStudy:
     recalibrations: np.ndarray | None = None
     compensated_intervals: np.ndarray | None = None
     compensated_life: np.ndarray | None = None
+    rice: np.ndarray | None = None
 
     @property
     def machine_yield(self) -> np.ndarray:
@@ -146,6 +151,11 @@ class LifeStudy:
                  f"Drift model {self.kind!r}; {self.machines:,} built machines on the exact "
                  f"chain; life reliability: {self.method}", ""]
         lines.append(self.table().to_string())
+        if self.rice is not None:
+            lines += ["", f"Check of the sampled wear paths: the out-crossing (Rice) "
+                          f"approximation differs from them by at most "
+                          f"{np.abs(self.life - self.rice).max():.2g} (their standard error "
+                          f"is at most {self.life_se.max():.2g})"]
         if self.recalibrations is not None:
             lines += ["", "With the compensation plan (re-measured and re-compensated at each "
                           "recalibration): " + "; ".join(
@@ -244,7 +254,8 @@ def life_study(machine, tolerances, *, until: float, step: float = 0.5, level=No
         worst_pose=poses[fosm.worst_pose], machines=curve.machines, passed=curve.passed,
         yield_lower=curve.lower, yield_upper=curve.upper, level=level,
         confidence=curve.confidence, interval=interval,
-        output_ages=crossing_age(ages, fosm.life, machine.targets), **compensated)
+        output_ages=crossing_age(ages, fosm.life, machine.targets), rice=fosm.rice,
+        **compensated)
 
 
 def _compensated(machine, plan, tolerances, ages, level, poses, **options) -> dict:
