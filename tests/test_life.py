@@ -12,6 +12,7 @@ import json
 from pathlib import Path
 
 import numpy as np
+import pandas as pd
 import pytest
 
 from reliability import load_machine, machine_from_toml
@@ -167,3 +168,91 @@ def test_life_study_saves_and_refuses_a_changed_field(tmp_path):
     path.write_text(json.dumps(data))
     with pytest.raises(SavedResultError, match="interval"):
         LifeStudy.load(path)
+
+
+def _swivel_plan():
+    from reliability.compensation.compensation_plans import read_compensation_plan
+    machine = load_machine(HERE / "machines" / "swivel5_drift.toml")
+    plan = read_compensation_plan(HERE.parent / "docs" / "examples" / "swivel5_plan.toml",
+                                  machine)
+    return machine, plan
+
+
+def test_compensated_first_cycle_matches_monte_carlo_on_the_exact_chain():
+    """Compensated at acceptance, the residual ``M e0 − ν`` then drifts with the rates:
+    the first-order life probability at the worst pose against built machines on the exact
+    chain (30 000 machines, 41 ages; z = 4)."""
+    from reliability.compensation.residual import fixed_rule_terms
+    from reliability.life.compensated_life import first_cycle_covariance
+    machine, plan = _swivel_plan()
+    t = machine.initial_allocation / 2
+    poses = workspace_grid(machine, 3)
+    found = life_reliability(machine, t, poses, [0.0, 10.0],
+                             start_covariance=first_cycle_covariance(machine, plan, t))
+    rule, noise = fixed_rule_terms(t / 3, plan.information, plan.tabled)
+    rng = np.random.default_rng(4)
+    n, ages = 30_000, np.linspace(0.0, 10.0, 41)
+    values, vectors = np.linalg.eigh(noise)
+    start = (rng.standard_normal((n, machine.n_errors)) * t / 3) @ rule.T \
+        - rng.standard_normal((n, machine.n_errors)) @ (vectors * np.sqrt(np.maximum(values, 0))).T
+    rate = rng.standard_normal((n, machine.n_errors)) * machine.drift.rate
+    for output in range(6):
+        pose = poses[found.worst_pose[-1, output]]
+        errors = start[:, None, :] + ages[None, :, None] * rate[:, None, :]
+        y = machine.comprehensive_error(pose, errors.reshape(-1, machine.n_errors))
+        share = (np.abs(y[:, output].reshape(n, -1)) < machine.limits[output]).all(axis=1).mean()
+        p = found.life[-1, output]
+        assert abs(share - p) < 4 * np.sqrt(p * (1 - p) / n) + 1e-4, output
+
+
+def test_nothing_compensated_is_the_machine_without_compensation():
+    """A plan that tables nothing leaves ``M = I`` and no noise: its first cycle is the
+    life yield under the constant profile (independent draws of 3 000 machines each;
+    z = 4 on the difference)."""
+    from reliability.life.compensated_life import compensated_life
+    machine, plan = _swivel_plan()
+    idle = dataclasses.replace(plan, tabled=np.zeros(machine.n_errors, dtype=bool))
+    t = machine.initial_allocation / 2
+    ages = [0.0, 2.0, 4.0]
+    cycles = compensated_life(machine, idle, t, ages, 0.5, points=3, machines=3000, rng=2)
+    plain = life_yield(dataclasses.replace(machine, profile="constant"), t, ages, points=3,
+                       machines=3000, rng=3).estimate
+    se = np.sqrt(plain * (1 - plain) / 3000 + cycles.first_yield * (1 - cycles.first_yield)
+                 / 3000)
+    assert np.all(np.abs(cycles.first_yield - plain) < 4 * se + 1e-9)
+    assert cycles.starts[0] == 0
+
+
+def test_compensation_resets_what_the_plan_sees():
+    """With the plan, right after compensation at acceptance the yield is higher than
+    without, and each later cycle starts at a recalibration age of the grid."""
+    from reliability.life.compensated_life import compensated_life
+    machine, plan = _swivel_plan()
+    t = machine.initial_allocation / 2
+    ages = age_grid(6, 0.5)
+    cycles = compensated_life(machine, plan, t, ages, 0.8, points=3, machines=1000, rng=5)
+    plain = life_yield(machine, t, ages, points=3, machines=1000, rng=6)
+    assert cycles.first_lower[0] > plain.upper[0]
+    assert np.all(np.isin(cycles.starts, ages)) and np.all(np.diff(cycles.starts) > 0)
+
+
+def test_over_time_section_opens_with_its_answer(tmp_path):
+    """The report's section: one sentence with the recalibration interval in bold, read
+    back from its summary entry and its life.csv."""
+    import re
+    from studies.report.life_section import life_section
+    from studies.report.writer import write_section
+    machine = load_machine(HERE / "machines" / "swivel5_drift.toml")
+    section = life_section(machine, machine.initial_allocation / 2, points=3, seed=1)
+    first = section.text.split("\n\n")[0]
+    years = section.summary["recalibration_years"]
+    assert first.startswith("**Recalibrate after") or first.startswith("**The machine yield")
+    if first.startswith("**Recalibrate after"):
+        assert f"**Recalibrate after {years:.1f} years**" in first
+    assert first.endswith(".") and not re.search(r"[a-z)]\. [A-Z]", first[:-1])
+    written = write_section(tmp_path / "s", section)
+    table = pd.read_csv(tmp_path / "s" / "life.csv")
+    last = table[(table["output"] == "machine")]["probability"].iloc[-1]
+    assert f"{last:.3f}" in first
+    assert section.summary["life_yield_at_horizon"] == pytest.approx(last, rel=1e-9)
+    assert any(Path(p).name == "over_time.png" for p in written)
