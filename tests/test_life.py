@@ -254,5 +254,5 @@ def test_over_time_section_opens_with_its_answer(tmp_path):
     table = pd.read_csv(tmp_path / "s" / "life.csv")
     last = table[(table["output"] == "machine")]["probability"].iloc[-1]
     assert f"{last:.3f}" in first
-    assert section.summary["life_yield_at_horizon"] == pytest.approx(last, rel=1e-9)
+    assert section.summary["life_yield_at_horizon"] == pytest.approx(last, rel=1e-5)
     assert any(Path(p).name == "over_time.png" for p in written)
