@@ -22,7 +22,8 @@ file's profile along travel is not used here), errors at acceptance normal with
 ``T_k`` (``T_0 = 0``: compensated at acceptance); its yield is the share of machines within
 every limit at every grid pose and every grid age from ``T_k`` on, and its interval
 ``Δ_k`` the age after ``T_k`` at which that yield falls below the level. The next
-recalibration is at the last grid age before ``T_k + Δ_k`` (at least one step later).
+recalibration is at the last grid age at or before ``T_k + Δ_k`` (at least one step
+later).
 Repeatability and reversal are left out (they do not drift).
 
 The first cycle is also given to first order (:func:`first_cycle_covariance`): right after

@@ -25,7 +25,9 @@ REPORT_PATHS = 4000
 def life_figure(study):
     """Two panels against age: each output's life reliability at its worst grid pose with
     its target (dashed), and the machine yield over the life with its interval, the level
-    and the recalibration interval (shaded between the interval's crossings)."""
+    and the recalibration interval (shaded between the interval's crossings); with a
+    compensation plan also the yield of machines compensated at acceptance and the
+    recalibrations (dotted)."""
     import matplotlib.pyplot as plt
 
     figure, (left, right) = plt.subplots(1, 2, figsize=(11, 4.2))
@@ -41,6 +43,12 @@ def life_figure(study):
                        alpha=0.3, label=f"{study.confidence:.0%} interval")
     right.axhline(study.level, color="tab:red", linestyle="--",
                   label=f"level {study.level:.4g}")
+    if study.compensated_yield is not None:
+        right.plot(study.ages, study.compensated_yield, color="tab:blue",
+                   label="compensated at acceptance")
+        for number, start in enumerate(study.recalibrations[1:]):
+            right.axvline(start, color="tab:blue", linestyle=":", linewidth=0.8,
+                          label=None if number else "recalibrations with the plan")
     earliest, age, latest = study.interval
     if not np.isnan(age):
         right.axvline(age, color="tab:red", label=f"recalibrate at {age:.1f} years")

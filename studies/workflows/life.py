@@ -52,7 +52,8 @@ FIELDS = (Text("machine"), Text("kind", ("linear", "wear")), Text("level_source"
           Array("recalibrations", ("C",), optional=True, low=0.0),
           Array("compensated_intervals", ("C", 3), optional=True, nan=True),
           Array("compensated_life", ("A", 6), optional=True, low=0.0, high=1.0),
-          Array("rice", ("A", 6), optional=True, low=0.0, high=1.0))
+          Array("rice", ("A", 6), optional=True, low=0.0, high=1.0),
+          Array("compensated_yield", ("A",), optional=True, low=0.0, high=1.0))
 
 
 @dataclass(frozen=True)
@@ -93,6 +94,9 @@ class LifeStudy:
     compensated_life : ndarray (A, 6) or None
         With a plan: each output's first-order life reliability at its worst pose after
         compensation at acceptance (the first cycle).
+    compensated_yield : ndarray (A,) or None
+        With a plan: the machine yield from acceptance of machines compensated at
+        acceptance and not recalibrated (the first cycle), on the exact chain.
     rice : ndarray (A, 6) or None
         Wear only: the out-crossing (Rice) approximation of ``life`` at the same poses, its
         check (:mod:`reliability.life.wear_paths`).
@@ -120,6 +124,7 @@ class LifeStudy:
     compensated_intervals: np.ndarray | None = None
     compensated_life: np.ndarray | None = None
     rice: np.ndarray | None = None
+    compensated_yield: np.ndarray | None = None
 
     @property
     def machine_yield(self) -> np.ndarray:
@@ -266,4 +271,4 @@ def _compensated(machine, plan, tolerances, ages, level, poses, **options) -> di
                                                                      tolerances),
                              rng=options["rng"], memory=options["memory"])
     return {"recalibrations": cycles.starts, "compensated_intervals": cycles.intervals,
-            "compensated_life": first.life}
+            "compensated_life": first.life, "compensated_yield": cycles.first_yield}
