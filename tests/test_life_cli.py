@@ -55,3 +55,19 @@ def test_predict_age_zero_equals_predict(capsys):
 def test_predict_age_needs_drift(capsys):
     assert main(["predict", STILL, "--points", "3", "--age", "1"]) == 2
     assert "[drift]" in capsys.readouterr().err
+
+
+def test_life_check_and_compensation_are_printed_and_saved(tmp_path, capsys):
+    """With --compensation and --check the intervals between recalibrations and the
+    Monte-Carlo check are printed, and the saved study reloads with them."""
+    from studies.workflows.life import LifeStudy
+    out = tmp_path / "life"
+    plan = str(HERE.parent / "docs" / "examples" / "swivel5_plan.toml")
+    assert main(["life", DRIFTING, "--until", "4", "--step", "1", "--machines", "100",
+                 "--points", "3", "--compensation", plan, "--check", "200", "--yield",
+                 "0.5", "--out", str(out), "--quiet"]) == 0
+    printed = capsys.readouterr().out
+    assert "With the compensation plan" in printed and "compensated Monte-Carlo" in printed
+    study = LifeStudy.load(out / "life_summary.json")
+    assert study.check.shape == (2, 6) and study.compensated_check.shape == (2, 6)
+    assert study.recalibrations[0] == 0 and study.check_machines == 200

@@ -38,6 +38,10 @@ def add_parser(subparsers):
     options.add_input_file(parser, "--compensation", "a compensation plan (docs/compensation.md): "
                            "also the intervals between recalibrations of machines re-measured "
                            "and re-compensated under it")
+    parser.add_argument("--check", type=options.positive_int, default=None, metavar="N",
+                        help="also N built machines on the exact chain at each output's "
+                             "worst pose over the whole life, beside the first-order life "
+                             "reliability (and after compensation, with --compensation)")
     options.add_points(parser)
     options.add_machines(parser, DEFAULT_LIFE_MACHINES)
     options.add_seed(parser)
@@ -65,7 +69,7 @@ def run(args) -> int:
     start = time.perf_counter()
     study = life_study(machine, t, until=args.until, step=args.step, level=args.level,
                        points=args.points, machines=args.machines, seed=args.seed,
-                       plan=plan)
+                       plan=plan, check=args.check or 0)
     seconds = time.perf_counter() - start
     out.mkdir(exist_ok=True)
     write_csv(study.to_frame(), out / "life.csv", args.overwrite,

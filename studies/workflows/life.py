@@ -23,6 +23,7 @@ from reliability.basics.saved_fields import (Array, Integer, Number, Text, load_
                                              save_fields)
 from reliability.basics.statistics import binomial_interval
 from reliability.life.compensated_life import compensated_life, first_cycle_covariance
+from reliability.life.life_check import check_life
 from reliability.life.life_fosm import age_grid, life_reliability
 from reliability.life.life_yield import DEFAULT_LIFE_MACHINES, life_yield
 from reliability.life.recalibration import age_text, crossing_age, crossing_interval
@@ -53,7 +54,10 @@ FIELDS = (Text("machine"), Text("kind", ("linear", "wear")), Text("level_source"
           Array("compensated_intervals", ("C", 3), optional=True, nan=True),
           Array("compensated_life", ("A", 6), optional=True, low=0.0, high=1.0),
           Array("rice", ("A", 6), optional=True, low=0.0, high=1.0),
-          Array("compensated_yield", ("A",), optional=True, low=0.0, high=1.0))
+          Array("compensated_yield", ("A",), optional=True, low=0.0, high=1.0),
+          Integer("check_machines", optional=True, low=1),
+          Array("check", (2, 6), optional=True, low=0.0, high=1.0),
+          Array("compensated_check", (2, 6), optional=True, low=0.0, high=1.0))
 
 
 @dataclass(frozen=True)
@@ -97,6 +101,13 @@ class LifeStudy:
     compensated_yield : ndarray (A,) or None
         With a plan: the machine yield from acceptance of machines compensated at
         acceptance and not recalibrated (the first cycle), on the exact chain.
+    check_machines : int or None
+        With a check: the built machines of the Monte-Carlo check.
+    check, compensated_check : ndarray (2, 6) or None
+        Monte-Carlo on the exact chain at each output's worst pose over the whole life:
+        the share within the limit at every age and its standard error
+        (:mod:`reliability.life.life_check`), beside ``life[-1]`` (and, with a plan,
+        ``compensated_life[-1]``).
     rice : ndarray (A, 6) or None
         Wear only: the out-crossing (Rice) approximation of ``life`` at the same poses, its
         check (:mod:`reliability.life.wear_paths`).
@@ -125,6 +136,9 @@ class LifeStudy:
     compensated_life: np.ndarray | None = None
     rice: np.ndarray | None = None
     compensated_yield: np.ndarray | None = None
+    check_machines: int | None = None
+    check: np.ndarray | None = None
+    compensated_check: np.ndarray | None = None
 
     @property
     def machine_yield(self) -> np.ndarray:
@@ -156,6 +170,8 @@ class LifeStudy:
                  f"Drift model {self.kind!r}; {self.machines:,} built machines on the exact "
                  f"chain; life reliability: {self.method}", ""]
         lines.append(self.table().to_string())
+        if self.check is not None:
+            lines += ["", self.check_table().to_string()]
         if self.rice is not None:
             lines += ["", f"Check of the sampled wear paths: the out-crossing (Rice) "
                           f"approximation differs from them by at most "
@@ -187,6 +203,28 @@ class LifeStudy:
         frame["machine yield"] = [f"{estimate[i]:.3f} [{self.yield_lower[i]:.3f}, "
                                   f"{self.yield_upper[i]:.3f}]" for i in pick]
         return frame
+
+    def check_table(self) -> pd.DataFrame:
+        """First order beside Monte-Carlo on the exact chain over the whole life, per
+        output at its worst pose; ``z`` the difference in standard errors."""
+        rows = {"first order": self.life[-1], "Monte-Carlo": self.check}
+        if self.compensated_check is not None:
+            rows |= {"compensated first order": self.compensated_life[-1],
+                     "compensated Monte-Carlo": self.compensated_check}
+        table = {}
+        for name, value in rows.items():
+            if name.endswith("Monte-Carlo"):
+                share, se = value
+                first = rows[name.replace("Monte-Carlo", "first order")]
+                table[name] = [f"{p:.4f} ± {e:.4f}" for p, e in zip(share, se)]
+                table[name.replace("Monte-Carlo", "z")] = [
+                    f"{(p - f) / e:+.1f}" if e > 0 else "-" for p, f, e in
+                    zip(share, first, se)]
+            else:
+                table[name] = [f"{p:.4f}" for p in value]
+        return pd.DataFrame(table, index=pd.Index(
+            OUTPUTS, name=f"over [0, {self.horizon:g}] years, {self.check_machines:,} "
+                          f"machines on the exact chain at the worst pose"))
 
     def save(self, path, overwrite: bool = False):
         """Save as JSON (:mod:`reliability.basics.saved_fields`); returns the path."""
@@ -227,7 +265,7 @@ def yield_level(machine, level=None) -> tuple[float, str]:
 def life_study(machine, tolerances, *, until: float, step: float = 0.5, level=None,
                points: int = 5, machines: int = DEFAULT_LIFE_MACHINES, seed: int = 0,
                paths: int | None = None, confidence: float = 0.95, plan=None,
-               memory: int | None = None) -> LifeStudy:
+               check: int = 0, memory: int | None = None) -> LifeStudy:
     """The life reliability, the machine yield over the life and the recalibration
     interval of ``tolerances`` on ``machine`` (with a ``[drift]`` table), on the ages
     ``0, step, …, until``.
@@ -236,11 +274,13 @@ def life_study(machine, tolerances, *, until: float, step: float = 0.5, level=No
     ``machines`` built machines from stream 0 of ``seed`` and the wear paths (wear only)
     from stream 1 (:func:`reliability.basics.streams.spawn`). With a compensation
     ``plan`` the recalibrations of compensated machines are added
-    (:func:`reliability.life.compensated_life.compensated_life`, stream 2).
+    (:func:`reliability.life.compensated_life.compensated_life`, stream 2). With
+    ``check`` > 0 that many built machines check the life reliability at the worst poses on
+    the exact chain (:func:`reliability.life.life_check.check_life`, streams 3 and 4).
     """
     ages = age_grid(until, step)
     level, source = yield_level(machine, level)
-    yield_rng, path_rng, plan_rng = streams.spawn(seed, 3)
+    yield_rng, path_rng, plan_rng, check_rng, plan_check_rng = streams.spawn(seed, 5)
     poses = workspace_grid(machine, points)
     options = {} if paths is None else {"paths": paths}
     fosm = life_reliability(machine, tolerances, poses, ages,
@@ -252,6 +292,9 @@ def life_study(machine, tolerances, *, until: float, step: float = 0.5, level=No
     compensated = {} if plan is None else _compensated(
         machine, plan, tolerances, ages, level, poses, points=points, machines=machines,
         rng=plan_rng, confidence=confidence, memory=memory)
+    checked = {} if check == 0 else _checks(
+        machine, tolerances, plan, poses[fosm.worst_pose[-1]], compensated, ages[-1], check,
+        (check_rng, plan_check_rng), memory)
     return LifeStudy(
         machine=machine.name, kind=machine.drift.kind, level_source=source,
         method=fosm.method, ages=ages, targets=np.asarray(machine.targets, dtype=float),
@@ -260,7 +303,23 @@ def life_study(machine, tolerances, *, until: float, step: float = 0.5, level=No
         yield_lower=curve.lower, yield_upper=curve.upper, level=level,
         confidence=curve.confidence, interval=interval,
         output_ages=crossing_age(ages, fosm.life, machine.targets), rice=fosm.rice,
-        **compensated)
+        **{key: value for key, value in compensated.items() if key != "worst"}, **checked)
+
+
+def _checks(machine, tolerances, plan, worst, compensated, horizon, machines, rngs,
+            memory) -> dict:
+    """Monte-Carlo on the exact chain at the worst poses, before and after compensation."""
+    found = check_life(machine, tolerances, worst, horizon, machines=machines, rng=rngs[0],
+                       memory=memory)
+    out = {"check_machines": machines, "check": np.vstack([found.share,
+                                                           found.standard_error])}
+    if plan is not None:
+        after = check_life(machine, tolerances, compensated["worst"], horizon,
+                           machines=machines, rng=rngs[1], memory=memory,
+                           start_covariance=first_cycle_covariance(machine, plan,
+                                                                   tolerances))
+        out["compensated_check"] = np.vstack([after.share, after.standard_error])
+    return out
 
 
 def _compensated(machine, plan, tolerances, ages, level, poses, **options) -> dict:
@@ -271,4 +330,5 @@ def _compensated(machine, plan, tolerances, ages, level, poses, **options) -> di
                                                                      tolerances),
                              rng=options["rng"], memory=options["memory"])
     return {"recalibrations": cycles.starts, "compensated_intervals": cycles.intervals,
-            "compensated_life": first.life, "compensated_yield": cycles.first_yield}
+            "compensated_life": first.life, "compensated_yield": cycles.first_yield,
+            "worst": poses[first.worst_pose[-1]]}
