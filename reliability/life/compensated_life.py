@@ -45,7 +45,7 @@ from ..compensation.residual import fixed_rule_terms
 from ..model.machine import OUTPUTS
 from ..sampling.machine_yield import YieldModel
 from .life_fosm import checked_ages
-from .life_yield import _square_root, deciding_experiment, drift_draws, drifted_ratios
+from .life_yield import covariance_factor, deciding_experiment, drift_draws, drifted_ratios
 from .recalibration import crossing_interval
 
 #: Reading of a tolerance by the identification: σ = t / K.
@@ -112,7 +112,7 @@ def compensated_life(machine, plan, tolerances, ages, level: float, *, points: i
     rule, noise = fixed_rule_terms(sigma, plan.information, plan.tabled)
     error_rng, drift_rng, noise_rng = streams.spawn(rng, 3)
     root = sigma[:, None] * (np.eye(len(t)) if machine.correlation is None
-                             else _square_root(machine.correlation))
+                             else covariance_factor(machine.correlation))
     e0 = error_rng.standard_normal((machines, len(t))) @ root.T
     change = drift_draws(machine.drift, machine.correlation, ages, machines, drift_rng)
     model = YieldModel(machine, profile="constant", points=points, memory=memory)
@@ -121,7 +121,7 @@ def compensated_life(machine, plan, tolerances, ages, level: float, *, points: i
     while True:
         k = starts[-1]
         ratios = _cycle_ratios(machine, experiment, model.experiment.points, rule,
-                               _square_root(noise), e0, change, k, noise_rng, memory)
+                               covariance_factor(noise), e0, change, k, noise_rng, memory)
         passed = passes(np.maximum.accumulate(ratios, axis=1), 1.0).all(axis=2).sum(axis=0)
         lower, upper = binomial_interval(passed, machines, confidence, "clopper-pearson")
         offsets = ages[k:] - ages[k]

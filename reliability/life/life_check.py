@@ -22,7 +22,7 @@ from ..basics import checks, streams
 from ..basics.chunks import chunk_size
 from ..basics.pass_rule import passes
 from ..model.machine import OUTPUTS
-from .life_yield import _square_root, drift_draws
+from .life_yield import covariance_factor, drift_draws
 
 #: Ages of the fine grid from 0 to the horizon.
 CHECK_AGES = 41
@@ -52,7 +52,7 @@ def check_life(machine, tolerances, worst_poses, horizon: float, *, machines: in
     if start_covariance is None:
         correlation = np.eye(len(t)) if machine.correlation is None else machine.correlation
         start_covariance = np.outer(t / 3, t / 3) * correlation
-    root = _square_root(start_covariance)
+    root = covariance_factor(start_covariance)
     ages = np.linspace(0.0, float(horizon), CHECK_AGES)
     error_rng, drift_rng = streams.spawn(rng, 2)
     inside = np.zeros(len(OUTPUTS), dtype=np.int64)

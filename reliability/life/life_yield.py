@@ -81,12 +81,12 @@ def drift_draws(drift, correlation, ages, size: int, rng) -> np.ndarray:
     """``(size, A, n_errors)``: each built machine's change of every error at each age."""
     if drift.kind == "wear":
         return wear_paths(drift, ages, size, rng)
-    root = np.eye(len(drift.rate)) if correlation is None else _square_root(correlation)
+    root = np.eye(len(drift.rate)) if correlation is None else covariance_factor(correlation)
     rates = (rng.standard_normal((size, len(drift.rate))) @ root.T) * drift.rate
     return np.asarray(ages)[None, :, None] * rates[:, None, :]
 
 
-def _square_root(matrix) -> np.ndarray:
+def covariance_factor(matrix) -> np.ndarray:
     """A factor ``L`` with ``L Lᵀ = matrix`` for a positive semi-definite matrix."""
     values, vectors = np.linalg.eigh(np.asarray(matrix, dtype=float))
     return vectors * np.sqrt(np.maximum(values, 0.0))
