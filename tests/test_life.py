@@ -41,17 +41,17 @@ def drifting(machine, kind="linear", rate_mm=0.0008, rate_rad=3e-6, spread=None)
 
 def test_linear_life_matches_monte_carlo_on_the_exact_chain():
     """Built machines with drawn errors and rates, judged on the exact chain at the worst
-    pose over a fine age grid (81 ages: the output is linear in age to first order, so
+    pose over a fine age grid (41 ages: the output is linear in age to first order, so
     the grid sees every crossing but second-order ones); z = 4."""
     machine = drifting(load_machine(MILL))
     t = machine.initial_allocation
     poses = workspace_grid(machine, 3)
     found = life_reliability(machine, t, poses, [0.0, 8.0])
     rng = np.random.default_rng(11)
-    n = 40_000
+    n = 20_000
     e0 = rng.standard_normal((n, machine.n_errors)) * t / 3
     rate = rng.standard_normal((n, machine.n_errors)) * machine.drift.rate
-    ages = np.linspace(0.0, 8.0, 81)
+    ages = np.linspace(0.0, 8.0, 41)
     for output in range(6):
         pose = poses[found.worst_pose[-1, output]]
         errors = e0[:, None, :] + ages[None, :, None] * rate[:, None, :]
@@ -181,7 +181,7 @@ def _swivel_plan():
 def test_compensated_first_cycle_matches_monte_carlo_on_the_exact_chain():
     """Compensated at acceptance, the residual ``M e0 − ν`` then drifts with the rates:
     the first-order life probability at the worst pose against built machines on the exact
-    chain (30 000 machines, 41 ages; z = 4)."""
+    chain (15 000 machines, 41 ages; z = 4)."""
     from reliability.compensation.residual import fixed_rule_terms
     from reliability.life.compensated_life import first_cycle_covariance
     machine, plan = _swivel_plan()
@@ -191,7 +191,7 @@ def test_compensated_first_cycle_matches_monte_carlo_on_the_exact_chain():
                              start_covariance=first_cycle_covariance(machine, plan, t))
     rule, noise = fixed_rule_terms(t / 3, plan.information, plan.tabled)
     rng = np.random.default_rng(4)
-    n, ages = 30_000, np.linspace(0.0, 10.0, 41)
+    n, ages = 15_000, np.linspace(0.0, 10.0, 41)
     values, vectors = np.linalg.eigh(noise)
     start = (rng.standard_normal((n, machine.n_errors)) * t / 3) @ rule.T \
         - rng.standard_normal((n, machine.n_errors)) @ (vectors * np.sqrt(np.maximum(values, 0))).T
