@@ -27,7 +27,7 @@ OUT_KINDS = {"check": None, "predict": "file", "allocate": "file", "choose": "fi
              "verify": "folder", "report": "folder", "front": "file", "sweep": "folder",
              "acceptance": "file", "sensitivity": "folder", "measure": "file",
              "identify": "folder", "plan": "file", "compensate": "folder",
-             "evaluate": "folder"}
+             "evaluate": "folder", "life": "folder"}
 #: The options that take a list in one command and one value in another, of the same kind:
 #: ``front --target R ...`` (the front's targets) against ``allocate --target R``.
 LIST_FORMS = {"--target"}

@@ -109,3 +109,8 @@ def _normal_between(low, high, sd):
         upper = np.where(sd > 0, special.ndtr(high / sd), (high > 0).astype(float))
         lower = np.where(sd > 0, special.ndtr(low / sd), (low >= 0).astype(float))
     return np.maximum(upper - lower, 0.0)
+
+
+#: Temporary bytes per probability :func:`first_passage_within` computes (its quadrature's
+#: working arrays), for chunking callers' inputs within a memory budget.
+FIRST_PASSAGE_BYTES = 16 * QUADRATURE_NODES * 8

@@ -115,10 +115,8 @@ def add_parser(subparsers):
     parser.add_argument("--method", choices=("exact", "gwo"), default="exact",
                         help="certified convex optimum (default) or the paper's GWO")
     options.add_seed(parser)
-    parser.add_argument("--yield", dest="yield_target", type=options.probability,
-                        metavar="Y",
-                        help="allocate for a machine yield Y in (0, 1) instead of per-pose "
-                             "targets (with --profile, --machines, --executor)")
+    options.add_yield(parser, "yield_target", "allocate for it instead of per-pose targets "
+                                              "(with --profile, --machines, --executor)")
     options.add_yield_model(parser)
     options.add_executor(parser)
     add_yield_bracket(parser)

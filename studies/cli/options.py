@@ -84,6 +84,14 @@ def positive_float(text: str) -> float:
     return value
 
 
+def nonnegative_age(text: str) -> float:
+    """A finite number of years ≥ 0 (``--age``)."""
+    value = _float(text)
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"expected a number of years >= 0, got {text!r}")
+    return value
+
+
 def _integer(text: str) -> int:
     try:
         return int(text)
@@ -236,6 +244,14 @@ def add_tolerances(parser, *, required: bool = False):
         help="allocation CSV (columns error, allocated, as 'allocate' writes it; a drawing "
              "file is read as it is); when optional, the machine file's initial allocation "
              "by default"), "add_tolerances")
+
+
+def add_yield(parser, dest: str, use: str):
+    """``--yield Y``: a machine yield in (0, 1) (the share of built machines within every
+    limit at every grid pose); ``use`` says what the command does with it."""
+    return _shared(parser.add_argument(
+        "--yield", dest=dest, type=probability, metavar="Y",
+        help=f"a machine yield Y in (0, 1): {use}"), "add_yield")
 
 
 def add_target(parser, *, many: bool = False):

@@ -10,9 +10,11 @@ import pandas as pd
 from reliability.basics.display import (output_people_units, percent_text,
                                         quantity_bound_text, quantity_text, target_text,
                                         top_contributors)
+from reliability.basics.errors import InputError
 from reliability.basics.files import SIGNIFICANT, write_csv
 from reliability.first_order.fosm import fosm, two_sided_probability
 from reliability.first_order.workspace_search import certified_worst
+from reliability.life.life_fosm import life_reliability
 from reliability.model.machine import OUTPUTS
 from reliability.model.poses import workspace_grid
 from reliability.model.work_zone import grid_text, zone_text
@@ -37,6 +39,10 @@ def add_parser(subparsers):
     options.add_out(parser, "file", "write the table as CSV, one row per output (mm and "
                                     "rad; the worst grid pose's axis positions, sigma, "
                                     "beta, probabilities)", metavar="CSV")
+    parser.add_argument("--age", type=options.nonnegative_age, default=None, metavar="YEARS",
+                        help="also the reliability at this age of the machine and over its "
+                             "life to it (first passage over [0, age]), under the machine "
+                             "file's [drift] table (docs/over-time.md)")
     options.add_overwrite(parser)
     return parser
 
@@ -46,6 +52,9 @@ def run(args) -> int:
     machine = options.machine(args)
     if args.certify:
         options.check_certifiable(machine, "--certify", "leave out --certify")
+    if args.age is not None and machine.drift is None:
+        raise InputError(f"--age {args.age:g}: {args.machine} has no [drift] table (how the "
+                         f"errors change with age, docs/over-time.md)")
     t = machine.initial_allocation if args.tolerances is None else \
         options.read_tolerances(args.tolerances, machine)
     result = fosm(machine, t, workspace_grid(machine, args.points),
@@ -60,6 +69,9 @@ def run(args) -> int:
                if not met]
     print("\nevery output meets its target" if not failing else
           f"\ntarget NOT met by: {', '.join(failing)}")
+    if args.age is not None:
+        print(f"\n{age_table_title(machine, args.age)}")
+        print(age_table(machine, t, result.poses, args.age).to_string())
     if args.certify:
         options.say(f"certifying the worst pose over the continuous workspace (rtol "
                     f"{args.rtol:g})")
@@ -72,6 +84,32 @@ def run(args) -> int:
                   float_format=f"%.{SIGNIFICANT}g")
         print(f"\nwritten {out}")
     return 0
+
+
+def age_table_title(machine, age: float) -> str:
+    """What the age table shows: the drift model and the age."""
+    return (f"At age {age:g} years under the machine file's [drift] model "
+            f"{machine.drift.kind!r} (docs/over-time.md), each output at its worst grid "
+            f"pose over the life:")
+
+
+def age_table(machine, tolerances, poses, age: float) -> pd.DataFrame:
+    """One row per output: the worst grid pose over ``[0, age]``, the probability at the
+    age alone and the first passage over ``[0, age]`` (a Monte-Carlo standard error
+    beside it under wear)."""
+    found = life_reliability(machine, tolerances, poses, [0.0, age] if age > 0 else [0.0],
+                             distribution=machine.distribution, rng=0)
+    rows = []
+    for i, output in enumerate(OUTPUTS):
+        life = options.percent(found.life[-1, i])
+        if found.life_se[-1, i] > 0:
+            life += f" (se {100 * found.life_se[-1, i]:.2g} %)"
+        rows.append({"output": output,
+                     "worst pose over the life": options.pose_text(
+                         machine, poses[found.worst_pose[-1, i]]),
+                     "P at the age": options.percent(found.at_age[-1, i]),
+                     "P over [0, age]": life})
+    return pd.DataFrame(rows).set_index("output")
 
 
 def prediction_frame(machine, result):

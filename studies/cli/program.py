@@ -25,6 +25,7 @@ COMMANDS += ("identify",)
 COMMANDS += ("plan",)
 COMMANDS += ("compensate",)
 COMMANDS += ("evaluate",)
+COMMANDS += ("life",)
 PROG = "precrel"
 #: Exit code of bad input (argparse's own convention).
 USAGE_ERROR = 2

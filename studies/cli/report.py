@@ -13,6 +13,7 @@ from studies.report.as_measured_section import as_measured_builder
 from studies.report.extras import (EXTRAS, TITLES, acceptance_builder, builders,
                                    catalogue_builder, evaluation_builder, guarded,
                                    not_computed)
+from studies.report.life_section import life_builder
 from studies.report.sensitivity_section import study_sensitivity_section
 from studies.report.writer import REPORT_MARKERS, write_report
 from studies.report.zone_section import zone_section
@@ -110,6 +111,9 @@ def run(args) -> int:
         included.append("sensitivity")
         extra.append(guarded("sensitivity", lambda study: study_sensitivity_section(
             study, machines=args.machines, rng=sensitivity_stream(study.seed))))
+    if machine.drift is not None:
+        included.append("life")
+        extra.append(guarded("life", life_builder))
     if args.compensation is not None:
         included.append("compensation")
         extra.append(guarded("compensation", compensate.report_builder(args, machine)))

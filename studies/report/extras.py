@@ -46,6 +46,7 @@ from .catalogue_section import TITLE as CATALOGUE_TITLE
 from .catalogue_section import catalogue_section
 from .evaluation_section import TITLE as EVALUATION_TITLE
 from .evaluation_section import evaluation_section
+from .life_section import TITLE as LIFE_TITLE
 from .profiles_section import TITLE as PROFILES_TITLE
 from .profiles_section import profiles_section
 from .rare_section import rare_section
@@ -66,12 +67,13 @@ TITLES = {"front": "Cost against reliability", "system": "System reliability",
           "rare": "Verification at the worst poses", "profiles": PROFILES_TITLE,
           "tests": ACCEPTANCE_TITLE, "catalogue": CATALOGUE_TITLE,
           "sensitivity": "What each tolerance buys", "as_measured": AS_MEASURED_TITLE,
-          "evaluation": EVALUATION_TITLE, "compensation": "After compensation"}
+          "evaluation": EVALUATION_TITLE, "compensation": "After compensation",
+          "life": LIFE_TITLE}
 #: The option that asks for each section not in :data:`EXTRAS`.
 OPTIONS = {"tests": "--tests", "catalogue": "--catalogue", "sensitivity": "--sensitivity",
            "as_measured": "--identification or --measurements",
            "evaluation": "--measurements with acceptance runs and --tests",
-           "compensation": "--compensation"}
+           "compensation": "--compensation", "life": "the machine file's [drift] table"}
 
 
 def allocations(study) -> dict:
