@@ -61,8 +61,11 @@ def crossing_interval(ages, lower, estimate, upper, level) -> np.ndarray:
 
 
 def age_text(age: float, horizon: float) -> str:
-    """An age in years to 0.1 year (the grid's interpolation fixes no more), or "beyond
-    the horizon of H years"."""
+    """An age in years to 0.1 year (the grid's interpolation fixes no more), "beyond H
+    years" when the curve never falls below the level, or "0 (below already at
+    acceptance)" when it starts below it."""
     if np.isnan(age):
         return f"beyond {horizon:g} years"
+    if age == 0:
+        return "0 (below already at acceptance)"
     return f"{age:.1f} years"

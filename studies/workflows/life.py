@@ -159,14 +159,23 @@ class LifeStudy:
             "output": np.tile(names, len(self.ages)),
             "probability": values.ravel()})
 
+    def recalibration_text(self) -> str:
+        """The recalibration interval in one sentence, or that the yield starts below the
+        level (then there is none)."""
+        earliest, age, latest = self.interval
+        level = f"{self.level:.4g} ({self.level_source})"
+        if age == 0:
+            return (f"No recalibration interval for {self.machine}: the machine yield is "
+                    f"{self.machine_yield[0]:.3f} [{self.yield_lower[0]:.3f}, "
+                    f"{self.yield_upper[0]:.3f}] at acceptance, already below {level}")
+        return (f"Recalibration interval of {self.machine}: {age_text(age, self.horizon)} "
+                f"(the age at which the machine yield over the life falls below {level}); "
+                f"{self.confidence:.0%} interval {age_text(earliest, self.horizon)} to "
+                f"{age_text(latest, self.horizon)}")
+
     def summary(self) -> str:
         """The recalibration interval first, then the curves at a few ages."""
-        earliest, age, latest = self.interval
-        lines = [f"Recalibration interval of {self.machine}: {age_text(age, self.horizon)} "
-                 f"(the age at which the machine yield over the life falls below "
-                 f"{self.level:.4g}, {self.level_source}); "
-                 f"{self.confidence:.0%} interval {age_text(earliest, self.horizon)} to "
-                 f"{age_text(latest, self.horizon)}",
+        lines = [self.recalibration_text(),
                  f"Drift model {self.kind!r}; {self.machines:,} built machines on the exact "
                  f"chain; life reliability: {self.method}", ""]
         lines.append(self.table().to_string())
