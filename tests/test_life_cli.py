@@ -24,7 +24,7 @@ def test_life_writes_its_files_and_refuses_a_second_run(tmp_path, capsys):
     assert list(table.columns) == ["age_years", "output", "probability"]
     assert list(table["output"].unique()) == ["dx", "dy", "dz", "ex", "ey", "ez", "machine"]
     assert sorted(table["age_years"].unique()) == [0, 1, 2, 3, 4]
-    assert "Recalibration interval" in capsys.readouterr().out
+    assert "ecalibration interval" in capsys.readouterr().out
     assert main(args) == 2
     assert "life.csv" in capsys.readouterr().err
     assert main(args + ["--overwrite"]) == 0
