@@ -326,7 +326,8 @@ def log_concave_bound(result, *, machines: int = 50_000, steps: int = 1,
     ------
     InputError
         When the yield is not log-concave in the log-tolerances by the theorem used: a
-        reading other than normal, an item correlation, a profile other than constant.
+        reading other than normal, or an item correlation (every profile along travel
+        is taken: :mod:`allocation.machine_yield.profile_bound`).
     """
     started = time.perf_counter()
     machines = checks.positive_int(machines, "machines")
