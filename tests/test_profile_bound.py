@@ -286,3 +286,16 @@ def test_allocation_for_yield_takes_the_convex_step_under_independent(trunnion5)
     assert result.cost == min(result.search_calibrated_cost, result.naive.cost,
                               result.convex_step_calibrated_cost)
     assert "convex steps: 1 step from the search's allocation" in result.summary()
+
+
+def test_cli_prints_the_bound_under_gp(tmp_path, capsys):
+    """``allocate --yield --profile gp:300 --bound-machines N`` runs to the bound (it was
+    refused before the extension)."""
+    from pathlib import Path
+
+    from studies import cli
+    machine = str(Path(__file__).parent / "machines" / "trunnion5.toml")
+    assert cli.main(["allocate", machine, "--yield", "0.9", "--points", "3", "--machines",
+                     "300", "--seed", "3", "--profile", "gp:300", "--bound-machines", "1000",
+                     "--out", str(tmp_path / "a.csv")]) == 0
+    assert "at 95% confidence" in capsys.readouterr().out
