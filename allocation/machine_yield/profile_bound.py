@@ -115,7 +115,7 @@ class BlockRows:
         n = len(model.machine.axis_specs)
         live = np.abs(model.travel).sum(axis=1) > 0  # (n, P): columns of each axis' factor
         motion = np.broadcast_to(live[:, None, :], (n, 6, live.shape[1])).ravel()
-        return np.concatenate([motion, np.ones(model.dimension - model._motion_size, bool)])
+        return np.concatenate([motion, np.ones(model.dimension - motion.size, bool)])
 
     @property
     def shape(self) -> tuple[int, int]:
@@ -142,9 +142,10 @@ class BlockRows:
         the model judges, read for the linearised outputs."""
         u = np.asarray(u, dtype=float)
         n, points = len(model.machine.axis_specs), model.experiment.points
-        motion = u[:, :model._motion_size].reshape(len(u), n, points, 6)
+        size = 6 * n * points  # the motion errors' draws come first, (n, P, 6)
+        motion = u[:, :size].reshape(len(u), n, points, 6)
         ordered = np.concatenate([motion.transpose(0, 1, 3, 2).reshape(len(u), -1),
-                                  u[:, model._motion_size:]], axis=1)
+                                  u[:, size:]], axis=1)
         return ordered[:, self.used_columns(model)]
 
 
