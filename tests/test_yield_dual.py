@@ -128,7 +128,7 @@ def test_refused_where_the_yield_is_not_log_concave_by_the_theorem():
     machine = SimpleNamespace(correlation=None)
     for distribution, profile, correlation, words in (
             ("truncated", "constant", None, "'truncated', not 'normal'"),
-            ("normal", "independent", None, "'independent', not 'constant'"),
+            ("truncated", "independent", None, "'truncated', not 'normal'"),
             ("normal", "constant", np.eye(6), "item correlation")):
         machine.correlation = correlation
         result = SimpleNamespace(distribution=distribution, profile=profile,

@@ -42,7 +42,9 @@ each machine's term bounded).
 
 What it holds for: the linearised outputs on the grid's poses (the model of the certified
 relaxations of :mod:`allocation.machine_yield.yield_target`), the normal reading, independent
-errors, the ``constant`` profile; not the exact chain, on which the yield is sampled. Under
+errors, the ``constant`` profile here and the ``independent`` and ``gp`` profiles through
+:mod:`allocation.machine_yield.profile_bound` (the same theorem, each error's draws along
+travel scaled by its tolerance alone); not the exact chain, on which the yield is sampled. Under
 those assumptions the error of the first-order outputs is second order in the errors.
 """
 
@@ -62,6 +64,7 @@ from reliability.basics.renamed import renamed
 from reliability.basics.threads import one_blas_thread
 from reliability.sampling.machine_yield import YieldModel
 
+from . import profile_bound
 from .yield_shape import bisected_scale
 
 #: Coverage factor of the normal reading (σ = t/3).
@@ -132,10 +135,28 @@ def not_log_concave(machine, profile: str, distribution: str) -> str | None:
     if distribution != "normal":
         return f"the reading is {distribution!r}, not 'normal'"
     if machine.correlation is not None:
-        return "the machine has an item correlation"
-    if profile != "constant":
-        return f"the profile is {profile!r}, not 'constant'"
+        return ("the machine has an item correlation (it mixes errors of different "
+                "tolerances, which no diagonal dilation of one convex set describes)")
     return None
+
+
+def linear_rows(model):
+    """The linearised outputs' rows of ``model``'s machine: :func:`scaled_rows` at the
+    deciding poses under the ``constant`` profile,
+    :class:`allocation.machine_yield.profile_bound.BlockRows` under ``independent`` and
+    ``gp`` (the functions here take either)."""
+    if model.profile == "constant":
+        return scaled_rows(model.machine, model.deciding_poses)
+    return profile_bound.BlockRows.of(model)
+
+
+def linearised(model, u):
+    """:func:`linear_rows` and the draws ``u`` of ``model``'s machines read for them
+    (:func:`unit_draws`, or the blocks' coordinates)."""
+    rows = linear_rows(model)
+    if isinstance(rows, profile_bound.BlockRows):
+        return rows, rows.standard(model, u)
+    return rows, unit_draws(model, u)
 
 
 def unit_draws(model, u) -> np.ndarray:
@@ -194,6 +215,8 @@ def yield_and_gradient(rows, tolerances, draws):
         affine in ``z_i``); ``P = Φ(r) − Φ(l)`` and, since ``l, r ∝ 1/t_i``,
         ``∂P/∂log t_i = l φ(l) − r φ(r)``; the gradient is their mean over machines.
     """
+    if isinstance(rows, profile_bound.BlockRows):
+        return profile_bound.yield_and_gradient(rows, tolerances, draws)
     draws = np.asarray(draws, dtype=float)
     machines, n = draws.shape
     block = max(1, BLOCK_FLOATS // len(rows))
@@ -303,7 +326,8 @@ def log_concave_bound(result, *, machines: int = 50_000, steps: int = 1,
     ------
     InputError
         When the yield is not log-concave in the log-tolerances by the theorem used: a
-        reading other than normal, an item correlation, a profile other than constant.
+        reading other than normal, or an item correlation (every profile along travel
+        is taken: :mod:`allocation.machine_yield.profile_bound`).
     """
     started = time.perf_counter()
     machines = checks.positive_int(machines, "machines")
@@ -314,18 +338,19 @@ def log_concave_bound(result, *, machines: int = 50_000, steps: int = 1,
     why = not_log_concave(machine, result.profile, result.distribution)
     if why is not None:
         raise InputError(f"log_concave_bound: {why}; the yield is log-concave in the "
-                         f"log-tolerances for independent normal errors constant along "
-                         f"travel only")
-    model = YieldModel(machine, profile="constant", points=result.points)
-    rows = scaled_rows(machine, model.deciding_poses)
+                         f"log-tolerances for independent normal errors, each one's draws "
+                         f"along travel scaled by its tolerance alone")
+    model = YieldModel(machine, profile=result.profile, distribution="normal",
+                       points=result.points)
+    rows = linear_rows(model)
     weights = np.asarray(problem.cost.weights, dtype=float)
     lower, upper = np.asarray(problem.lower, float), np.asarray(problem.upper, float)
     samples = streams.spawn(rng, steps + 1)
     point = np.asarray(result.tolerances, dtype=float)
     for step in range(steps):
-        draws = samples[step].standard_normal((machines, len(point)))
+        draws = samples[step].standard_normal((machines, rows.shape[1]))
         point = tangent_step(rows, weights, lower, upper, point, draws, result.yield_target)
-    draws = samples[steps].standard_normal((machines, len(point)))
+    draws = samples[steps].standard_normal((machines, rows.shape[1]))
     estimates = yield_and_gradient(rows, point, draws)
     bound, multiplier, _ = tangent_bound(weights, lower, upper, point, *estimates, machines,
                                          result.yield_target, confidence=confidence)
@@ -361,6 +386,8 @@ def _at_yield(rows, tolerances, draws, yield_target, lower, upper) -> np.ndarray
 
 def _worst_rows(rows, tolerances, draws) -> np.ndarray:
     """Each machine's largest ``|row · (t ∘ z)|`` over the rows, in blocks of machines."""
+    if isinstance(rows, profile_bound.BlockRows):
+        rows, tolerances = rows.rows, rows.expanded(tolerances)
     block = max(1, BLOCK_FLOATS // len(rows))
     return np.concatenate([np.abs((draws[s:s + block] * tolerances) @ rows.T).max(axis=1)
                            for s in range(0, len(draws), block)])

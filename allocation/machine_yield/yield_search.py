@@ -27,7 +27,7 @@ from reliability.sampling.machine_yield import YieldModel
 from ..per_pose.common_target import CommonTargetSolver
 from ..per_pose.problem import AllocationProblem
 from ..solvers.convex import InfeasibleAllocationError, solve_convex_allocation
-from .yield_dual import not_log_concave, scaled_rows, tangent_step, unit_draws
+from .yield_dual import linearised, not_log_concave, tangent_step
 from .yield_shape import scaled_to_yield, shape_search
 
 #: Two-sided per-pose target the constraint rows are built and screened at: every target
@@ -243,9 +243,8 @@ class YieldSearch:
         machine = self.problem.machine
         if steps == 0 or not_log_concave(machine, machine.profile, machine.distribution):
             return None
-        rows = scaled_rows(machine, self.model.deciding_poses)
-        draws = unit_draws(self.model, self.model.draws(machines,
-                                                        self.streams[CONVEX_STREAM]))
+        rows, draws = linearised(self.model, self.model.draws(machines,
+                                                              self.streams[CONVEX_STREAM]))
         lower, upper = np.asarray(self.problem.lower), np.asarray(self.problem.upper)
         t = point.t
         for _ in range(steps):
@@ -261,7 +260,7 @@ class YieldSearch:
             return "none asked for"
         if why is not None:
             return (f"not run: {why} (the yield is log-concave in the log-tolerances for "
-                    f"independent normal errors constant along travel)")
+                    f"independent normal errors, each scaled by its own tolerance)")
         plural = "s" if steps > 1 else ""
         return (f"{steps} step{plural} from the search's allocation, the yield's gradient "
                 f"on the linearised outputs of {machines:,} machines of their own (the yield "
