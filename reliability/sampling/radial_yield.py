@@ -41,6 +41,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.optimize import brentq
 from scipy.stats import chi2, norm
 
 from reliability.basics import checks, streams
@@ -57,8 +58,17 @@ def directions(rays: int, n: int, rng=None) -> np.ndarray:
     standard normal draws from ``rng``."""
     rays = checks.positive_int(rays, "rays")
     n = checks.positive_int(n, "n")
-    theta = streams.generator(rng).standard_normal((rays, n))
-    return theta / np.linalg.norm(theta, axis=1, keepdims=True)
+    return as_directions(streams.generator(rng).standard_normal((rays, n)))
+
+
+def as_directions(draws) -> np.ndarray:
+    """Standard normal ``draws (M, n)`` normalised to unit length: directions uniform on
+    the sphere (the normal law is rotation invariant)."""
+    draws = np.asarray(draws, dtype=float)
+    if draws.ndim != 2 or not draws.shape[0]:
+        raise InputError(f"draws: expected a non-empty 2-D array (rays, errors), got shape "
+                         f"{draws.shape}")
+    return draws / np.linalg.norm(draws, axis=1, keepdims=True)
 
 
 def _check(rows, tolerances, points, name):
@@ -134,6 +144,24 @@ class Rays:
         """``(Ŷ_lin, its standard error)`` of the allocation times ``scale``."""
         terms = self.terms(scale)
         return float(terms.mean()), float(terms.std(ddof=1) / np.sqrt(len(terms)))
+
+    def scale_at(self, level: float) -> float:
+        """The factor ``c`` at which the allocation times ``c`` has ``Ŷ_lin = level`` on
+        these rays (root in ``log c`` of a decreasing function, bracketed by doubling)."""
+        level = checks.probability(level, "level")
+
+        def excess(x):
+            return self.estimate(np.exp(x))[0] - level
+        low, high = -1.0, 1.0
+        for _ in range(60):
+            if excess(low) >= 0.0:
+                break
+            low -= 1.0
+        for _ in range(60):
+            if excess(high) <= 0.0:
+                break
+            high += 1.0
+        return float(np.exp(brentq(excess, low, high, xtol=1e-12)))
 
 
 def rays(rows, tolerances, theta) -> Rays:
