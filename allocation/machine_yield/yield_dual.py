@@ -73,6 +73,9 @@ from .yield_shape import bisected_scale
 K_SIGMA = 3.0
 #: Floats of one block of machines × rows (memory bounded by chunking).
 BLOCK_FLOATS = 2_000_000
+#: Fixed-point steps of :func:`_at_yield`'s factor, and how far below the yield's factor
+#: it may end.
+RESCALES, SLACK = 4, 1e-3
 #: Shares of the way to the tangent problem's optimum a step tries (:func:`tangent_step`).
 STEP_SHARES = (1.0, 0.5, 0.25, 0.125, 0.0)
 
@@ -355,25 +358,31 @@ def log_concave_bound(result, *, machines: int = 50_000, steps: int = 1,
 
 
 def dual_bound(problem, points, yield_target, start, *, machines, steps, confidence, rng,
-               started=None) -> YieldDualBound:
+               started=None, rescale_rays=0) -> YieldDualBound:
     """The bound of :func:`log_concave_bound` for ``problem`` (box, cost; its machine
     under ``constant`` and the normal reading) on the ``points``-point grid, the tangent
     ``steps`` steps from ``start``; the yield and its gradient by directional sampling
     (:func:`reliability.sampling.radial_yield.radial_gradient`) on ``machines`` rays of
-    each stream of ``rng`` (one per step, the last for the bound). The caller has checked
-    that the theorem applies."""
+    each stream of ``rng`` (one per step, the last for the bound). With ``rescale_rays``,
+    the point is then rescaled to ``yield_target`` on that many rays of a stream of its own
+    (the stream after the steps'; the bound's is the one after it): the bound is tight
+    where the tangent is taken at the yield itself. The caller has checked that the
+    theorem applies."""
     started = time.perf_counter() if started is None else started
     machine = problem.machine
     model = YieldModel(machine, profile="constant", points=points)
     rows = scaled_rows(machine, model.deciding_poses)
     weights = np.asarray(problem.cost.weights, dtype=float)
     lower, upper = np.asarray(problem.lower, float), np.asarray(problem.upper, float)
-    samples = streams.spawn(rng, steps + 1)
+    samples = streams.spawn(rng, steps + 1 + bool(rescale_rays))
     point = np.asarray(start, dtype=float)
     for step in range(steps):
         draws = samples[step].standard_normal((machines, len(point)))
         point = tangent_step(rows, weights, lower, upper, point, draws, yield_target)
-    theta = as_directions(samples[steps].standard_normal((machines, len(point))))
+    if rescale_rays:
+        draws = samples[steps].standard_normal((rescale_rays, len(point)))
+        point = _at_yield(rows, point, draws, yield_target, lower, upper)
+    theta = as_directions(samples[-1].standard_normal((machines, len(point))))
     estimates = radial_gradient(rows, point, theta)
     bound, multiplier, _ = radial_tangent_bound(weights, lower, upper, point, *estimates,
                                                 yield_target, confidence=confidence)
@@ -390,20 +399,29 @@ def _at_yield(rows, tolerances, draws, yield_target, lower, upper) -> np.ndarray
     """``tolerances`` times the factor at which their linearised yield on the rays of
     ``draws`` is ``yield_target`` (:meth:`~reliability.sampling.radial_yield.Rays.scale_at`,
     exact on the rays: the yield along a ray is homogeneous in the tolerances), kept in
-    the box. When tolerances held at their lower bounds keep that factor from reaching the
-    yield, the largest factor that does, by bisection
-    (:func:`allocation.machine_yield.yield_shape.bisected_scale`, as
-    :func:`~allocation.machine_yield.yield_shape.scaled_to_yield` does on the exact chain); the
-    lower bounds themselves when not even they reach it."""
+    the box: fixed-point steps on the factor while tolerances held at a bound change the
+    shape (:data:`RESCALES`, until within :data:`SLACK` below the yield's factor). When
+    those held at their lower bounds stall the steps short of the yield, the largest factor
+    that reaches it, by bisection (:func:`allocation.machine_yield.yield_shape.bisected_scale`,
+    as :func:`~allocation.machine_yield.yield_shape.scaled_to_yield` does on the exact
+    chain); the lower bounds themselves when not even they reach it."""
     theta = as_directions(draws)
 
     def judged(scale):
         t = np.clip(scale * tolerances, lower, upper)
         return t, None, 1.0 / rays(rows, t, theta).scale_at(yield_target)
 
-    quantile = judged(1.0)[2]
-    scaled = np.clip(tolerances / quantile, lower, upper)
-    if judged(1.0 / quantile)[2] <= 1.0 + 1e-9:
-        return scaled
-    found = bisected_scale(judged, 1.0 / quantile, float(np.min(lower / tolerances)))
+    scale = 1.0
+    for _ in range(RESCALES):
+        t, _, quantile = judged(scale)
+        if 1.0 - SLACK <= quantile <= 1.0 + 1e-9:
+            return t
+        following = scale * (1.0 - 0.5 * SLACK) / quantile
+        if np.array_equal(np.clip(following * tolerances, lower, upper), t):
+            break
+        scale = following
+    t, _, quantile = judged(scale)
+    if quantile <= 1.0 + 1e-9:
+        return t
+    found = bisected_scale(judged, scale, float(np.min(lower / tolerances)))
     return np.asarray(lower, dtype=float) if found is None else found[1][0]

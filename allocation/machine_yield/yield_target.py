@@ -126,6 +126,8 @@ DEFAULT_MACHINES = 2000
 CONVEX_MACHINES_FACTOR = 5
 #: Rays of each sample of the log-concave bound, as a multiple of the machines.
 BOUND_MACHINES_FACTOR = 10
+#: Rays per machine on which the log-concave bound's point is rescaled to the yield.
+RESCALE_FACTOR = 3
 #: Confidence of the log-concave bound.
 BOUND_CONFIDENCE = 0.95
 
@@ -492,8 +494,8 @@ def allocate_for_yield(machine, yield_target: float, *, profile=None, distributi
                        rng: int | None = 0, rounds: int = 6, naive_steps: int = 8,
                        restore_steps: int = 4, shape_steps: int = 20,
                        convex_steps: int = 1, convex_machines: int | None = None,
-                       bound_machines: int | None = None, gap_tol: float = 1e-6,
-                       executor=None) -> YieldAllocation:
+                       bound_machines: int | None = None, estimator: str = "radial",
+                       gap_tol: float = 1e-6, executor=None) -> YieldAllocation:
     """The cheapest allocation found whose machine yield reaches ``yield_target``.
 
     Parameters
@@ -543,10 +545,18 @@ def allocate_for_yield(machine, yield_target: float, *, profile=None, distributi
         step is only as good as its gradient, whose relative error falls as
         ``1/√convex_machines``.
     bound_machines : int, optional
-        Rays of each sample of the lower bound at 95 % confidence from the yield's
-        log-concavity (:func:`allocation.machine_yield.yield_dual.dual_bound`, one tangent
-        step from the result, then the bound on a fresh sample), computed where that
-        theorem holds (default :data:`BOUND_MACHINES_FACTOR` × ``machines``); 0: none.
+        Rays of the lower bound at 95 % confidence from the yield's log-concavity
+        (:func:`allocation.machine_yield.yield_dual.dual_bound`: the tangent at the result
+        rescaled to Y on :data:`RESCALE_FACTOR` × ``machines`` rays, the bound on a fresh
+        sample), computed where that theorem holds (default
+        :data:`BOUND_MACHINES_FACTOR` × ``machines``); 0: none.
+    estimator : {'radial', 'share'}
+        How the calibration and the verification estimate a yield: ``'radial'``, where the
+        yield is log-concave (normal reading, no item correlation, ``constant``), the
+        radial control variate (:mod:`allocation.machine_yield.yield_controlled`: its
+        margin ``DESIGN_Z`` × its standard error, a normal interval), elsewhere and with
+        ``'share'`` the share of machines passing (margin ``DESIGN_Z`` binomial standard
+        errors, a Clopper–Pearson interval).
     gap_tol : float
         Relative duality gap accepted by the convex solves.
     executor : distributed.Client, optional
@@ -581,6 +591,7 @@ def allocate_for_yield(machine, yield_target: float, *, profile=None, distributi
         checks.positive_int(convex_machines, "convex_machines")
     bound_machines = BOUND_MACHINES_FACTOR * machines if bound_machines is None else \
         checks.positive_int(bound_machines, "bound_machines", minimum=0)
+    controlled = checks.choice(estimator, "estimator", ("radial", "share")) == "radial"
     chosen = {name: value for name, value in (("profile", profile),
                                               ("distribution", distribution))
               if value is not None}
@@ -589,10 +600,10 @@ def allocate_for_yield(machine, yield_target: float, *, profile=None, distributi
                                                            / machines),
                         1.0 - 0.5 / machines)
     search = YieldSearch(machine, points, bounds, machines, seed, design_target, gap_tol,
-                         executor=executor, yield_target=yield_target)
+                         executor=executor, yield_target=yield_target if controlled else None)
     searches = [search, *_narrower_searches(machine, points, search.problem, machines, seed,
                                             design_target, gap_tol, executor,
-                                            yield_target)]
+                                            search.yield_target)]
     built = time.perf_counter()
     lower = _lower_bound(search, yield_target)
     chain = pose_chain_bound(search.problem, yield_target, lower.t)
@@ -623,7 +634,7 @@ def allocate_for_yield(machine, yield_target: float, *, profile=None, distributi
     verify = found.search.verification_sample()
     verified_yield, naive_verified = verify(final.t), verify(naive_final.t)
     verified = time.perf_counter()
-    dual = _dual_bound(search, points, yield_target, final.t, bound_machines, seed)
+    dual = _dual_bound(search, points, yield_target, final.t, bound_machines, seed, machines)
     certified = max(float(lower.dual_bound), -np.inf if chain is None else chain.bound)
     return YieldAllocation(
         problem=search.problem, search_problem=found.search.problem,
@@ -661,17 +672,19 @@ def allocate_for_yield(machine, yield_target: float, *, profile=None, distributi
         log_concave=dual, log_concave_text=_log_concave_text(machine, bound_machines))
 
 
-def _dual_bound(search, points, yield_target, start, rays, seed):
+def _dual_bound(search, points, yield_target, start, rays, seed, machines):
     """The lower bound at 95 % from the yield's log-concavity in the box asked for
-    (:func:`allocation.machine_yield.yield_dual.dual_bound`, one step from ``start`` on
-    ``rays`` rays of the bound's stream), or None where the theorem does not hold or
-    ``rays`` is 0."""
+    (:func:`allocation.machine_yield.yield_dual.dual_bound`): the tangent at ``start`` (the
+    result, which the convex step brought near the optimum) rescaled to ``yield_target``
+    on :data:`RESCALE_FACTOR` rays per machine, the bound on ``rays`` fresh rays; None where
+    the theorem does not hold or ``rays`` is 0."""
     machine = search.problem.machine
     if rays == 0 or not_log_concave(machine, machine.profile, machine.distribution):
         return None
     stream = streams.spawn(seed, BOUND_STREAM + 1)[BOUND_STREAM]
-    return dual_bound(search.problem, points, yield_target, start, machines=rays, steps=1,
-                      confidence=BOUND_CONFIDENCE, rng=stream)
+    return dual_bound(search.problem, points, yield_target, start, machines=rays, steps=0,
+                      confidence=BOUND_CONFIDENCE, rng=stream,
+                      rescale_rays=RESCALE_FACTOR * machines)
 
 
 def _log_concave_text(machine, rays) -> str:

@@ -108,8 +108,8 @@ def verified_line(result) -> str:
         "NOT verified: the interval reaches below the target"
     if v.method == CONTROLLED_METHOD:
         how = (f"95% interval estimate ± 1.96 standard errors {interval_text(v.lower, v.upper)}"
-               f" (radial control variate: {v.n:,} fresh built machines on the exact chain, "
-               f"{RAYS_FACTOR * v.n:,} fresh rays; clipped to [0, 1])")
+               f" (radial control variate, clipped to [0, 1]) from {v.n:,} fresh built "
+               f"machines on the exact chain and {RAYS_FACTOR * v.n:,} fresh rays")
     else:
         how = (f"95% Clopper-Pearson {interval_text(v.lower, v.upper)} from {v.n:,} fresh "
                f"built machines")

@@ -103,12 +103,12 @@ def worst_rows(rows, tolerances, points):
     block = max(1, BLOCK_FLOATS // len(rows))
     worst, row, value = [], [], []
     for start in range(0, len(points), block):
-        values = (points[start:start + block] * tolerances) @ rows.T
-        where = np.abs(values).argmax(axis=1)
-        picked = np.take_along_axis(values, where[:, None], axis=1)[:, 0]
-        worst.append(np.abs(picked))
+        scaled = points[start:start + block] * tolerances
+        values = np.abs(scaled @ rows.T)
+        where = values.argmax(axis=1)
+        worst.append(values[np.arange(len(where)), where])
         row.append(where)
-        value.append(picked)
+        value.append(np.einsum("ij,ij->i", scaled, rows[where]))
     return np.concatenate(worst), np.concatenate(row), np.concatenate(value)
 
 
