@@ -300,8 +300,14 @@ class YieldSearch:
         :attr:`controlled`, the radial control variate on its machines and rays."""
         if self.controlled:
             return self.ray_sample("verification").estimate
+        verdicts = self.verification_verdicts()
+        return lambda t: all_within_share(verdicts(t))
+
+    def verification_verdicts(self):
+        """``t ->`` per-machine verdicts of an allocation on the fresh sample, on the whole
+        grid (same draws for all)."""
         u = self.draws("verification")
-        return lambda t: all_within_share((self.model.output_ratios(u, t) < 1.0).all(axis=1))
+        return lambda t: (self.model.output_ratios(u, t) < 1.0).all(axis=1)
 
     def naive(self, steps, yield_target) -> SearchPoint:
         """One common required index, bisected to the smallest meeting the design yield.

@@ -56,7 +56,7 @@ def cost_line(result) -> str:
     """The cost and the stage that gave it."""
     initial = result.initial_cost
     return (f"cost {result.cost:.6g} = {percentage_text(result.cost / initial)} of the initial "
-            f"allocation ({initial:.6g}), from the {result.method} stage"
+            f"allocation ({initial:.6g}), found by the {result.method} stage"
             f"{narrower_box_text(result)}: the cheapest found by this search; not "
             f"certified: see the lower bound")
 
@@ -93,8 +93,9 @@ def calibration_text(result) -> str:
                 f"{percentage_text(result.convex_step_cost / initial)}, scaled to "
                 f"{target_words(result)}: the result ({there})")
     if result.method == "naive start":
-        return (f"{search}; the naive start, scaled to {target_words(result)}, is the result "
-                f"({there})")
+        scaled = percentage_text(result.search_calibrated_cost / initial)
+        return (f"{search}, {scaled} once scaled to {target_words(result)}: dearer than the "
+                f"naive start scaled the same way, which is the result ({there})")
     if not result.calibrated:
         return (f"{search}; no scale inside the box reaches {target_words(result)} ({there}): "
                 f"kept as it is")
