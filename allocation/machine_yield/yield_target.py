@@ -405,9 +405,12 @@ class YieldAllocation:
         found for) and, when it came from the narrower box, its ``search_problem``; every
         field is checked: one tolerance per error of the problem, the bracket in order
         (lower bound at most the cost), so the verdicts (verified or not, the bracket, the
-        yields and their intervals) are the saved ones. A damaged field raises
+        yields and their intervals) are the saved ones; a file without
+        :data:`LATER_FIELDS` loads without a log-concave bound. A damaged field raises
         :class:`~reliability.basics.errors.SavedResultError` naming the file and field."""
         data = load_payload(path, SAVED_FORMAT)
+        for key in LATER_FIELDS:  # files written before the log-concave bound was saved
+            data.data.setdefault(key, None)
         values = read_fields(data, SAVED_FIELDS)
         narrower = data.boolean("from_narrower_box")
         if narrower and search_problem is None:
@@ -466,6 +469,9 @@ NAIVE_FIELDS = (Number("target", low=0.0, high=1.0), Number("toward_lower", low=
                   for key in ("design_yield", "calibration_yield", "verified_yield")))
 
 
+#: Fields a file written before the log-concave bound was part of the result lacks: they
+#: load as None (no log-concave bound).
+LATER_FIELDS = ("log_concave", "log_concave_text")
 SAVED_FORMAT = "precrel.yield_allocation"
 SAVED_FIELDS = (
     Number("yield_target", low=0.0, high=1.0), Number("design_yield_target", low=0.0, high=1.0),
