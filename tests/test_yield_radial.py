@@ -60,7 +60,7 @@ def polygon(rows, t):
             ends = np.sort([(-1 - first * z1) / second, (1 - first * z1) / second])
             low, high = max(low, ends[0]), min(high, ends[1])
         return max(norm.cdf(high) - norm.cdf(low), 0.0) * norm.pdf(z1)
-    return integrate.quad(inner, -9, 9, limit=200, epsabs=1e-10)[0]
+    return integrate.quad(inner, -9, 9, limit=200, epsabs=1e-8, epsrel=1e-8)[0]
 
 
 def test_radial_yield_of_a_polygon_matches_its_integral():
