@@ -16,9 +16,11 @@ from scipy import integrate
 from scipy.stats import norm
 
 from allocation import allocate_for_yield
-from allocation.machine_yield.yield_controlled import DESIGN_Z
+from allocation.machine_yield.yield_controlled import DESIGN_Z, ControlledSample, calibrated
 from allocation.machine_yield.yield_dual import radial_tangent_bound
+from allocation.machine_yield.yield_search import YieldSearch
 from allocation.machine_yield.yield_target import YieldAllocation
+from reliability.sampling.machine_yield import YieldModel
 from reliability.sampling.radial_yield import (CONTROLLED_METHOD, controlled_yield,
                                                directions, radial_gradient, radial_yield)
 from studies import cli
@@ -215,3 +217,24 @@ def test_a_saved_result_without_the_new_fields_still_loads(default, tmp_path):
     assert loaded.log_concave is None and loaded.log_concave_text == ""
     assert loaded.lower_bound_kind == "pose chain"
     assert loaded.lower_bound_confidence == 1.0
+
+
+def test_a_controlled_calibration_is_verified_in_at_least_97_5_percent_of_runs(trunnion5):
+    """The margin of the control variate, by repetition on trunnion5 (3-point grid): an
+    allocation scaled until ``Ŷ − DESIGN_Z·SE ≥ Y`` on one sample (300 machines, 3 000 rays)
+    and judged on another independent one has ``Ŷ − 1.96 SE ≥ Y`` in at least 97.5 % of 40
+    pairs (the failures at most their expectation 1 plus 3 binomial standard errors)."""
+    model = YieldModel(trunnion5, profile="constant", points=3)
+    problem = YieldSearch(trunnion5, 3, None, 300, 0, 0.0).problem
+    shape = 1.2 * problem.reference
+    rng = np.random.default_rng(2027)
+    n = len(shape)
+    failures = 0
+    for _ in range(40):
+        design = ControlledSample(model, model.draws(300, rng), directions(3000, n, rng))
+        fresh = ControlledSample(model, model.draws(300, rng), directions(3000, n, rng))
+        t, found, reached = calibrated(design, shape, problem.lower, problem.upper, 0.9,
+                                       DESIGN_Z)
+        assert reached and found.margin(0.9, DESIGN_Z) >= 0.0
+        failures += fresh.estimate(t).lower < 0.9
+    assert failures <= 1 + 3 * np.sqrt(40 * 0.025 * 0.975)

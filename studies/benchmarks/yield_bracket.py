@@ -49,17 +49,18 @@ ROOT = Path(__file__).resolve().parents[2]
 #: The lines of the command's output quoted.
 QUOTED = ("lower bound", "cost", "gap", "verified yield")
 #: Runs ``python -m studies`` with the arguments after ``-c``'s and prints the process's
-#: peak resident memory (kB) to standard error last.
+#: peak resident memory (kB) and its CPU seconds (user + system) to standard error last.
 RUN_WITH_PEAK = ("import resource, runpy, sys\n"
                  "sys.argv = ['studies', *sys.argv[1:]]\n"
                  "try:\n    runpy.run_module('studies', run_name='__main__')\n"
-                 "finally:\n    print('peak', resource.getrusage(resource.RUSAGE_SELF)"
-                 ".ru_maxrss, file=sys.stderr)")
+                 "finally:\n    used = resource.getrusage(resource.RUSAGE_SELF)\n"
+                 "    print('peak', used.ru_maxrss, used.ru_utime + used.ru_stime, "
+                 "file=sys.stderr)")
 
 
 def command_lines(code: Path, machine: Path, args) -> list[str]:
     """``allocate --yield`` from the checkout ``code`` as a command: its quoted lines, wall
-    seconds and the process's peak resident memory."""
+    and CPU seconds and the process's peak resident memory."""
     with TemporaryDirectory() as folder:
         started = time.perf_counter()
         done = subprocess.run(
@@ -70,13 +71,14 @@ def command_lines(code: Path, machine: Path, args) -> list[str]:
                            "PYTHONDONTWRITEBYTECODE": "1"}, capture_output=True,
             text=True, check=False)
         seconds = time.perf_counter() - started
-    peak = re.search(r"^peak (\d+)$", done.stderr, re.MULTILINE)
-    if done.returncode != 0 or peak is None:
+    used = re.search(r"^peak (\d+) ([\d.]+)$", done.stderr, re.MULTILINE)
+    if done.returncode != 0 or used is None:
         return [f"    exit {done.returncode}: {done.stderr.strip()[-300:]}"]
-    peak = int(peak.group(1)) / 1024
+    peak, cpu = int(used.group(1)) / 1024, float(used.group(2))
     lines = [f"    {line}" for line in done.stdout.splitlines()
              if line.startswith(QUOTED)]
-    return lines + [f"    {seconds:.0f} s wall, peak resident memory {peak:.0f} MB"]
+    return lines + [f"    {seconds:.0f} s wall ({cpu:.0f} s CPU), peak resident memory "
+                    f"{peak:.0f} MB"]
 
 
 def estimator_lines(machine, args) -> list[str]:
