@@ -15,7 +15,8 @@ swivel]``. For each machine (``constant`` profile, 5-point grid, the machine fil
    estimator against the binomial ``Y (1 − Y)`` of crude machines at equal count, and the
    standard error of the control variate (N machines, 10 N rays) against the binomial one
    of N machines, with the yield and the machines that the exact chain and the linearised
-   rows judge differently;
+   rows judge differently; the gradient's standard error on N crude machines (conditional
+   Monte Carlo) and on N rays;
 4. the **margin over the naive method** across ``--seeds``: the naive method's cost over
    the result's, both calibrated to the same criterion on the same sample, and both
    verified yields.
@@ -41,7 +42,10 @@ import numpy as np
 import allocation
 import reliability
 from allocation.machine_yield.yield_controlled import RAYS_FACTOR, ray_sample
+from allocation.machine_yield.yield_dual import scaled_rows, yield_and_gradient
 from allocation.machine_yield.yield_search import YieldSearch
+from reliability.sampling.machine_yield import YieldModel
+from reliability.sampling.radial_yield import as_directions, radial_gradient
 from studies.benchmarks.yield_allocation import MACHINES
 from studies.workflows.timing import one_blas_thread
 
@@ -101,7 +105,28 @@ def estimator_lines(machine, args) -> list[str]:
             f"error {estimate.standard_error:.2g} against {crude_error:.2g} crude "
             f"(variance ratio {(crude_error / estimate.standard_error) ** 2:.1f}); "
             f"{estimate.disagreements} of {args.machines:,} machines judged differently by "
-            f"the exact chain and the linearised rows"]
+            f"the exact chain and the linearised rows",
+            *gradient_lines(machine, result.tolerances, args.machines, args.seed)]
+
+
+def gradient_lines(machine, tolerances, draws: int, seed: int) -> list[str]:
+    """The yield's gradient in the log-tolerances at ``tolerances`` on ``draws`` crude
+    machines (conditional Monte Carlo,
+    :func:`allocation.machine_yield.yield_dual.yield_and_gradient`) and on as many rays
+    (:func:`reliability.sampling.radial_yield.radial_gradient`): their mean standard errors
+    and seconds."""
+    model = YieldModel(machine, profile="constant", points=5)
+    rows = scaled_rows(machine, model.deciding_poses)
+    z = np.random.default_rng(seed).standard_normal((draws, len(tolerances)))
+    started = time.perf_counter()
+    _, _, crude_error = yield_and_gradient(rows, tolerances, z)
+    crude_seconds = time.perf_counter() - started
+    started = time.perf_counter()
+    *_, radial_error = radial_gradient(rows, tolerances, as_directions(z))
+    radial_seconds = time.perf_counter() - started
+    return [f"    gradient on {draws:,} draws: mean standard error {crude_error.mean():.3g} "
+            f"by conditional Monte Carlo ({crude_seconds:.1f} s), {radial_error.mean():.3g} "
+            f"along rays ({radial_seconds:.1f} s)"]
 
 
 def margin_lines(machine, args) -> list[str]:
