@@ -61,10 +61,15 @@ intersection (a box containing the default one never costs more than the default
 is the cheapest allocation this search found, not a certified optimum: only the lower bound
 is certified.
 
-Convex steps (``convex_steps``, none by default). Where the yield is log-concave in the
+Convex steps (``convex_steps``, one by default). Where the yield is log-concave in the
 log-tolerances (normal reading, no item correlation, ``constant``) the problem is convex, and
 a step towards the optimum of its tangent problem (:func:`allocation.machine_yield.yield_dual.tangent_step`)
-from the search's allocation is one more candidate, calibrated like the others.
+from the search's allocation is one more candidate, calibrated like the others. There the
+calibration and the verification use the radial control variate
+(:mod:`allocation.machine_yield.yield_controlled`: the margin is ``DESIGN_Z`` of its far
+smaller standard errors), and the lower bound is the log-concave one at 95 % confidence
+(:func:`allocation.machine_yield.yield_dual.dual_bound`) when it is the largest; the
+paragraph below is the calibration elsewhere (and with ``estimator='share'``).
 
 Calibration. The search chooses among many candidates on its design samples, so the
 yield of the allocation it ends at is biased upwards there (on the paper's machine at 4 000
