@@ -53,13 +53,16 @@ ROOT = Path(__file__).resolve().parents[2]
 #: The lines of the command's output quoted.
 QUOTED = ("lower bound", "cost", "gap", "verified yield")
 #: Runs ``python -m studies`` with the arguments after ``-c``'s and prints the process's
-#: peak resident memory (kB) and its CPU seconds (user + system) to standard error last.
-RUN_WITH_PEAK = ("import resource, runpy, sys\n"
+#: peak resident memory (kB, ``VmHWM`` of ``/proc/self/status``: the ``ru_maxrss`` of
+#: ``getrusage`` would carry the benchmark's own across the fork) and its CPU seconds (user
+#: + system) to standard error last.
+RUN_WITH_PEAK = ("import re, resource, runpy, sys\n"
                  "sys.argv = ['studies', *sys.argv[1:]]\n"
                  "try:\n    runpy.run_module('studies', run_name='__main__')\n"
                  "finally:\n    used = resource.getrusage(resource.RUSAGE_SELF)\n"
-                 "    print('peak', used.ru_maxrss, used.ru_utime + used.ru_stime, "
-                 "file=sys.stderr)")
+                 "    status = open('/proc/self/status').read()\n"
+                 "    peak = re.search(r'VmHWM:\\s+(\\d+)', status).group(1)\n"
+                 "    print('peak', peak, used.ru_utime + used.ru_stime, file=sys.stderr)")
 
 
 def command_lines(code: Path, machine: Path, args) -> list[str]:
