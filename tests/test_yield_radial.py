@@ -206,6 +206,11 @@ def test_where_the_log_concave_bound_is_refused_the_output_says_which_remains(tm
 
 def test_a_saved_result_without_the_new_fields_still_loads(default, tmp_path):
     path = default.save(tmp_path / "r.json")
+    again = YieldAllocation.load(path, default.problem)
+    assert again.lower_bound_kind == "log-concave" and again.gap_of_cost == default.gap_of_cost
+    assert again.log_concave.bound == default.log_concave.bound
+    np.testing.assert_array_equal(again.log_concave.point, default.log_concave.point)
+    assert again.verified_yield.method == CONTROLLED_METHOD
     document = json.loads(path.read_text())
     data = document["payload"]
     for key in ("log_concave", "log_concave_text", "lower_bound_kind",

@@ -107,7 +107,10 @@ class YieldSearch:
     Every sample of built machines is one draw of standard normals ``u`` from its stream of
     :func:`~reliability.basics.streams.yield_allocation_streams` (design, verification,
     shape design), made when first needed and kept, and judged by :attr:`model`'s
-    :meth:`~reliability.sampling.machine_yield.YieldModel.output_ratios`."""
+    :meth:`~reliability.sampling.machine_yield.YieldModel.output_ratios`. Given a
+    ``yield_target`` where the yield is log-concave, the calibration and the verification
+    use the radial control variate on those samples and rays of their own
+    (:attr:`controlled`)."""
 
     def __init__(self, machine, points, bounds, machines, seed, design_target,
                  gap_tol=1e-6, problem=None, box=None, executor=None, yield_target=None):
