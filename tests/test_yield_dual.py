@@ -185,7 +185,7 @@ def test_allocation_for_yield_takes_the_convex_step_where_the_theorem_holds(step
     assert (stepped.method == "convex step") == \
         (stepped.cost == stepped.convex_step_calibrated_cost)
     assert "convex steps: 1 step from the search's allocation" in stepped.summary()
-    assert "2,000 machines of their own" in stepped.summary()
+    assert "2,000 rays of their own" in stepped.summary()
     truncated = allocate_for_yield(trunnion5, 0.9, profile="constant", points=3,
                                    machines=300, rng=3, convex_steps=1,
                                    distribution="truncated")
@@ -216,9 +216,9 @@ def test_bound_of_an_allocation_for_yield_lies_below_its_cost(stepped):
 
 
 def test_cli_prints_the_bound_after_writing_the_allocation(tmp_path, capsys):
-    """``allocate --yield --convex-steps 1 --bound-machines N``: the convex steps' line, the
-    files written, then the bound and its gap; options refused where they cannot apply,
-    before any work."""
+    """``allocate --yield --convex-steps 1 --bound-machines N``: the convex steps' line
+    (``--verbose``), the bound and its gap, the files written; options refused where they
+    cannot apply, before any work."""
     from pathlib import Path
 
     from studies import cli
@@ -227,14 +227,16 @@ def test_cli_prints_the_bound_after_writing_the_allocation(tmp_path, capsys):
     common = ["allocate", machine, "--yield", "0.9", "--points", "3", "--machines", "300",
               "--seed", "3", "--profile", "constant"]
     assert cli.main([*common, "--convex-steps", "1", "--convex-machines", "1000",
-                     "--bound-machines", "1000", "--out", str(out)]) == 0
+                     "--bound-machines", "1000", "--verbose", "--out", str(out)]) == 0
     text = capsys.readouterr().out
     assert "convex steps: 1 step from the search's allocation" in text
-    assert text.index("allocation written to") < text.index("at 95% confidence")
+    assert text.index("at 95% confidence (log-concave bound") < text.index("gap") \
+        < text.index("allocation written to")
     assert out.exists()
     for extra, words in ((["--distribution", "truncated", "--bound-machines", "10"],
                           "--bound-machines: the reading is 'truncated'"),
-                         (["--convex-machines", "10"], "give --convex-steps too")):
+                         (["--convex-steps", "0", "--convex-machines", "10"],
+                          "not with --convex-steps 0")):
         fresh = tmp_path / "refused"
         fresh.mkdir(exist_ok=True)
         assert cli.main([*common, *extra, "--out", str(fresh / "b.csv")]) == 2

@@ -35,12 +35,16 @@ Z = 4.0  # standard errors allowed between two independent yield estimates
 # after the calibration, so the tests of the stages see the search's result.
 SEED = 3
 NAIVE_KEPT_SEED = 7
+# The tests of the binomial path: the share of machines passing, the design margin of
+# binomial standard errors, no convex step and no log-concave bound (the defaults before the
+# radial control variate; that path is tested in tests/test_yield_radial.py).
+SHARE = dict(estimator="share", convex_steps=0, bound_machines=0)
 
 
 @pytest.fixture(scope="module")
 def result(trunnion5):
     return allocate_for_yield(trunnion5, Y, profile="constant", points=3, machines=MACHINES,
-                              rng=SEED)
+                              rng=SEED, **SHARE)
 
 
 def fosm_two_sided(machine, poses, t):
@@ -164,7 +168,7 @@ def test_shape_stage_meets_the_design_yield_on_its_sample(result):
     shape stage (when it won) is cheaper than the per-output stage alone."""
     assert result.design_yield.estimate >= result.design_yield_target
     targets_only = allocate_for_yield(result.problem.machine, Y, points=3,
-                                      machines=MACHINES, rng=SEED, shape_steps=0)
+                                      machines=MACHINES, rng=SEED, shape_steps=0, **SHARE)
     assert result.search_cost <= targets_only.search_cost
     if result.method == "error shape":
         assert result.cost < targets_only.cost
@@ -174,7 +178,7 @@ def test_naive_target_is_one_common_target(result):
     """rounds=0 without the shape stage is the naive method alone, and the same seed gives
     the same naive point."""
     naive = allocate_for_yield(result.problem.machine, Y, points=3, machines=MACHINES,
-                               rng=SEED, rounds=0, shape_steps=0)
+                               rng=SEED, rounds=0, shape_steps=0, **SHARE)
     assert naive.method == "per-output targets"
     assert np.array_equal(naive.tolerances, result.naive.tolerances)
     assert naive.cost == pytest.approx(result.naive.cost, rel=1e-9)
@@ -380,7 +384,7 @@ def nested_boxes(mill3):
     """One search in the default box and one in a box containing it (same seed, machines,
     grid); on these draws the wider box's own search ends dearer than the default box's once
     both are calibrated (cheaper before)."""
-    options = dict(points=3, machines=100, rng=1, rounds=2, shape_steps=6)
+    options = dict(points=3, machines=100, rng=1, rounds=2, shape_steps=6, **SHARE)
     return {box: allocate_for_yield(mill3, Y, bounds=box, **options)
             for box in ((0.5, 1.5), (0.375, 3.0))}
 
@@ -412,7 +416,7 @@ def test_naive_start_moves_towards_the_lower_bounds_when_its_target_cannot():
     there, and the summary says so."""
     swivel5 = reliability.load_machine(MACHINE_DIR / "swivel5.toml")
     result = allocate_for_yield(swivel5, Y, points=3, machines=MACHINES, rng=0, rounds=2,
-                                shape_steps=6)
+                                shape_steps=6, **SHARE)
     share = result.naive.toward_lower
     assert 0.0 < share < 1.0
     search = YieldSearch(swivel5, 3, None, MACHINES, 0, result.design_yield_target)
@@ -432,7 +436,7 @@ def test_the_naive_start_is_the_result_when_it_is_cheaper_once_calibrated(trunni
     design yield on the calibration sample, so the result is the calibrated naive start,
     named as such, and the search's own costs stay on record."""
     result = allocate_for_yield(trunnion5, Y, profile="constant", points=3,
-                                machines=MACHINES, rng=NAIVE_KEPT_SEED)
+                                machines=MACHINES, rng=NAIVE_KEPT_SEED, **SHARE)
     assert result.method == "naive start"
     assert result.search_cost < result.naive.search_cost
     assert result.search_calibrated_cost > result.cost == result.naive.cost

@@ -60,7 +60,7 @@ def equal_yield_margin(result: YieldAllocation, *, level: float | None = None,
     target = result.design_yield_target if level is None else checks.probability(level, "level")
     search = YieldSearch(result.problem.machine, result.points, None, machines, seed, 0.0,
                      problem=result.search_problem)
-    sample = search.verification_sample()
+    sample = search.verification_verdicts()
     z_naive = np.full(6, required_index(result.naive.target, "two_sided"))
     families = {"naive": _naive_family(result, search, z_naive),
                 "result": _result_family(result, search, float(z_naive[0]))}

@@ -19,6 +19,7 @@ import numpy as np
 from scipy.stats import norm
 
 from reliability.basics import streams
+from reliability.basics.statistics import all_within_share
 from reliability.first_order.fosm import required_index
 from reliability.model.machine import OUTPUTS
 from reliability.model.poses import workspace_grid
@@ -27,7 +28,8 @@ from reliability.sampling.machine_yield import YieldModel
 from ..per_pose.common_target import CommonTargetSolver
 from ..per_pose.problem import AllocationProblem
 from ..solvers.convex import InfeasibleAllocationError, solve_convex_allocation
-from .yield_dual import linearised, not_log_concave, tangent_step
+from .yield_controlled import DESIGN_Z, calibrated, proportion, ray_sample
+from .yield_dual import linearised, not_log_concave, on_rays, scaled_rows, tangent_step
 from .yield_shape import scaled_to_yield, shape_search
 
 #: Two-sided per-pose target the constraint rows are built and screened at: every target
@@ -89,12 +91,14 @@ class SearchPoint:
 
 class _Calibrated(NamedTuple):
     """An allocation after :meth:`YieldSearch.calibrate`: its tolerances, cost, per-machine
-    verdicts on the calibration sample, and whether a factor was found."""
+    verdicts on the calibration sample, whether a factor was found, and its yield there
+    (a ProportionEstimate)."""
 
     t: np.ndarray
     cost: float
     passes: np.ndarray
     calibrated: bool
+    estimate: object
 
 
 class YieldSearch:
@@ -103,10 +107,13 @@ class YieldSearch:
     Every sample of built machines is one draw of standard normals ``u`` from its stream of
     :func:`~reliability.basics.streams.yield_allocation_streams` (design, verification,
     shape design), made when first needed and kept, and judged by :attr:`model`'s
-    :meth:`~reliability.sampling.machine_yield.YieldModel.output_ratios`."""
+    :meth:`~reliability.sampling.machine_yield.YieldModel.output_ratios`. Given a
+    ``yield_target`` where the yield is log-concave, the calibration and the verification
+    use the radial control variate on those samples and rays of their own
+    (:attr:`controlled`)."""
 
     def __init__(self, machine, points, bounds, machines, seed, design_target,
-                 gap_tol=1e-6, problem=None, box=None, executor=None):
+                 gap_tol=1e-6, problem=None, box=None, executor=None, yield_target=None):
         self.problem = problem if problem is not None else AllocationProblem.build(
             machine, workspace_grid(machine, points), side="two_sided", workspace="worst",
             bounds=bounds, targets=dict.fromkeys(OUTPUTS, BUILD_TARGET), **(box or {}))
@@ -116,6 +123,9 @@ class YieldSearch:
         self.z_build = float(self.problem.required_index[0])
         self.model = YieldModel(machine, points=points, executor=executor)
         self.streams = streams.yield_allocation_streams(seed)
+        self.seed = seed
+        self.yield_target = yield_target
+        self._ray_samples = {}
         self._draws = {}
         self.machines = machines
         self.design_target = design_target
@@ -219,37 +229,62 @@ class YieldSearch:
         self._cache.clear()
         return False
 
+    @property
+    def controlled(self) -> bool:
+        """The calibration and the verification use the radial control variate
+        (:mod:`allocation.machine_yield.yield_controlled`): a yield target was given and
+        the yield is log-concave here (normal reading, no item correlation, ``constant``)."""
+        machine = self.problem.machine
+        return self.yield_target is not None and \
+            on_rays(machine, machine.profile, machine.distribution)
+
+    def ray_sample(self, sample: str):
+        """The :class:`~allocation.machine_yield.yield_controlled.ControlledSample` of
+        ``sample`` (``'calibration'`` or ``'verification'``), made once."""
+        if sample not in self._ray_samples:
+            self._ray_samples[sample] = ray_sample(self, sample, self.seed)
+        return self._ray_samples[sample]
+
     def calibrate(self, point) -> _Calibrated:
         """``point``'s allocation times one factor (inside the box) at which its yield on
         the calibration sample is the design yield
-        (:func:`allocation.machine_yield.yield_shape.scaled_to_yield`, the whole grid);
-        ``point``'s own, judged there, when no factor inside the box reaches it."""
+        (:func:`allocation.machine_yield.yield_shape.scaled_to_yield`, the whole grid), or,
+        :attr:`controlled`, at which ``Ŷ − DESIGN_Z·SE ≥ Y`` there
+        (:func:`allocation.machine_yield.yield_controlled.calibrated`); ``point``'s own,
+        judged there, when no factor inside the box reaches it."""
+        lower, upper = np.asarray(self.problem.lower), np.asarray(self.problem.upper)
+        if self.controlled:
+            t, judged, reached = calibrated(self.ray_sample("calibration"), point.t, lower,
+                                            upper, self.yield_target, DESIGN_Z)
+            return _Calibrated(t, float(self.problem.cost.total(t)), judged.exact < 1.0,
+                               reached, proportion(judged.estimate()))
         u = self.draws("calibration")
-        found = scaled_to_yield(self.model, np.asarray(self.problem.lower),
-                                np.asarray(self.problem.upper), point.t, self.design_target,
-                                u)
+        found = scaled_to_yield(self.model, lower, upper, point.t, self.design_target, u)
         if found is None:
             passes = (self.model.output_ratios(u, point.t) < 1.0).all(axis=1)
-            return _Calibrated(point.t, point.cost, passes, calibrated=False)
+            return _Calibrated(point.t, point.cost, passes, False, all_within_share(passes))
         return _Calibrated(found["t"], float(self.problem.cost.total(found["t"])),
-                           found["passes"], calibrated=True)
+                           found["passes"], True, all_within_share(found["passes"]))
 
-    def convex_steps(self, point, steps: int, machines: int):
+    def convex_steps(self, point, steps: int, machines: int, level: float):
         """``steps`` steps of the convex problem from ``point``
-        (:func:`allocation.machine_yield.yield_dual.tangent_step` on the linearised outputs of
-        ``machines`` machines of the convex-step stream, each step rescaled to the design
-        yield there), or None when ``steps`` is 0 or the yield is not log-concave in the
+        (:func:`allocation.machine_yield.yield_dual.tangent_step` on the linearised outputs,
+        ``machines`` rays of the convex-step stream, each step rescaled to the yield
+        ``level`` there), or None when ``steps`` is 0 or the yield is not log-concave in the
         log-tolerances here."""
         machine = self.problem.machine
         if steps == 0 or not_log_concave(machine, machine.profile, machine.distribution):
             return None
-        rows, draws = linearised(self.model, self.model.draws(machines,
-                                                              self.streams[CONVEX_STREAM]))
+        if machine.profile == "constant":
+            rows = scaled_rows(machine, self.model.deciding_poses)
+            draws = self.streams[CONVEX_STREAM].standard_normal((machines, len(point.t)))
+        else:  # crude machines of the profile (allocation.machine_yield.profile_bound)
+            rows, draws = linearised(self.model, self.model.draws(machines,
+                                                                  self.streams[CONVEX_STREAM]))
         lower, upper = np.asarray(self.problem.lower), np.asarray(self.problem.upper)
         t = point.t
         for _ in range(steps):
-            t = tangent_step(rows, self.problem.cost.weights, lower, upper, t, draws,
-                             self.design_target)
+            t = tangent_step(rows, self.problem.cost.weights, lower, upper, t, draws, level)
         return SearchPoint(z=point.z, t=t, cost=float(self.problem.cost.total(t)))
 
     def convex_step_text(self, steps: int, machines: int) -> str:
@@ -262,13 +297,24 @@ class YieldSearch:
             return (f"not run: {why} (the yield is log-concave in the log-tolerances for "
                     f"independent normal errors, each scaled by its own tolerance)")
         plural = "s" if steps > 1 else ""
+        sample = (f"{machines:,} rays" if machine.profile == "constant" else
+                  f"{machines:,} machines under the profile {machine.profile!r}")
         return (f"{steps} step{plural} from the search's allocation, the yield's gradient "
-                f"on the linearised outputs of {machines:,} machines of their own (the yield "
-                f"is log-concave in the log-tolerances: a convex problem)")
+                f"on the linearised outputs of {sample} of their own (the yield is "
+                f"log-concave in the log-tolerances: a convex problem)")
 
     def verification_sample(self):
-        """Per-machine verdicts of an allocation on the fresh sample, on the whole grid
-        (same draws for all)."""
+        """``t ->`` the yield (a ProportionEstimate) of an allocation on the fresh sample,
+        on the whole grid (same draws for all): the share of its machines passing, or,
+        :attr:`controlled`, the radial control variate on its machines and rays."""
+        if self.controlled:
+            return self.ray_sample("verification").estimate
+        verdicts = self.verification_verdicts()
+        return lambda t: all_within_share(verdicts(t))
+
+    def verification_verdicts(self):
+        """``t ->`` per-machine verdicts of an allocation on the fresh sample, on the whole
+        grid (same draws for all)."""
         u = self.draws("verification")
         return lambda t: (self.model.output_ratios(u, t) < 1.0).all(axis=1)
 

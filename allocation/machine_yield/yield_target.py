@@ -61,10 +61,15 @@ intersection (a box containing the default one never costs more than the default
 is the cheapest allocation this search found, not a certified optimum: only the lower bound
 is certified.
 
-Convex steps (``convex_steps``, none by default). Where the yield is log-concave in the
+Convex steps (``convex_steps``, one by default). Where the yield is log-concave in the
 log-tolerances (normal reading, no item correlation, ``constant``) the problem is convex, and
 a step towards the optimum of its tangent problem (:func:`allocation.machine_yield.yield_dual.tangent_step`)
-from the search's allocation is one more candidate, calibrated like the others.
+from the search's allocation is one more candidate, calibrated like the others. There the
+calibration and the verification use the radial control variate
+(:mod:`allocation.machine_yield.yield_controlled`: the margin is ``DESIGN_Z`` of its far
+smaller standard errors), and the lower bound is the log-concave one at 95 % confidence
+(:func:`allocation.machine_yield.yield_dual.dual_bound`) when it is the largest; the
+paragraph below is the calibration elsewhere (and with ``estimator='share'``).
 
 Calibration. The search chooses among many candidates on its design samples, so the
 yield of the allocation it ends at is biased upwards there (on the paper's machine at 4 000
@@ -109,22 +114,21 @@ from reliability.basics.saved_fields import (Array, Flag, Integer, Mapping, Nest
                                             Record, Text, Texts, read_fields, write_fields)
 from reliability.basics.saved_results import load_payload, save_payload
 from reliability.basics.statistics import ProportionEstimate, all_within_share
-from reliability.basics.display import interval_text, percentage_text
 from reliability.model.machine import OUTPUTS
+from reliability.sampling.radial_yield import CONTROLLED_METHOD
 
 from ..per_pose.problem import DEFAULT_FACTORS
 from ..solvers.convex import InfeasibleAllocationError
 from .yield_bound import ChainBound, pose_chain_bound
+from .log_concave_runs import bracket_defaults, log_concave_text, result_bound
+from .yield_controlled import DESIGN_Z
+from .yield_dual import YieldDualBound
 from .yield_search import YieldSearch, YieldUnreachableError, two_sided_target
+from .yield_words import finding_lines
 
-#: Standard errors of a yield on N machines added to Y for the design and calibration
-#: samples, so that a fresh sample of N machines confirms Y: 1.96 for the verification's
-#: interval and 1.96·√2 for the difference of two independent samples (calibration and
-#: verification) at 97.5 %.
-DESIGN_Z = 1.96 * (1.0 + np.sqrt(2.0))
 #: Machines simulated by default (design and verification samples each).
 DEFAULT_MACHINES = 2000
-#: Machines of the convex steps, as a multiple of the design sample's, by default.
+#: Rays of the convex steps, as a multiple of the design sample's machines, by default.
 CONVEX_MACHINES_FACTOR = 5
 
 
@@ -230,8 +234,11 @@ class YieldAllocation:
     verified_yield : ProportionEstimate
         Its yield on the fresh verification sample.
     lower_bound : float
-        Certified lower bound on the cost of any allocation with yield ≥ Y: the larger of
-        :attr:`row_bound` and the pose-chain bound (:attr:`chain_bound`).
+        Lower bound on the cost of any allocation with yield ≥ Y: the largest of the
+        certified :attr:`row_bound` and pose-chain bound (:attr:`chain_bound`) and the
+        log-concave bound at 95 % (:attr:`log_concave`, where it applies);
+        :attr:`lower_bound_kind` says which, :attr:`lower_bound_confidence` at what
+        confidence.
     row_bound : float
         The row relaxation's certified bound (every row at FOSM probability Y).
     chain_bound : allocation.machine_yield.yield_bound.ChainBound or None
@@ -251,8 +258,15 @@ class YieldAllocation:
         Candidates solved and simulated on the design sample, by both searches when the
         default factor box was searched too.
     seconds : dict
-        Wall time of the build, the lower bounds, the two stages (summed over the
-        searches), the calibration and the verification.
+        Wall time of the build, the certified lower bounds, the two stages (summed over
+        the searches), the convex step, the calibration, the verification and the
+        log-concave bound.
+    log_concave : allocation.machine_yield.yield_dual.YieldDualBound or None
+        The lower bound at 95 % confidence from the yield's log-concavity in the
+        log-tolerances (:func:`allocation.machine_yield.yield_dual.dual_bound`); None where
+        the theorem does not hold or it was not asked for (:attr:`log_concave_text`).
+    log_concave_text : str
+        Why :attr:`log_concave` is None, in words (empty when it is not).
     """
 
     problem: object = field(repr=False)
@@ -286,6 +300,8 @@ class YieldAllocation:
     seed: int
     evaluations: int
     seconds: dict
+    log_concave: object = None
+    log_concave_text: str = ""
 
     @property
     def initial_cost(self) -> float:
@@ -313,10 +329,38 @@ class YieldAllocation:
         """:attr:`gap` over the feasible cost."""
         return self.gap / self.cost
 
-    def summary(self) -> str:
+    @property
+    def certified_bound(self) -> float:
+        """The larger of the row and pose-chain bounds (certified, no sampling)."""
+        return max(self.row_bound, -np.inf if self.chain_bound is None else
+                   self.chain_bound.bound)
+
+    @property
+    def lower_bound_kind(self) -> str:
+        """Which bound :attr:`lower_bound` is: ``'log-concave'``, ``'pose chain'`` or
+        ``'row'``."""
+        if self.log_concave is not None and self.lower_bound == self.log_concave.bound:
+            return "log-concave"
+        if self.chain_bound is not None and self.lower_bound == self.chain_bound.bound:
+            return "pose chain"
+        return "row"
+
+    @property
+    def lower_bound_confidence(self) -> float:
+        """The confidence :attr:`lower_bound` holds at: the log-concave bound's, 1 for a
+        certified one."""
+        return self.log_concave.confidence if self.lower_bound_kind == "log-concave" else 1.0
+
+    @property
+    def gap_of_cost(self) -> float:
+        """:attr:`relative_gap`: the gap over the verified cost."""
+        return self.relative_gap
+
+    def summary(self, verbose: bool = True) -> str:
         """The model, the bracket, the verified yield and the naive method beside it, in
-        words."""
-        return "\n".join([self.model_text(), *self.finding_lines()])
+        words; with ``verbose`` also every bound and stage
+        (:func:`allocation.machine_yield.yield_words.finding_lines`)."""
+        return "\n".join([self.model_text(), *self.finding_lines(verbose)])
 
     def model_text(self) -> str:
         """What the yield is of: target, profile, reading, grid and box."""
@@ -324,90 +368,11 @@ class YieldAllocation:
                 f"distribution {self.distribution}, {self.points}-point grid of "
                 f"{len(self.problem.poses):,} poses, {self.problem.box_text()})")
 
-    def finding_lines(self) -> list[str]:
-        """The bracket, how the result was found and calibrated, its verified yield and
-        the naive method's, one line each."""
-        initial = self.initial_cost
-        v, n = self.verified_yield, self.naive.verified_yield
-        verdict = "verified" if self.verified else \
-            "NOT verified: the interval reaches below the target"
-        targets = ", ".join(f"{name} {target:.6g}" for name, target
-                            in zip(OUTPUTS, self.output_targets))
-        return [
-            f"lower bound {percentage_text(self.lower_bound / initial, bound='lower')} of "
-            f"the initial cost "
-            f"({self.bound_text()})",
-            f"cost {self.cost:.6g} = {percentage_text(self.cost / initial)} of the initial "
-            f"allocation "
-            f"({initial:.6g}): the cheapest found by this search; not certified: see the "
-            f"lower bound",
-            f"gap {percentage_text(self.gap / initial, bound='upper')} of the initial cost "
-            f"({percentage_text(self.relative_gap, bound='upper')} of the cost)",
-            self.calibration_text(),
-            self.convex_step_line(),
-            f"verified yield {v.estimate:.4f}, 95% Clopper-Pearson "
-            f"{interval_text(v.lower, v.upper)} from {v.n:,} fresh built machines: {verdict}",
-            f"found by the {self.method} stage{self.narrower_box_text()}; per-output "
-            f"per-pose targets of the first stage: {targets}",
-            f"naive method ({self.naive.text()}, calibrated the same way): cost "
-            f"{percentage_text(self.naive.cost / initial)} of the initial allocation, "
-            f"verified yield {n.estimate:.4f} {interval_text(n.lower, n.upper)} from "
-            f"{n.n:,} machines"]
-
-    def calibration_text(self) -> str:
-        """How the search's allocation (or the naive start's) became the result, in
-        words."""
-        initial = self.initial_cost
-        c = self.calibration_yield
-        search = (f"the search ended at {percentage_text(self.search_cost / initial)} of the "
-                  f"initial cost (yield {self.design_yield.estimate:.4f} on its "
-                  f"{self.design_yield.n:,} design machines)")
-        if self.method == "convex step":
-            return (f"{search}; the convex steps from it ended at "
-                    f"{percentage_text(self.convex_step_cost / initial)}, scaled to the "
-                    f"design yield {self.design_yield_target:.4f} on {c.n:,} fresh "
-                    f"calibration machines: "
-                    f"the result (yield {c.estimate:.4f} there)")
-        if self.method == "naive start":
-            scaled = percentage_text(self.search_calibrated_cost / initial)
-            return (f"{search}, {scaled} once scaled to the design yield "
-                    f"{self.design_yield_target:.4f} on {c.n:,} fresh "
-                    f"calibration machines: dearer than the naive start scaled the same "
-                    f"way, which is the result (yield {c.estimate:.4f} there)")
-        if not self.calibrated:
-            return (f"{search}; no scale inside the box reaches the design yield "
-                    f"{self.design_yield_target:.4f} on the {c.n:,} calibration machines "
-                    f"(yield {c.estimate:.4f} there): kept as it is")
-        return (f"{search}, scaled to the design yield {self.design_yield_target:.4f} on "
-                f"{c.n:,} fresh calibration machines (yield {c.estimate:.4f} there)")
-
-    def convex_step_line(self) -> str:
-        """The convex steps: what they are, and what they gave when not kept."""
-        if self.convex_step_cost is None or self.method == "convex step":
-            return f"convex steps: {self.convex_step_text}"
-        initial = self.initial_cost
-        return (f"convex steps: {self.convex_step_text}; they ended at "
-                f"{percentage_text(self.convex_step_cost / initial)}, "
-                f"{percentage_text(self.convex_step_calibrated_cost / initial)} calibrated: "
-                f"not the cheapest")
-
-    def bound_text(self) -> str:
-        """What the lower bound rests on, in words."""
-        rows = (f"every (output, pose) row at probability {self.yield_target:g} alone: "
-                f"{percentage_text(self.row_bound / self.initial_cost, bound='lower')}")
-        if self.lower_bound == self.row_bound:
-            return f"{rows}; FOSM two-sided, certified"
-        return (f"the six outputs' joint event at each pose, bounded through their fresh "
-                f"errors; {rows}; FOSM two-sided, certified")
-
-    def narrower_box_text(self) -> str:
-        """Where the search that gave the allocation ran, when not in the box asked for."""
-        if not self.from_narrower_box:
-            return ""
-        low, high = DEFAULT_FACTORS
-        return (f" of the search in this box intersected with the default factor box "
-                f"[{low:g}, {high:g}] × the initial allocation "
-                f"({self.search_problem.box_text()}), cheaper than this box's own search")
+    def finding_lines(self, verbose: bool = False) -> list[str]:
+        """One lower bound, the cost and its stage, one gap, the calibration, the verified
+        yield and the naive method, one line each; ``verbose`` adds every bound and stage
+        (:func:`allocation.machine_yield.yield_words.finding_lines`)."""
+        return finding_lines(self, verbose)
 
     def __repr__(self) -> str:
         return self.summary()
@@ -424,10 +389,14 @@ class YieldAllocation:
 
     def save(self, path, overwrite: bool = False):
         """Save as JSON (:data:`SAVED_FIELDS`, tag :data:`SAVED_FORMAT`, with
-        ``from_narrower_box``); the problems are not saved. An existing file is kept
+        ``from_narrower_box``, ``lower_bound_kind``, ``lower_bound_confidence`` and
+        ``gap_of_cost``, derived keys that loading ignores); the problems are not saved. An existing file is kept
         unless ``overwrite``. Returns the path."""
         payload = write_fields(self, SAVED_FIELDS)
         payload["from_narrower_box"] = self.from_narrower_box
+        payload.update(lower_bound_kind=self.lower_bound_kind,
+                       lower_bound_confidence=self.lower_bound_confidence,
+                       gap_of_cost=self.gap_of_cost)
         return save_payload(path, SAVED_FORMAT, payload, overwrite)
 
     @classmethod
@@ -436,9 +405,12 @@ class YieldAllocation:
         found for) and, when it came from the narrower box, its ``search_problem``; every
         field is checked: one tolerance per error of the problem, the bracket in order
         (lower bound at most the cost), so the verdicts (verified or not, the bracket, the
-        yields and their intervals) are the saved ones. A damaged field raises
+        yields and their intervals) are the saved ones; a file without
+        :data:`LATER_FIELDS` loads without a log-concave bound. A damaged field raises
         :class:`~reliability.basics.errors.SavedResultError` naming the file and field."""
         data = load_payload(path, SAVED_FORMAT)
+        for key in LATER_FIELDS:  # files written before the log-concave bound was saved
+            data.data.setdefault(key, None)
         values = read_fields(data, SAVED_FIELDS)
         narrower = data.boolean("from_narrower_box")
         if narrower and search_problem is None:
@@ -450,6 +422,7 @@ class YieldAllocation:
                 raise data.error(key, f"expected one entry per error of the problem ({n})")
         if values["lower_bound"] > values["cost"] * (1 + 1e-9):
             raise data.error("lower_bound", "exceeds the cost")
+        values["log_concave_text"] = values["log_concave_text"] or ""
         return cls(problem=problem, search_problem=search_problem if narrower else problem,
                    **values)
 
@@ -459,7 +432,8 @@ class SavedProportion:
 
     FIELDS = (Number("estimate", low=0.0, high=1.0), Number("lower", low=0.0, high=1.0),
               Number("upper", low=0.0, high=1.0), Number("standard_error", low=0.0),
-              Integer("n", low=1), Text("method", ("wilson", "clopper-pearson")),
+              Integer("n", low=1),
+              Text("method", ("wilson", "clopper-pearson", CONTROLLED_METHOD)),
               Number("confidence", low=0.0, high=1.0), Texts("names", optional=True))
 
     @staticmethod
@@ -479,6 +453,15 @@ class SavedProportion:
 CHAIN_BOUND_FIELDS = (Number("bound", positive=True),
                       Array("tolerances", (None,), positive=True),
                       Array("poses", (None,), dtype=int, low=0), Integer("rows", low=0))
+#: The fields of a :class:`~allocation.machine_yield.yield_dual.YieldDualBound` saved with a
+#: yield allocation.
+DUAL_BOUND_FIELDS = (Number("bound", positive=True), Number("confidence", low=0.0, high=1.0),
+                     Number("yield_target", low=0.0, high=1.0),
+                     Array("point", (None,), positive=True), Number("point_cost", positive=True),
+                     Number("point_yield", low=0.0, high=1.0), Number("multiplier", low=0.0),
+                     Number("point_estimate"), Integer("machines", low=1),
+                     Integer("steps", low=0), Integer("rows", low=0), Number("seconds", low=0.0),
+                     Text("sample", ("rays", "machines"), optional=True))
 #: The fields of a :class:`NaiveAllocation` saved with a yield allocation.
 NAIVE_FIELDS = (Number("target", low=0.0, high=1.0), Number("toward_lower", low=0.0, high=1.0),
                 Array("tolerances", (None,), positive=True), Number("cost", positive=True),
@@ -487,6 +470,9 @@ NAIVE_FIELDS = (Number("target", low=0.0, high=1.0), Number("toward_lower", low=
                   for key in ("design_yield", "calibration_yield", "verified_yield")))
 
 
+#: Fields a file written before the log-concave bound was part of the result lacks: they
+#: load as None (no log-concave bound).
+LATER_FIELDS = ("log_concave", "log_concave_text")
 SAVED_FORMAT = "precrel.yield_allocation"
 SAVED_FIELDS = (
     Number("yield_target", low=0.0, high=1.0), Number("design_yield_target", low=0.0, high=1.0),
@@ -504,7 +490,8 @@ SAVED_FIELDS = (
     Array("lower_bound_tolerances", (None,), positive=True), Record("naive", NAIVE_FIELDS, NaiveAllocation),
     Text("profile"), Text("distribution", ("normal", "truncated")), Integer("points", low=2),
     Integer("machines", low=1), Integer("seed"), Integer("evaluations", low=0),
-    Mapping("seconds"))
+    Mapping("seconds"), Record("log_concave", DUAL_BOUND_FIELDS, YieldDualBound, optional=True),
+    Text("log_concave_text", optional=True))
 
 
 @renamed("seed", "rng")
@@ -513,7 +500,8 @@ def allocate_for_yield(machine, yield_target: float, *, profile=None, distributi
                        points: int = 5, bounds=None, machines: int = DEFAULT_MACHINES,
                        rng: int | None = 0, rounds: int = 6, naive_steps: int = 8,
                        restore_steps: int = 4, shape_steps: int = 20,
-                       convex_steps: int = 0, convex_machines: int | None = None,
+                       convex_steps: int | None = None, convex_machines: int | None = None,
+                       bound_machines: int | None = None, estimator: str = "radial",
                        gap_tol: float = 1e-6, executor=None) -> YieldAllocation:
     """The cheapest allocation found whose machine yield reaches ``yield_target``.
 
@@ -552,16 +540,32 @@ def allocate_for_yield(machine, yield_target: float, *, profile=None, distributi
     shape_steps : int
         Candidates of the shape search over every tolerance that follows the per-output
         search (:func:`allocation.machine_yield.yield_shape.shape_search`; 0: none).
-    convex_steps : int
+    convex_steps : int, optional
         Steps of the convex problem from the search's allocation
-        (:func:`allocation.machine_yield.yield_dual.tangent_step`) where the yield is log-concave in the
-        log-tolerances (normal reading, no item correlation, ``constant``); 0: none. Their
-        allocation is calibrated and verified like the others, and kept when cheapest.
+        (:func:`allocation.machine_yield.yield_dual.tangent_step`) where the yield is
+        log-concave in the log-tolerances (normal reading, no item correlation); by default
+        one under the ``constant`` profile (on rays) and none under ``independent`` and
+        ``gp`` (on crude machines of the profile, minutes: ask for them); 0: none. Their allocation is calibrated and verified
+        like the others, and kept when cheapest.
     convex_machines : int, optional
-        Machines the convex steps estimate the yield's gradient on (default
+        Rays the convex steps estimate the yield's gradient on (default
         ``CONVEX_MACHINES_FACTOR`` × ``machines``), drawn from the sixth stream: the
         step is only as good as its gradient, whose relative error falls as
         ``1/√convex_machines``.
+    bound_machines : int, optional
+        Rays of the lower bound at 95 % confidence from the yield's log-concavity
+        (:func:`allocation.machine_yield.log_concave_runs.result_bound`: the tangent at the
+        result rescaled to Y on a sample of its own, the bound on a fresh one), by default
+        ``BOUND_MACHINES_FACTOR`` × ``machines`` under ``constant``; under the
+        ``independent`` and ``gp`` profiles crude machines of the profile, only when given
+        (they take minutes); 0: none.
+    estimator : {'radial', 'share'}
+        How the calibration and the verification estimate a yield: ``'radial'``, where the
+        yield is log-concave (normal reading, no item correlation, ``constant``), the
+        radial control variate (:mod:`allocation.machine_yield.yield_controlled`: its
+        margin ``DESIGN_Z`` × its standard error, a normal interval), elsewhere and with
+        ``'share'`` the share of machines passing (margin ``DESIGN_Z`` binomial standard
+        errors, a Clopper–Pearson interval).
     gap_tol : float
         Relative duality gap accepted by the convex solves.
     executor : distributed.Client, optional
@@ -591,20 +595,27 @@ def allocate_for_yield(machine, yield_target: float, *, profile=None, distributi
     for value, name in ((rounds, "rounds"), (naive_steps, "naive_steps"),
                         (restore_steps, "restore_steps"), (shape_steps, "shape_steps"),
                         (convex_steps, "convex_steps")):
-        checks.positive_int(value, name, minimum=0)
+        if value is not None:
+            checks.positive_int(value, name, minimum=0)
     convex_machines = CONVEX_MACHINES_FACTOR * machines if convex_machines is None else \
         checks.positive_int(convex_machines, "convex_machines")
+    if bound_machines is not None:
+        checks.positive_int(bound_machines, "bound_machines", minimum=0)
+    controlled = checks.choice(estimator, "estimator", ("radial", "share")) == "radial"
     chosen = {name: value for name, value in (("profile", profile),
                                               ("distribution", distribution))
               if value is not None}
     machine = replace(machine, **chosen) if chosen else machine
+    convex_steps, bound_machines = bracket_defaults(machine, machines, convex_steps,
+                                                    bound_machines)
     design_target = min(yield_target + DESIGN_Z * np.sqrt(yield_target * (1 - yield_target)
                                                            / machines),
                         1.0 - 0.5 / machines)
     search = YieldSearch(machine, points, bounds, machines, seed, design_target, gap_tol,
-                     executor=executor)
+                         executor=executor, yield_target=yield_target if controlled else None)
     searches = [search, *_narrower_searches(machine, points, search.problem, machines, seed,
-                                            design_target, gap_tol, executor)]
+                                            design_target, gap_tol, executor,
+                                            search.yield_target)]
     built = time.perf_counter()
     lower = _lower_bound(search, yield_target)
     chain = pose_chain_bound(search.problem, yield_target, lower.t)
@@ -625,13 +636,18 @@ def allocate_for_yield(machine, yield_target: float, *, profile=None, distributi
     chosen, naive = found.chosen, found.naive
     naive_final = found.search.calibrate(naive)
     step_started = time.perf_counter()
-    stepped = found.search.convex_steps(chosen, convex_steps, convex_machines)
+    level = searched_final.estimate.estimate if found.search.controlled else design_target
+    stepped = found.search.convex_steps(chosen, convex_steps, convex_machines, level)
     step_seconds = time.perf_counter() - step_started
     step_final = None if stepped is None else found.search.calibrate(stepped)
     method, final = _cheapest({_stage(found): searched_final, "naive start": naive_final,
                                "convex step": step_final})
     calibrated = time.perf_counter()
     verify = found.search.verification_sample()
+    verified_yield, naive_verified = verify(final.t), verify(naive_final.t)
+    verified = time.perf_counter()
+    dual = result_bound(search.problem, points, yield_target, final.t, bound_machines, seed, machines)
+    certified = max(float(lower.dual_bound), -np.inf if chain is None else chain.bound)
     return YieldAllocation(
         problem=search.problem, search_problem=found.search.problem,
         yield_target=yield_target,
@@ -644,9 +660,9 @@ def allocate_for_yield(machine, yield_target: float, *, profile=None, distributi
         output_targets=two_sided_target(found.best.z),
         method=method,
         design_yield=all_within_share(chosen.passes),
-        calibrated=final.calibrated, calibration_yield=all_within_share(final.passes),
-        verified_yield=all_within_share(verify(final.t)),
-        lower_bound=max(float(lower.dual_bound), -np.inf if chain is None else chain.bound),
+        calibrated=final.calibrated, calibration_yield=final.estimate,
+        verified_yield=verified_yield,
+        lower_bound=certified if dual is None else max(certified, dual.bound),
         row_bound=float(lower.dual_bound), chain_bound=chain,
         lower_bound_tolerances=np.asarray(lower.t),
         naive=NaiveAllocation(target=float(two_sided_target(naive.z[0])),
@@ -654,8 +670,8 @@ def allocate_for_yield(machine, yield_target: float, *, profile=None, distributi
                               tolerances=naive_final.t, cost=naive_final.cost,
                               search_cost=naive.cost,
                               design_yield=all_within_share(naive.passes),
-                              calibration_yield=all_within_share(naive_final.passes),
-                              verified_yield=all_within_share(verify(naive_final.t))),
+                              calibration_yield=naive_final.estimate,
+                              verified_yield=naive_verified),
         profile=machine.profile, distribution=machine.distribution, points=int(points),
         machines=machines, seed=seed, evaluations=sum(each.evaluations for each in searches),
         seconds={"build": built - started, "bound": bounded - built,
@@ -663,7 +679,9 @@ def allocate_for_yield(machine, yield_target: float, *, profile=None, distributi
                  "shape": sum(outcome.seconds["shape"] for outcome in outcomes),
                  "convex step": step_seconds,
                  "calibration": calibrated - searched - step_seconds,
-                 "verify": time.perf_counter() - calibrated})
+                 "verify": verified - calibrated,
+                 "log-concave bound": time.perf_counter() - verified},
+        log_concave=dual, log_concave_text=log_concave_text(machine, bound_machines))
 
 
 def _stage(found) -> str:
@@ -694,7 +712,7 @@ def _lower_bound(search, yield_target):
 
 
 def _narrower_searches(machine, points, problem, machines, seed, design_target, gap_tol,
-                       executor=None):
+                       executor=None, yield_target=None):
     """The search in the default factor box intersected with ``problem``'s box, built as a
     search given that box would build it: none when the intersection is the box itself or
     empty."""
@@ -705,7 +723,8 @@ def _narrower_searches(machine, points, problem, machines, seed, design_target, 
     if same or np.any(lower > upper):
         return []
     return [YieldSearch(machine, points, None, machines, seed, design_target, gap_tol,
-                    box={"lower": lower, "upper": upper}, executor=executor)]
+                    box={"lower": lower, "upper": upper}, executor=executor,
+                    yield_target=yield_target)]
 
 
 @dataclass(frozen=True, eq=False)

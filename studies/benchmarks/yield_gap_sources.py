@@ -39,7 +39,7 @@ import allocation
 import reliability
 from reliability.basics import streams
 from reliability.sampling.machine_yield import YieldModel
-from studies.benchmarks.yield_allocation import MACHINES
+from studies.benchmarks.yield_allocation import MACHINES, SHARE_PATH
 from studies.workflows.timing import one_blas_thread
 
 STEPS = 16
@@ -62,7 +62,7 @@ def scale_at(worst, level, low, high) -> float:
 def ray_report(machine, yield_target, machines, seed, confidence) -> list[str]:
     """The lines of one machine."""
     result = allocation.allocate_for_yield(machine, yield_target, profile="constant",
-                                           machines=machines, rng=seed)
+                                           machines=machines, rng=seed, **SHARE_PATH)
     problem = result.problem
     lower, upper = np.asarray(problem.lower), np.asarray(problem.upper)
     model = YieldModel(problem.machine, points=result.points)

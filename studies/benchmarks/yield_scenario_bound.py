@@ -49,6 +49,7 @@ import allocation
 from allocation.machine_yield.yield_dual import scaled_rows, unit_draws
 from reliability.basics import streams
 from reliability.sampling.machine_yield import YieldModel
+from studies.benchmarks.yield_allocation import SHARE_PATH
 from studies.benchmarks.yield_gap_sources import (allowed_failures, bound_parser,
                                                   each_machine)
 from studies.workflows.timing import one_blas_thread
@@ -107,7 +108,7 @@ def scenario_report(machine, yield_target, machines, seed, confidence,
     started = time.perf_counter()
     result = allocation.allocate_for_yield(machine, yield_target, profile="constant",
                                            points=POINTS, machines=allocation_machines,
-                                           rng=seed)
+                                           rng=seed, **SHARE_PATH)
     searched = time.perf_counter() - started
     model = YieldModel(result.problem.machine, points=POINTS)
     draws = unit_draws(model, model.draws(machines,

@@ -6,6 +6,7 @@ options go with which of these modes is declared once, :data:`MODE_OPTIONS`."""
 
 from __future__ import annotations
 
+import argparse
 import contextlib
 import dataclasses
 from pathlib import Path
@@ -21,7 +22,7 @@ from allocation.per_pose.result_files import (DRAWING_RESOLUTION, allocation_fra
                                      drawing_check_text, drawing_to_csv, gap_text,
                                      nearly_free_text, written_cost_text,
                                      written_tolerances)
-from allocation.machine_yield.yield_dual import log_concave_bound, not_log_concave
+from allocation.machine_yield.yield_dual import not_log_concave
 from reliability.basics import display
 from reliability.basics.errors import InputError
 from reliability.basics.files import write_csv
@@ -61,6 +62,7 @@ MODE_OPTIONS = (
     ("--convex-steps", _given("convex_steps"), (YIELD,)),
     ("--convex-machines", _given("convex_machines"), (YIELD,)),
     ("--bound-machines", _given("bound_machines"), (YIELD,)),
+    ("--verbose", lambda args: args.verbose, (YIELD,)),
     ("--drawing", _given("drawing"), (TARGETS, YIELD)),
     ("--tolerances", _given("tolerances"), (CATALOGUE,)),
     ("--tolerances-out", _given("tolerances_out"), (CATALOGUE,)),
@@ -250,21 +252,25 @@ def changes_text(result, top: int = 10) -> str:
 
 
 def run_yield(args) -> int:
-    """``--yield Y``: everything checked first, then :func:`allocation.allocate_for_yield`."""
+    """``--yield Y``: everything checked first, then :func:`allocation.allocate_for_yield`
+    (one convex step and the log-concave bound by default where the theorem holds); prints
+    one lower bound and one gap (every bound and stage with ``--verbose``) and writes the
+    allocation, the drawing and the saved result (``a.summary.json`` beside ``a.csv``)."""
     bounds = options.check_bounds(args.bounds)
     out = options.destination(args.out, args.overwrite)
     drawing = options.beside_destination(out, "drawing", args.overwrite,
                                          override=args.drawing, option="--drawing")
+    summary = options.destination(summary_path(out), args.overwrite)
     executor, where = yield_executor(args)
     machine = options.machine(args)
     why = not_log_concave(machine, machine.profile, machine.distribution)
     if args.bound_machines is not None and why is not None:
         raise InputError(f"--bound-machines: {why}; the lower bound rests on the yield's "
-                         f"log-concavity, which holds for independent normal errors "
-                         f"constant along travel")
-    if args.convex_machines is not None and args.convex_steps is None:
-        raise InputError("--convex-machines sizes the gradient of --convex-steps: give "
-                         "--convex-steps too")
+                         f"log-concavity, which holds for independent normal errors, each "
+                         f"scaled by its own tolerance")
+    if args.convex_machines is not None and args.convex_steps == 0:
+        raise InputError("--convex-machines sizes the gradient of the convex steps: not "
+                         "with --convex-steps 0")
     with executor as client:
         options.say(f"allocating for machine yield {args.yield_target:g} on the "
                     f"{args.points}-point grid, {options.box_words(machine, bounds)}, profile "
@@ -272,39 +278,59 @@ def run_yield(args) -> int:
                     f"calibration and verification), simulated {where}")
         result = allocate_for_yield(machine, args.yield_target, points=args.points,
                                     bounds=bounds, machines=args.machines, rng=args.seed,
-                                    executor=client, convex_steps=args.convex_steps or 0,
-                                    convex_machines=args.convex_machines)
-    print(describe_yield(result))
+                                    executor=client,
+                                    convex_steps=args.convex_steps,
+                                    convex_machines=args.convex_machines,
+                                    bound_machines=args.bound_machines)
+    print(describe_yield(result, args.verbose))
     print(changes_text(result))
     write_files(args, result, out, drawing, targets=False)
-    if args.bound_machines is not None:
-        options.say(f"the log-concave lower bound on {args.bound_machines:,} machines")
-        bound = log_concave_bound(result, machines=args.bound_machines, steps=1,
-                                  rng=args.seed)
-        print(f"\n{bound.text(result.initial_cost)}: gap "
-              f"{display.percentage_text(1 - bound.bound / result.cost, bound='upper')} "
-              f"of the cost")
+    result.save(summary, overwrite=args.overwrite)
+    print(f"result written to {summary}: lower bound ({result.lower_bound_kind}), gap "
+          f"{display.percentage_text(result.gap_of_cost, bound='upper')} of the cost")
     return 0
 
 
+def summary_path(out: Path) -> Path:
+    """The saved result beside the ``--out`` file: ``a.csv`` -> ``a.summary.json``."""
+    return out.with_name(f"{out.stem}.summary.json")
+
+
+def steps(text: str) -> int:
+    """An integer >= 0."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"expected an integer >= 0, got {text!r}")
+    return value
+
+
 def add_yield_bracket(parser) -> None:
-    """``--convex-steps``, ``--convex-machines`` and ``--bound-machines``: the convex steps
-    of ``--yield``'s search and its lower bound at 95 % confidence."""
-    parser.add_argument("--convex-steps", type=options.positive_int, default=None,
-                        metavar="S",
+    """``--convex-steps``, ``--convex-machines``, ``--bound-machines`` and ``--verbose``:
+    the convex steps of ``--yield``'s search, its lower bound at 95 % confidence and how
+    much of the bracket is printed."""
+    parser.add_argument("--convex-steps", type=steps, default=None, metavar="S",
                         help="with --yield: S steps of the convex problem from the search's "
-                             "allocation (normal reading, no item correlation, profile "
-                             "constant; docs/yield-allocation.md), kept when cheaper once "
-                             "calibrated (default none)")
+                             "allocation (normal reading, no item correlation; "
+                             "docs/yield-allocation.md), kept when cheaper once calibrated "
+                             "(default 1 under profile constant, 0 under the others; 0: "
+                             "none)")
     parser.add_argument("--convex-machines", type=options.positive_int, default=None,
                         metavar="N",
-                        help="with --convex-steps: machines of their gradient (default 5 × "
+                        help="with --yield: rays of the convex steps' gradient (default 5 × "
                              "--machines)")
     parser.add_argument("--bound-machines", type=options.positive_int, default=None,
                         metavar="N",
-                        help="with --yield: also the lower bound at 95%% confidence from "
-                             "the yield's log-concavity, on N machines (e.g. 50000; same "
-                             "conditions as --convex-steps)")
+                        help="with --yield: rays (crude machines under the profiles "
+                             "independent and gp) of each sample of the lower bound at 95%% "
+                             "confidence from the yield's log-concavity (default 10 × "
+                             "--machines under profile constant, none under the others; "
+                             "same conditions as --convex-steps)")
+    parser.add_argument("--verbose", action="store_true",
+                        help="with --yield: also every other bound (row, pose chain, the "
+                             "log-concave estimate) and every stage's cost")
 
 
 def yield_executor(args):
@@ -320,14 +346,15 @@ def yield_executor(args):
             f"on a local Dask cluster of {args.workers or options.DASK_WORKERS} workers")
 
 
-def describe_yield(result) -> str:
+def describe_yield(result, verbose: bool = False) -> str:
     """The model (profile, reading, grid, box), the result's findings
-    (:meth:`allocation.YieldAllocation.finding_lines`) and the search's size."""
+    (:meth:`allocation.YieldAllocation.finding_lines`, every bound and stage with
+    ``verbose``) and the search's size."""
     return "\n".join([
         f"machine yield target {result.yield_target:g}: profile {result.profile}; "
         f"{options.reading_text(result.problem.machine)}; workspace: the {result.points}-point "
         f"grid ({len(result.problem.poses):,} poses); box {result.problem.box_text()}",
-        *result.finding_lines(),
+        *result.finding_lines(verbose),
         f"search: {result.evaluations} candidates on {result.machines:,} design machines "
         f"(aimed at yield {result.design_yield_target:.4f} there), seed {result.seed}"])
 
