@@ -94,18 +94,27 @@ def yields(trunnion5):
                    "table": run(wide, seed)} for seed in SEEDS}
 
 
-def test_a_box_containing_the_default_never_searches_dearer(yields):
-    """Same seed: the search's calibrated cost in a box B ⊇ D is at most D's (B's search runs
-    in B ∩ D = D too, built as D's own, and keeps the cheaper), and so is B's printed cost;
-    B's printed cost is at most D's whenever D's result is its search's (not its naive start
-    or convex step, which are compared within the chosen search only)."""
+def test_a_box_containing_the_default_never_costs_more(yields):
+    """Same seed: the printed cost in a box B ⊇ D is at most D's, whichever stage gave D's
+    result (B's run also searches B ∩ D = D, built as D's own run builds it on the same
+    samples, finishes it the same way and keeps the cheapest of everything)."""
     for runs in yields.values():
         default = runs["default"]
         for wide in (runs["0.4-1.6"], runs["table"]):
-            assert wide.search_calibrated_cost <= default.search_calibrated_cost
-            assert wide.cost <= default.search_calibrated_cost
-            if default.method in ("per-output targets", "error shape"):
-                assert wide.cost <= default.cost
+            assert wide.cost <= default.cost
+
+
+def test_the_default_box_naive_start_is_kept_by_a_wider_box(trunnion5):
+    """The case that was not ordered when only the kept search's naive start was compared
+    (seed 8, binomial path, no convex step): D's result is its naive start, and the box
+    0.4–1.6 (whose own naive start was 200.41 % against D's 199.62 %) now costs no more."""
+    def run(bounds):
+        return allocate_for_yield(trunnion5, 0.9, profile="constant", points=3, machines=300,
+                                  rng=8, bounds=bounds, convex_steps=0, estimator="share",
+                                  bound_machines=0)
+    default, wide = run((0.5, 1.5)), run((0.4, 1.6))
+    assert default.method == "naive start"
+    assert wide.cost <= default.cost
 
 
 def test_the_row_bound_of_a_wider_box_is_below_the_narrower_relaxations_cost(yields):

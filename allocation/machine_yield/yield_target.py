@@ -630,18 +630,15 @@ def allocate_for_yield(machine, yield_target: float, *, profile=None, distributi
     if not outcomes:
         raise unreachable[0]
     searched = time.perf_counter()
-    finals = [outcome.search.calibrate(outcome.chosen) for outcome in outcomes]
-    cheapest = int(np.argmin([final.cost for final in finals]))
-    found, searched_final = outcomes[cheapest], finals[cheapest]
+    finished = [_finished(outcome, convex_steps, convex_machines, design_target)
+                for outcome in outcomes]
+    kept = int(np.argmin([each.final.cost for each in finished]))
+    found, done = outcomes[kept], finished[kept]
     chosen, naive = found.chosen, found.naive
-    naive_final = found.search.calibrate(naive)
-    step_started = time.perf_counter()
-    level = searched_final.estimate.estimate if found.search.controlled else design_target
-    stepped = found.search.convex_steps(chosen, convex_steps, convex_machines, level)
-    step_seconds = time.perf_counter() - step_started
-    step_final = None if stepped is None else found.search.calibrate(stepped)
-    method, final = _cheapest({_stage(found): searched_final, "naive start": naive_final,
-                               "convex step": step_final})
+    searched_final, naive_final, stepped, step_final = (
+        done.searched, done.naive, done.stepped, done.step_final)
+    method, final = done.method, done.final
+    step_seconds = sum(each.step_seconds for each in finished)
     calibrated = time.perf_counter()
     verify = found.search.verification_sample()
     verified_yield, naive_verified = verify(final.t), verify(naive_final.t)
@@ -682,6 +679,39 @@ def allocate_for_yield(machine, yield_target: float, *, profile=None, distributi
                  "verify": verified - calibrated,
                  "log-concave bound": time.perf_counter() - verified},
         log_concave=dual, log_concave_text=log_concave_text(machine, bound_machines))
+
+
+@dataclass(frozen=True)
+class _Finished:
+    """One search's candidates, calibrated: its own allocation, its naive start and its
+    convex step (None when not run), and the cheapest of them (``method``, ``final``)."""
+
+    searched: object
+    naive: object
+    stepped: object
+    step_final: object
+    step_seconds: float
+    method: str
+    final: object
+
+
+def _finished(outcome, convex_steps, convex_machines, design_target) -> _Finished:
+    """Calibrate ``outcome``'s allocation and naive start, take the convex steps from its
+    allocation and calibrate them; the cheapest of the three (first of equal costs). Every
+    search (the box's and its intersection with the default box) is finished so, and the
+    cheapest over all of them is the result: a box never costs more than its intersection
+    with the default box."""
+    search = outcome.search
+    searched = search.calibrate(outcome.chosen)
+    naive = search.calibrate(outcome.naive)
+    started = time.perf_counter()
+    level = searched.estimate.estimate if search.controlled else design_target
+    stepped = search.convex_steps(outcome.chosen, convex_steps, convex_machines, level)
+    step_seconds = time.perf_counter() - started
+    step_final = None if stepped is None else search.calibrate(stepped)
+    method, final = _cheapest({_stage(outcome): searched, "naive start": naive,
+                               "convex step": step_final})
+    return _Finished(searched, naive, stepped, step_final, step_seconds, method, final)
 
 
 def _stage(found) -> str:
