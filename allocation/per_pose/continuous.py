@@ -644,6 +644,11 @@ def _uncertified_reason(table, rtol) -> str:
     what the target allows while its certificate's gap is too wide to find a short pose."""
     worst = table["excess"].idxmax()
     row = table.loc[worst]
+    if "slope" in table:  # a life certificate (allocation.per_pose.life)
+        return (f"the bound on {worst} exceeds what its line allows by {row['excess']:.3g} "
+                f"> {rtol:g} while its worst pose meets the life target: the line "
+                f"σ0² + c·s_d² below the life curve is not tight where {worst} binds "
+                f"(docs/life-allocation.md)")
     return (f"the bound on {worst} exceeds what its target allows by {row['excess']:.3g} "
             f"> {rtol:g} and its certificate stopped at gap {row['gap']:.3g} after "
             f"{int(row['calls'])} box evaluations")

@@ -19,28 +19,31 @@ lie in ``(−I − y(0), I − y(0))``, which contains 0 too. So (L1) is ``σ0²
 ``A(v)`` the largest ``σ0²`` meeting it, one root per (pose, output), decreasing in ``v``;
 where the drift alone misses the target (``P(|d| < I) < R``, i.e. ``s_d > I/z`` with
 ``z = Φ⁻¹((1 + R)/2)``) no tolerance meets it, and this is refused naming the pose. By
-scale, ``A(v) = I² X(√v / I)`` with ``X`` one curve per target (:class:`RootCurve`),
+scale, ``A(v) = I² X(√v / I)²`` with ``X`` one curve per target (:class:`RootCurve`),
 computed once by bisection and interpolated. Dividing each row ``Σ_i J_i² u_i / k²`` by its
 own ``A`` keeps the allocation the convex problem of Eq. (34) with a per-row right-hand
 side (:meth:`LifeRequirement.allowed_variance`, used by
 :meth:`allocation.per_pose.problem.AllocationProblem.row_matrix`).
 
 **The certificate.** Over the continuous workspace (L1) asks a bound of two quadratic forms
-in ``J(q)`` at once. A line ``σ0² + c·s_d² ≤ I² b`` below the curve ``A`` (``b − c w ≤
-X(√w)²`` for every ``w = v/I²`` in ``[0, 1/z²]``, and negative beyond) implies (L1) at
-every pose where it holds, and its left side is one quadratic form:
-``Σ_i J_i² (σ_i² + c (ρ_i T)²)``, the σ² of the allocation ``σ_i' = √(σ_i² + c (ρ_i T)²)``,
-which the certificate of :func:`reliability.first_order.workspace_search.certified_worst`
-bounds rigorously over the strokes (or the work zone). ``A`` is not convex everywhere (it
-is concave where the drift is roughly half to nine tenths of what the target allows
-alone), so the line is a support line of the lower convex hull of ``X²`` over ``w``, taken
-at the output's worst pose of the set (:meth:`RootCurve.support_line`) and lowered by its
-largest excess over the curve on a four-times-finer check. A bound within ``(1 + rtol)`` of
-``I √b`` says the allocation meets (L1) with the limits ``I (1 + rtol)`` at every pose (the
-hull scales with the limit), as the certificate of the acceptance allocation does
-(docs/continuous-allocation.md). Where the hull lies below ``A`` at the worst pose (the
-concave part) or an output binds at poses of different drift, the line is not tight there
-and the bound says so as an excess; a pose the certificate finds with ``σ0² > A`` is a cut.
+in ``J(q)`` at once. First the certificate bounds the drift's σ over the strokes (or the
+work zone): ``s_d(q) ≤ D`` (:meth:`LifeRequirement.with_drift_bound`). A line
+``σ0² + c·s_d² ≤ I² b`` below the curve ``A`` on ``[0, D²]`` then implies (L1) at every pose
+where it holds, and its left side is one quadratic form: ``Σ_i J_i² (σ_i² + c (ρ_i T)²)``,
+the σ² of the allocation ``σ_i' = √(σ_i² + c (ρ_i T)²)``, which the certificate of
+:func:`reliability.first_order.workspace_search.certified_worst` bounds rigorously. ``A`` is
+not convex everywhere (it is concave where ``s_d`` is between about 0.47 and 0.88 of
+``I/z``), so the line is the segment of the lower convex hull of ``X²`` over
+``w = (s_d/I)²`` in ``[0, (D/I)²]`` at the drift of the output's worst pose of the set
+(:meth:`RootCurve.support_line`), lowered by its largest excess over the curve on a
+four-times-finer check: where the curve is convex it is the tangent there. A bound within
+``(1 + rtol)`` of ``I √b`` says the allocation meets (L1) with the limits ``I (1 + rtol)``
+at every pose (``λ² I² X(√w/λ)²`` is the curve of the limit ``λI``, and the line scales
+alike), as the certificate of the acceptance allocation does
+(docs/continuous-allocation.md). Where an output binds at poses of different drift, or in
+the concave part, the line is below ``A`` there and the bound says so as an excess; a pose
+the certificate finds with ``σ0² > A`` is a cut. The curve between its nodes and the line
+between its checked points are numerical, not interval arithmetic (docs/life-allocation.md).
 """
 
 from __future__ import annotations
@@ -61,13 +64,14 @@ from reliability.life.first_passage import first_passage_within
 from reliability.model.drift import checked_age
 from reliability.model.machine import OUTPUTS
 
-#: Nodes of the root curve ``X(ρ)`` over ``ρ = s_d/I`` in ``[0, 1/z]`` (cubic spline; its
-#: error against independent roots is below 1e-10 relative, tests/test_life_allocation.py).
+#: Nodes of the root curve ``X(ρ)`` over ``ρ = s_d/I`` in ``[0, 1/z]`` (cubic spline; it
+#: agrees with roots of an independent quadrature to 1e-8 relative,
+#: tests/test_life_allocation.py).
 CURVE_NODES = 513
 #: Bisection steps of each node's root (the bracket ``[0, 1/z]`` halved to 1e-18 of it).
 BISECTIONS = 60
-#: Points of ``w = ρ²`` on which the lower convex hull of ``X²`` is built; the support line
-#: is checked on four times as many and lowered by its largest excess there.
+#: Points of ``ρ`` on which the lower convex hull of ``X²`` over ``w = ρ²`` is built; the
+#: support line is checked on four times as many and lowered by its largest excess there.
 HULL_POINTS = 4097
 #: Relative margin by which a support line is lowered beyond its checked excess.
 LINE_MARGIN = 1e-9
@@ -278,8 +282,9 @@ def check_reachable(machine, life, poses) -> None:
 def life_loads(problem, tolerances, poses=None) -> np.ndarray:
     """``σ0² / A`` of every output at ``poses`` (default the problem's), ``(n, 6)``: the
     life target (L1) holds where it is ≤ 1 (``inf`` where the drift alone misses it)."""
-    poses = problem.poses if poses is None else np.atleast_2d(poses)
-    jacobian = problem.machine.jacobian(poses)
+    if poses is None:  # the problem's rows, chunk by chunk
+        return problem.loads(problem.variable(tolerances))
+    jacobian = problem.machine.jacobian(np.atleast_2d(poses))
     sigma2 = np.square(jacobian) @ np.square(error_sigma(tolerances, problem.k,
                                                          problem.distribution))
     allowed = problem.life.allowed_variance(jacobian)
