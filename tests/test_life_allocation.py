@@ -267,3 +267,15 @@ def test_the_command_writes_the_life_allocation_beside_the_acceptance_cost(tmp_p
     assert np.all(life_loads(problem, tolerances) <= 1 + 1e-9)
     code, _, err = run(capsys, *argv)
     assert code == 2 and "--overwrite" in err
+
+
+def test_the_certificate_of_one_output_is_its_row_of_all_six(mill_life):
+    from reliability.first_order.workspace_search import certified_worst
+    t = mill_life.initial_allocation
+    full = certified_worst(mill_life, t, rtol=1e-3)
+    one = certified_worst(mill_life, t, rtol=1e-3, outputs=["dy"])
+    assert one.index.tolist() == ["dy"]
+    columns = list(mill_life.axes) + ["sigma", "sigma_bound", "calls"]
+    assert one.loc["dy", columns].tolist() == full.loc["dy", columns].tolist()
+    with pytest.raises(InputError, match="outputs must name"):
+        certified_worst(mill_life, t, outputs=["dq"])

@@ -75,8 +75,6 @@ BISECTIONS = 60
 HULL_POINTS = 4097
 #: Relative margin by which a support line is lowered beyond its checked excess.
 LINE_MARGIN = 1e-9
-#: What stops an output's certificate at once (a positive value below every σ).
-STOP_AT_ONCE = 1e-300
 
 
 @dataclass(frozen=True, eq=False)
@@ -339,15 +337,14 @@ def _output_row(problem, combined, o, allowed, rtol, max_calls, stop_share,
     """One output's certificate row: stopped at a short pose if asked, and certified again
     in full when that pose meets (L1) itself (the line, not the allocation, is short)."""
     machine = problem.machine
-    stop = None
-    if stop_share is not None:
-        stop = np.full(len(OUTPUTS), STOP_AT_ONCE)
-        stop[o] = allowed * (1.0 + stop_share * rtol)
+    stop = None if stop_share is None else \
+        np.full(len(OUTPUTS), allowed * (1.0 + stop_share * rtol))  # only output o's is read
     for above in ((stop, None) if stop is not None else (None,)):
         table = certified_worst(machine, combined, rtol=certificate_share * rtol, k=1.0,
                                 distribution="normal", max_calls=max_calls,
-                                memory=problem.memory, stop_above=above, deadline=deadline)
-        row = table.iloc[o].to_dict()
+                                memory=problem.memory, stop_above=above, deadline=deadline,
+                                outputs=[OUTPUTS[o]])
+        row = table.iloc[0].to_dict()
         pose = np.array([row[axis] for axis in machine.axes], dtype=float)
         load = float(life_loads(problem, tolerances, pose)[0, o])
         if np.isfinite(row["sigma_bound"]) or load > 1.0:
