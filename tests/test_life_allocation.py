@@ -279,3 +279,13 @@ def test_the_certificate_of_one_output_is_its_row_of_all_six(mill_life):
     assert one.loc["dy", columns].tolist() == full.loc["dy", columns].tolist()
     with pytest.raises(InputError, match="outputs must name"):
         certified_worst(mill_life, t, outputs=["dq"])
+
+
+def test_feasibility_of_a_life_problem_is_the_life_target(grid_problem):
+    problem = life_problem(grid_problem, 5.0, bound_drift=False)
+    result = problem.solve_exact()
+    assert result.feasible
+    acceptance = grid_problem.solve_exact().tolerances
+    assert grid_problem.meets_targets(acceptance)
+    assert not problem.meets_targets(acceptance)  # acceptance tolerances miss the life
+    assert not problem.meets_targets(result.tolerances * 1.001)

@@ -437,6 +437,8 @@ class AllocationProblem:
         """True when ``t`` satisfies every constraint of this problem (all poses)."""
         if self.side == "stack":
             return bool(np.all(self.stack(t) <= self.machine.limits * (1 + 1e-12)))
+        if self.life is not None:  # σ0² within its row's own largest value (1e-9: the roots')
+            return bool(np.all(self.loads(self.variable(t)) <= 1.0 + 1e-9))
         probability = self.probability(np.asarray(t, dtype=float))
         value = probability.min(axis=0) if self.workspace == "worst" else \
             probability.mean(axis=0)
