@@ -189,26 +189,11 @@ class LifeRequirement:
         Raises
         ------
         InputError
-            ``years`` not a number > 0; the machine without a ``[drift]`` table; a drift of
-            kind ``'wear'`` (its mean is not 0 and its path is not linear, so the first
-            passage is not the two-ended event this allocation constrains).
+            As :func:`checked_life`.
         """
-        years = checked_age(years)
-        if years == 0:
-            raise InputError("life: the service life must be > 0 years; got 0 (the "
-                             "allocation at acceptance is the plain allocate)")
-        drift = getattr(machine, "drift", None)
-        if drift is None:
-            raise InputError("life: the machine file has no [drift] table; a life "
-                             "allocation needs the drift rates (docs/machine-file.md)")
-        if drift.kind != "linear":
-            raise InputError(f"life: drift kind {drift.kind!r} is refused: wear has a mean "
-                             f"and a path that is not linear in the age, so staying within "
-                             f"the limit at both ends of the life does not mean staying "
-                             f"within it throughout, which the allocation's rows assume; "
-                             f"use kind 'linear'")
+        years = checked_life(machine, years)
         curves = tuple(RootCurve.of(target) for target in machine.targets)
-        return cls(years=years, drift_sd=np.asarray(drift.rate, dtype=float) * years,
+        return cls(years=years, drift_sd=np.asarray(machine.drift.rate, dtype=float) * years,
                    limits=np.asarray(machine.limits, dtype=float),
                    targets=np.asarray(machine.targets, dtype=float), curves=curves)
 
@@ -235,6 +220,33 @@ class LifeRequirement:
         rho = np.sqrt(self.drift_variance(jacobian)) / self.limits
         return np.square(self.limits) * np.stack(
             [curve.allowed(rho[..., o]) for o, curve in enumerate(self.curves)], axis=-1)
+
+
+def checked_life(machine, years) -> float:
+    """``years`` as a float > 0 for a life allocation of ``machine``, checked before any work.
+
+    Raises
+    ------
+    InputError
+        ``years`` not a number > 0; the machine without a ``[drift]`` table; a drift of kind
+        ``'wear'`` (its mean is not 0 and its path is not linear, so the first passage is
+        not the two-ended event this allocation constrains).
+    """
+    years = checked_age(years)
+    if years == 0:
+        raise InputError("life: the service life must be > 0 years; got 0 (the "
+                         "allocation at acceptance is the plain allocate)")
+    drift = getattr(machine, "drift", None)
+    if drift is None:
+        raise InputError("life: the machine file has no [drift] table; a life "
+                         "allocation needs the drift rates (docs/machine-file.md)")
+    if drift.kind != "linear":
+        raise InputError(f"life: drift kind {drift.kind!r} is refused: wear has a mean "
+                         f"and a path that is not linear in the age, so staying within "
+                         f"the limit at both ends of the life does not mean staying "
+                         f"within it throughout, which the allocation's rows assume; "
+                         f"use kind 'linear'")
+    return years
 
 
 def life_problem(problem, years, *, bound_drift: bool = True):

@@ -20,7 +20,7 @@ import numpy as np
 
 from allocation.per_pose.continuous import DEFAULT_RTOL, ContinuousAllocation, \
     solve_continuous
-from allocation.per_pose.life import LifeRequirement, life_loads, life_problem
+from allocation.per_pose.life import checked_life, life_loads, life_problem
 from reliability.basics.errors import InputError
 
 
@@ -93,9 +93,10 @@ class LifeAllocationRun:
 
 
 def check_life(machine, years) -> float:
-    """``years`` checked against ``machine`` before any work (:meth:`LifeRequirement.of`:
-    a ``[drift]`` table of kind 'linear', a life > 0); returns the life in years."""
-    return LifeRequirement.of(machine, years).years
+    """``years`` checked against ``machine`` before any work
+    (:func:`allocation.per_pose.life.checked_life`: a ``[drift]`` table of kind 'linear', a
+    life > 0); returns the life in years."""
+    return checked_life(machine, years)
 
 
 def run(problem, years, *, workspace: str = "continuous", rtol: float = DEFAULT_RTOL,
