@@ -309,9 +309,11 @@ def life_certificate_table(problem, tolerances, rtol, max_calls, *, stop_share=N
     For each output, the support line ``(b, c)`` at the drift of its worst pose of the set
     (largest ``σ0²/A``, ties by :func:`reliability.basics.ties.worst_rows`) and the
     certificate of the combined σ ``√(σ0² + c s_d²)`` (module docstring), asked for
-    ``certificate_share × rtol`` and stopped at the first pose above ``(1 + stop_share ×
-    rtol)`` × ``I √b`` (when that pose misses (L1) itself it is a cut; otherwise the output
-    is certified again without stopping).
+    ``certificate_share × rtol``, closing every box whose bound is below
+    ``(1 + certificate_share × rtol)`` × ``I √b`` (a feasibility test: such a box cannot miss
+    the target), and stopped at the first pose above ``(1 + stop_share × rtol)`` × ``I √b``
+    (when that pose misses (L1) itself it is a cut; otherwise the output is certified again
+    without stopping).
 
     Returns
     -------
@@ -349,13 +351,15 @@ def _output_row(problem, combined, o, allowed, rtol, max_calls, stop_share,
     """One output's certificate row: stopped at a short pose if asked, and certified again
     in full when that pose meets (L1) itself (the line, not the allocation, is short)."""
     machine = problem.machine
+    close = allowed * (1.0 + certificate_share * rtol)  # a box below it cannot fail (L1)
     stop = None if stop_share is None else \
         np.full(len(OUTPUTS), allowed * (1.0 + stop_share * rtol))  # only output o's is read
     for above in ((stop, None) if stop is not None else (None,)):
         table = certified_worst(machine, combined, rtol=certificate_share * rtol, k=1.0,
                                 distribution="normal", max_calls=max_calls,
                                 memory=problem.memory, stop_above=above, deadline=deadline,
-                                outputs=[OUTPUTS[o]])
+                                outputs=[OUTPUTS[o]], feasibility=True,
+                                close_below=np.full(len(OUTPUTS), close))
         row = table.iloc[0].to_dict()
         pose = np.array([row[axis] for axis in machine.axes], dtype=float)
         load = float(life_loads(problem, tolerances, pose)[0, o])

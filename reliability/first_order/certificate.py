@@ -107,7 +107,8 @@ def certified_worst(machine, tolerances, *, rtol: float = DEFAULT_RTOL, k: float
                     distribution: str | None = None, reading: str = "sigma",
                     max_calls: int = MAX_BOX_CALLS, memory: int | None = None,
                     stop_above=None, close_below=None,
-                    deadline: float | None = None, outputs=None) -> pd.DataFrame:
+                    deadline: float | None = None, outputs=None,
+                    feasibility: bool = False) -> pd.DataFrame:
     """Largest σ (or worst-case stack) of each output over the continuous stroke box, with
     a rigorous bound.
 
@@ -155,6 +156,11 @@ def certified_worst(machine, tolerances, *, rtol: float = DEFAULT_RTOL, k: float
         Certify only these outputs (names of :data:`OUTPUTS`, in that order in the table);
         default all six. The life allocation certifies each output under its own
         allocation (:mod:`allocation.per_pose.life`).
+    feasibility : bool
+        Apply ``close_below`` from the first output on, not only after an output has
+        stopped: every output's table then answers "is the spread anywhere above
+        ``close_below``?" (its bound at most ``max(close_below, (1 + rtol) × value)``), which
+        is what the life allocation's certificate asks.
 
     Returns
     -------
@@ -218,7 +224,7 @@ def certified_worst(machine, tolerances, *, rtol: float = DEFAULT_RTOL, k: float
     shared = (time.perf_counter() - started) / len(chosen)  # the expansion, per output
     rows = []
     for o in chosen:
-        stopped = any(np.isinf(row[f"{reading}_bound"]) for row in rows)
+        stopped = feasibility or any(np.isinf(row[f"{reading}_bound"]) for row in rows)
         rows.append(_certify(machine, models[o], lambda q, o=o: direct(q, o), rtol, max_calls,
                              memory, reading, shared, zone,
                              (above[o], below[o] if stopped else 0.0, deadline)))
