@@ -61,6 +61,7 @@ from reliability.basics.saved_results import load_payload, save_payload
 from reliability.first_order.certificate import DEFAULT_RTOL, MAX_BOX_CALLS, WORKSPACES
 from reliability.first_order.workspace_search import certified_worst, searched_worst
 
+from .life import life_certificate_table
 from .result_files import gap_text
 from .solve import AllocationResult
 
@@ -349,7 +350,8 @@ def solve_continuous(problem, *, rtol: float = DEFAULT_RTOL, max_solves: int = M
     progress = progress or (lambda text: None)
     checks.callback(progress, "progress")
     _check_loop(problem, certify, search)
-    loop = _Loop(problem, rtol, max_calls, search and problem.side != "stack", certify,
+    loop = _Loop(problem, rtol, max_calls,
+                 search and problem.side != "stack" and problem.life is None, certify,
                  progress, time_limit)
     try:
         loop.run(max_solves)
@@ -366,6 +368,9 @@ def _check_loop(problem, certify, search) -> None:
                          "grid")
     if certify:
         check_continuous(problem.machine, problem.side)
+    elif problem.life is not None:
+        raise InputError("certify=False: a life problem is found short by its certificate "
+                         "only (the local search reads σ against one allowed σ per output)")
     elif problem.side == "stack":
         raise InputError("certify=False needs a σ reading: the local search reads σ, and "
                          "under the stack reading only the certificate finds poses")
@@ -458,7 +463,8 @@ class _Loop:
             reason = _uncertified_reason(table, self.rtol)
         if not self.certify and not reason:
             reason = "searched only"
-        scaled = _scaled(self.result, table) if current and not is_certified else None
+        scaled = (_scaled(self.result, table) if current and not is_certified
+                  and self.problem.life is None else None)  # the drift does not scale
         return ContinuousAllocation(
             result=self.result, grid=self.grid, certified=is_certified, rtol=self.rtol,
             certificate=table, added=_added_frame(self.problem.machine, self.added),
@@ -547,7 +553,12 @@ def certificate_table(problem, tolerances, rtol: float = DEFAULT_RTOL,
     ``I/z``, or the limit ``I`` for the stack), ``excess`` = bound / allowed − 1 and
     ``meets`` (``excess ≤ rtol``). With ``stop_share``, an output's search stops at the
     first pose above ``(1 + stop_share × rtol)`` × allowed (its bound is then ``+inf``);
-    ``deadline`` as in :func:`~reliability.first_order.workspace_search.certified_worst`."""
+    ``deadline`` as in :func:`~reliability.first_order.workspace_search.certified_worst`.
+    A life problem's certificate is :func:`allocation.per_pose.life.life_certificate_table`."""
+    if problem.life is not None:
+        return life_certificate_table(problem, tolerances, rtol, max_calls,
+                                      stop_share=stop_share,
+                                      certificate_share=CERTIFICATE_SHARE, deadline=deadline)
     machine = problem.machine
     if problem.side == "stack":
         allowed = machine.limits
@@ -597,7 +608,8 @@ def _certified_cuts(problem, table, rtol) -> pd.DataFrame:
     """Outputs whose bound exceeds what the target allows by more than ``rtol`` and whose
     certified worst pose is itself short (so its row cuts off the current optimum)."""
     value, _ = _columns(problem)
-    ratio = table[value].to_numpy() / table["allowed"].to_numpy()
+    ratio = (table[value].to_numpy() / table["allowed"].to_numpy() if problem.life is None
+             else table["sigma0"].to_numpy() / table["life_allowed"].to_numpy())
     short = (table["excess"].to_numpy() > rtol) & (ratio > 1.0)
     frame = table.loc[short, list(problem.machine.axes)].reset_index()
     frame["ratio"] = ratio[short]
@@ -632,6 +644,11 @@ def _uncertified_reason(table, rtol) -> str:
     what the target allows while its certificate's gap is too wide to find a short pose."""
     worst = table["excess"].idxmax()
     row = table.loc[worst]
+    if "slope" in table:  # a life certificate (allocation.per_pose.life)
+        return (f"the bound on {worst} exceeds what its line allows by {row['excess']:.3g} "
+                f"> {rtol:g} while its worst pose meets the life target: the line "
+                f"σ0² + c·s_d² below the life curve is not tight where {worst} binds "
+                f"(docs/life-allocation.md)")
     return (f"the bound on {worst} exceeds what its target allows by {row['excess']:.3g} "
             f"> {rtol:g} and its certificate stopped at gap {row['gap']:.3g} after "
             f"{int(row['calls'])} box evaluations")

@@ -104,6 +104,9 @@ class AllocationProblem:
         Where the box comes from: ``"machine file"`` (its ``[bounds]`` table),
         ``"factors of the initial allocation"`` (the default [0.5, 1.5]) or ``"given"``
         (``bounds``, ``lower`` or ``upper`` passed to :meth:`build`).
+    life : LifeRequirement or None
+        The life target of :mod:`allocation.per_pose.life` (:meth:`with_life`): each row
+        is then divided by its own largest σ0² instead of the output's ``(I/z)²``.
     """
 
     machine: object
@@ -119,6 +122,7 @@ class AllocationProblem:
     rows: ScreenedRows | None
     memory: int | None = None
     bounds_source: str = "given"
+    life: object = None
 
     @classmethod
     def build(cls, machine, poses=None, *, side: str = "two_sided", workspace: str = "worst",
@@ -235,6 +239,9 @@ class AllocationProblem:
         dominator is at least as loaded. Otherwise the poses are screened afresh.
         """
         _check_choice(side, SIDES, "side")
+        if self.life is not None:
+            raise InputError("with_reading: a life problem is two-sided by construction; "
+                             "build the problem under the other reading and add the life")
         problem = replace(self, side=side, rows=None)
         if self.workspace != "worst":
             return problem
@@ -318,14 +325,26 @@ class AllocationProblem:
     def row_matrix(self, jacobian=None) -> np.ndarray:
         """Rows ``(J_oi s/k)² / (I_o/z_o)²`` with ``s`` = :attr:`spread` (1 under the
         normal reading), or ``|J_oi| / I_o`` for the stack, as
-        ``(n_poses, 6, n_errors)``, of the problem's poses or of the given sensitivities."""
+        ``(n_poses, 6, n_errors)``, of the problem's poses or of the given sensitivities;
+        with a life target, ``(J_oi s/k)² / A`` with ``A`` the row's own largest σ0²
+        (:meth:`allocation.per_pose.life.LifeRequirement.allowed_variance`)."""
         if jacobian is None:
             jacobian = self.machine.jacobian(self.poses) if self.jacobian is None \
                 else self.jacobian
         if self.side == "stack":
             return np.abs(jacobian) / self.machine.limits[:, None]
         rows = np.square(jacobian / self.k * self.spread)
+        if self.life is not None:  # the row's own largest σ0² (allocation.per_pose.life)
+            with np.errstate(divide="ignore"):
+                return rows / self.life.allowed_variance(jacobian)[..., None]
         return rows / np.square(self.allowed_sigma)[:, None]
+
+    def with_life(self, life) -> "AllocationProblem":
+        """The same poses, box and costs with the life target ``life``
+        (:class:`allocation.per_pose.life.LifeRequirement`) in every row, screened
+        again."""
+        problem = replace(self, life=life, rows=None)
+        return replace(problem, rows=problem._screen())
 
     def loads(self, u) -> np.ndarray:
         """Row loads ``row @ u`` of every output at every pose, ``(n_poses, 6)``, in
@@ -418,6 +437,8 @@ class AllocationProblem:
         """True when ``t`` satisfies every constraint of this problem (all poses)."""
         if self.side == "stack":
             return bool(np.all(self.stack(t) <= self.machine.limits * (1 + 1e-12)))
+        if self.life is not None:  # σ0² within its row's own largest value (1e-9: the roots')
+            return bool(np.all(self.loads(self.variable(t)) <= 1.0 + 1e-9))
         probability = self.probability(np.asarray(t, dtype=float))
         value = probability.min(axis=0) if self.workspace == "worst" else \
             probability.mean(axis=0)

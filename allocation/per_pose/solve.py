@@ -94,7 +94,8 @@ def unreachable_worst(problem, rows=(), loads=()) -> TargetUnreachableError:
         need, have, what = "limit", "stack_at_lower", "worst-case stack"
         verb = "must stay within"
     else:  # the load is σ² / allowed σ²
-        frame["allowed_sigma"] = problem.allowed_sigma[output]
+        frame["allowed_sigma"] = (problem.allowed_sigma[output] if problem.life is None
+                                  else _life_allowed_sigma(problem, pose, output))
         frame["sigma_at_lower"] = frame["allowed_sigma"] * np.sqrt(at_lower[pose, output])
         need, have, what, verb = "allowed_sigma", "sigma_at_lower", "target", "needs σ ≤"
     first = frame.iloc[0]
@@ -107,6 +108,13 @@ def unreachable_worst(problem, rows=(), loads=()) -> TargetUnreachableError:
                f"but the tightest allowed tolerances give {first[have]:.4g} {unit}; "
                f"{len(frame)} (output, pose) pair(s) blocked in all")
     return TargetUnreachableError(message, frame, rows, loads)
+
+
+def _life_allowed_sigma(problem, pose, output) -> np.ndarray:
+    """The largest σ0 the life target allows at each (pose, output) of a life problem
+    (:meth:`allocation.per_pose.life.LifeRequirement.allowed_variance`)."""
+    allowed = problem.life.allowed_variance(problem.machine.jacobian(problem.poses[pose]))
+    return np.sqrt(allowed[np.arange(len(pose)), output])
 
 
 def _unreachable_mean(problem, shortfall) -> TargetUnreachableError:

@@ -107,7 +107,8 @@ def certified_worst(machine, tolerances, *, rtol: float = DEFAULT_RTOL, k: float
                     distribution: str | None = None, reading: str = "sigma",
                     max_calls: int = MAX_BOX_CALLS, memory: int | None = None,
                     stop_above=None, close_below=None,
-                    deadline: float | None = None) -> pd.DataFrame:
+                    deadline: float | None = None, outputs=None,
+                    feasibility: bool = False) -> pd.DataFrame:
     """Largest σ (or worst-case stack) of each output over the continuous stroke box, with
     a rigorous bound.
 
@@ -151,6 +152,15 @@ def certified_worst(machine, tolerances, *, rtol: float = DEFAULT_RTOL, k: float
         ``max_calls`` once it has evaluated :data:`DEADLINE_CALLS` boxes: the boxes still
         open count in the bound (rigorous, with a wider gap), ``certified`` False unless the
         gap is met.
+    outputs : sequence of str, optional
+        Certify only these outputs (names of :data:`OUTPUTS`, in that order in the table);
+        default all six. The life allocation certifies each output under its own
+        allocation (:mod:`allocation.per_pose.life`).
+    feasibility : bool
+        Apply ``close_below`` from the first output on, not only after an output has
+        stopped: every output's table then answers "is the spread anywhere above
+        ``close_below``?" (its bound at most ``max(close_below, (1 + rtol) × value)``), which
+        is what the life allocation's certificate asks.
 
     Returns
     -------
@@ -195,6 +205,7 @@ def certified_worst(machine, tolerances, *, rtol: float = DEFAULT_RTOL, k: float
     below = _output_values(close_below, "close_below", 0.0)
     if deadline is not None:
         deadline = checks.finite_float(deadline, "deadline")
+    chosen = _chosen_outputs(outputs)
     started = time.perf_counter()
     if reading == "sigma":
         variance = np.square(error_sigma(t, k, distribution))
@@ -210,16 +221,28 @@ def certified_worst(machine, tolerances, *, rtol: float = DEFAULT_RTOL, k: float
         def direct(q, o):
             return np.abs(jacobian(machine, q, machine.frame)[:, o, :]) @ t
     zone = None if machine.work_zone is None else ZoneEnclosure(machine)
-    shared = (time.perf_counter() - started) / len(OUTPUTS)  # the expansion, per output
+    shared = (time.perf_counter() - started) / len(chosen)  # the expansion, per output
     rows = []
-    for o in range(len(OUTPUTS)):
-        stopped = any(np.isinf(row[f"{reading}_bound"]) for row in rows)
+    for o in chosen:
+        stopped = feasibility or any(np.isinf(row[f"{reading}_bound"]) for row in rows)
         rows.append(_certify(machine, models[o], lambda q, o=o: direct(q, o), rtol, max_calls,
                              memory, reading, shared, zone,
                              (above[o], below[o] if stopped else 0.0, deadline)))
-    frame = pd.DataFrame(rows, index=pd.Index(OUTPUTS, name="output"))
+    frame = pd.DataFrame(rows, index=pd.Index([OUTPUTS[o] for o in chosen], name="output"))
     frame.attrs.update(rtol=rtol, distribution=distribution, reading=reading)
     return frame
+
+
+def _chosen_outputs(outputs) -> list[int]:
+    """Indices of ``outputs`` (names of :data:`OUTPUTS`) in the order of :data:`OUTPUTS`;
+    all six when None."""
+    if outputs is None:
+        return list(range(len(OUTPUTS)))
+    names = [outputs] if isinstance(outputs, str) else list(outputs)
+    unknown = [name for name in names if name not in OUTPUTS]
+    if unknown or not names:
+        raise InputError(f"outputs must name one or more of {OUTPUTS}; got {outputs!r}")
+    return sorted({OUTPUTS.index(name) for name in names})
 
 
 def _output_values(values, name, default) -> np.ndarray:

@@ -30,7 +30,7 @@ from reliability.model.poses import workspace_grid
 from studies.report.machine_sections import shown_tolerance_table, tolerance_table
 from studies.report.writer import SIGNIFICANT
 
-from . import choose, compensate, options
+from . import allocate_life, choose, compensate, options
 
 #: The modes of ``allocate``: per-pose targets (the default), ``--yield``,
 #: ``--compensation`` and the deprecated ``--catalogue`` (now ``precrel choose``).
@@ -46,6 +46,7 @@ def _given(dest: str):
 #: given, the modes it goes with). Options not listed go with every mode.
 MODE_OPTIONS = (
     ("--yield", _given("yield_target"), (YIELD,)),
+    ("--life", _given("life"), (TARGETS,)),
     ("--catalogue", _given("catalogue"), (CATALOGUE,)),
     ("--target", _given("target"), (TARGETS, COMPENSATION, CATALOGUE)),
     ("--side one_sided", lambda args: args.side == "one_sided",
@@ -117,6 +118,12 @@ def add_parser(subparsers):
     parser.add_argument("--method", choices=("exact", "gwo"), default="exact",
                         help="certified convex optimum (default) or the paper's GWO")
     options.add_seed(parser)
+    parser.add_argument("--life", type=options.positive_float, metavar="T",
+                        help="tolerances for a service life of T years (> 0): every output "
+                             "within its limit at every pose and every age of [0, T] under "
+                             "the machine file's [drift] (kind linear), beside the cost for "
+                             "acceptance only; writes STEM.life.csv too "
+                             "(docs/life-allocation.md)")
     options.add_yield(parser, "yield_target", "allocate for it instead of per-pose targets "
                                               "(with --profile, --machines, --executor)")
     options.add_yield_model(parser)
@@ -173,6 +180,8 @@ def run(args) -> int:
         return run_yield(args)
     if chosen == CATALOGUE:
         return choose.run(args)
+    if args.life is not None:
+        return allocate_life.run(args)
     bounds = options.check_bounds(args.bounds)
     out = options.destination(args.out, args.overwrite)
     drawing = options.beside_destination(out, "drawing", args.overwrite,
