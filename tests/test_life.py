@@ -24,7 +24,7 @@ from reliability.life.recalibration import crossing_age
 from reliability.life.wear_paths import wear_paths
 from reliability.model.drift import Drift
 from reliability.model.poses import workspace_grid
-from studies.workflows.life import LifeStudy, life_study
+from studies.workflows.life_study import LifeStudy, life_study
 
 HERE = Path(__file__).parent
 MILL = HERE / "machines" / "mill3.toml"

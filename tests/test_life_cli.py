@@ -60,7 +60,7 @@ def test_predict_age_needs_drift(capsys):
 def test_life_check_and_compensation_are_printed_and_saved(tmp_path, capsys):
     """With --compensation and --check the intervals between recalibrations and the
     Monte-Carlo check are printed, and the saved study reloads with them."""
-    from studies.workflows.life import LifeStudy
+    from studies.workflows.life_study import LifeStudy
     out = tmp_path / "life"
     plan = str(HERE.parent / "docs" / "examples" / "swivel5_plan.toml")
     assert main(["life", DRIFTING, "--until", "4", "--step", "1", "--machines", "100",

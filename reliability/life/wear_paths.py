@@ -23,6 +23,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.integrate import cumulative_trapezoid
 
+from ..basics.pass_rule import passes
 from ..basics.chunks import chunks
 from ..basics.errors import InputError
 from ..first_order.fosm import two_sided_failure
@@ -87,7 +88,7 @@ def wear_life_probability(drift, rows, sigma0, limits, ages, rng, paths: int,
         size = part.stop - part.start
         drift_out = wear_paths(drift, ages, size, rng) @ rows.T  # (size, A, M)
         start = rng.standard_normal((size, 1, len(rows))) * sigma0
-        within = np.abs(start + drift_out) < limits
+        within = passes(start + drift_out, limits)
         inside += np.logical_and.accumulate(within, axis=1).sum(axis=0)
     probability = inside / paths
     return probability, np.sqrt(probability * (1.0 - probability) / paths)

@@ -10,7 +10,7 @@ from reliability.basics.files import SIGNIFICANT, write_csv
 from reliability.compensation.compensation_plans import read_compensation_plan
 from reliability.life.life_yield import DEFAULT_LIFE_MACHINES
 from studies.report.life_section import life_figure
-from studies.workflows.life import LifeStudy, life_study
+from studies.workflows.life_study import LifeStudy, life_study
 
 from . import options
 

@@ -8,7 +8,7 @@ import numpy as np
 
 from reliability.life.recalibration import age_text
 from reliability.model.machine import OUTPUTS
-from studies.workflows.life import life_study
+from studies.workflows.life_study import life_study
 
 from .markdown import details, markdown_table
 from .plots import OUTPUT_COLOURS
