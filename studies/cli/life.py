@@ -77,8 +77,9 @@ def run(args) -> int:
     study.save(out / "life_summary.json", overwrite=args.overwrite)
     LifeStudy.load(out / "life_summary.json")
     _save_figure(life_figure(study), out / "life.png", args.overwrite)
-    source = "initial allocation" if args.tolerances is None else args.tolerances
-    print(f"Life of the {source}; {options.reading_text(machine)}\n")
+    source = "the initial allocation" if args.tolerances is None else \
+        f"the tolerances of {args.tolerances}"
+    print(f"Life of {source}; {options.reading_text(machine)}\n")
     print(study.summary())
     print(f"\nwritten {', '.join(FILES)} to {out}/ ({seconds:.1f} s)")
     return 0
