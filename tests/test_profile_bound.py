@@ -152,19 +152,23 @@ def test_exact_tangent_bound_of_the_product_is_tight_at_the_optimum_and_below_el
         assert bound == pytest.approx(cost, rel=1e-5) if tight else bound < cost
 
 
+def repeated_bounds(rows, point, box, seed, repeats=40, machines=4000):
+    """The 95 % bound at ``point`` on ``repeats`` independent samples of ``machines``."""
+    rng = np.random.default_rng(seed)
+    weights, lower, upper = box
+    return np.array([tangent_bound(weights, lower, upper, point,
+                                   *yield_and_gradient(rows, point, rng.standard_normal(
+                                       (machines, rows.shape[1]))), machines, 0.95)[0]
+                     for _ in range(repeats)])
+
+
 def test_sampled_bound_of_the_product_holds_at_its_confidence_by_repetition():
     """40 independent samples of 4 000 machines at a point 10 % off the optimum: the 95 %
     bound exceeds the optimal cost no more often than 2 + 3 binomial standard errors of
     40 × 5 % allow, and its median is within 10 % of the optimum."""
     optimum, cost = product_optimum(0.95)
     point = optimum * 1.1
-    rows = product_rows()
-    rng = np.random.default_rng(11)
-    bounds = []
-    for _ in range(40):
-        estimates = yield_and_gradient(rows, point, rng.standard_normal((4000, 6)))
-        bounds.append(tangent_bound(W, LOWER, UPPER, point, *estimates, 4000, 0.95)[0])
-    bounds = np.array(bounds)
+    bounds = repeated_bounds(product_rows(), point, (W, LOWER, UPPER), seed=11)
     assert np.sum(bounds > cost) <= 2 + 3 * np.sqrt(40 * 0.05 * 0.95)
     assert np.median(bounds) > 0.9 * cost
 
@@ -216,13 +220,7 @@ def test_sampled_bound_of_the_gp_pair_holds_at_its_confidence_by_repetition():
                           gp_gradient(optimum), np.zeros(2), machines, 0.95, robust=False)[0]
     assert exact == pytest.approx(cost, rel=1e-4)
     point = optimum * 1.1
-    rows = gp_rows()
-    rng = np.random.default_rng(13)
-    bounds = []
-    for _ in range(40):
-        estimates = yield_and_gradient(rows, point, rng.standard_normal((4000, 3)))
-        bounds.append(tangent_bound(W2, LOWER2, UPPER2, point, *estimates, 4000, 0.95)[0])
-    bounds = np.array(bounds)
+    bounds = repeated_bounds(gp_rows(), point, (W2, LOWER2, UPPER2), seed=13)
     assert np.sum(bounds > cost) <= 2 + 3 * np.sqrt(40 * 0.05 * 0.95)
     assert np.median(bounds) > 0.9 * cost
 

@@ -8,10 +8,8 @@ from __future__ import annotations
 
 import argparse
 import contextlib
-import dataclasses
 from pathlib import Path
 
-import numpy as np
 import pandas as pd
 
 from allocation import AllocationProblem, allocate_for_yield
@@ -186,13 +184,7 @@ def run(args) -> int:
     out = options.destination(args.out, args.overwrite)
     drawing = options.beside_destination(out, "drawing", args.overwrite,
                                          override=args.drawing, option="--drawing")
-    machine = options.machine(args)
-    for name in args.lock:
-        if name not in machine.error_names:
-            raise InputError(f"--lock: unknown error {name!r}; the machine's errors are "
-                             f"named like {machine.error_names[0]!r}")
-    if args.target is not None:
-        machine = dataclasses.replace(machine, targets=np.full(6, args.target))
+    machine = options.allocation_machine(args)
     workspace = options.workspace(args)
     limits = options.loop_limits(args, workspace)
     if workspace == "continuous":

@@ -9,7 +9,6 @@ costs and their ratio, the workspace and whether both are certified)."""
 
 from __future__ import annotations
 
-import dataclasses
 
 import numpy as np
 import pandas as pd
@@ -45,13 +44,7 @@ def run(args) -> int:
     drawing = options.beside_destination(out, "drawing", args.overwrite,
                                          override=args.drawing, option="--drawing")
     summary_path = options.beside_destination(out, "life", args.overwrite)
-    machine = options.machine(args)
-    for name in args.lock:
-        if name not in machine.error_names:
-            raise InputError(f"--lock: unknown error {name!r}; the machine's errors are "
-                             f"named like {machine.error_names[0]!r}")
-    if args.target is not None:
-        machine = dataclasses.replace(machine, targets=np.full(6, args.target))
+    machine = options.allocation_machine(args)
     try:
         years = life_allocation.check_life(machine, args.life)
     except InputError as error:

@@ -541,6 +541,19 @@ def beside_destination(out: Path, name: str, overwrite: bool, *, override=None,
     return path
 
 
+def allocation_machine(args):
+    """:func:`machine` for ``allocate``: every ``--lock`` name checked (an InputError names
+    the unknown one) and ``--target`` applied to the six outputs when given."""
+    loaded = machine(args)
+    for name in args.lock:
+        if name not in loaded.error_names:
+            raise InputError(f"--lock: unknown error {name!r}; the machine's errors are "
+                             f"named like {loaded.error_names[0]!r}")
+    if args.target is None:
+        return loaded
+    return dataclasses.replace(loaded, targets=np.full(6, args.target))
+
+
 def machine(args, *, warn: bool = True):
     """Load ``args.machine`` (a MachineDescriptionError or OSError names the file), in the
     frame of ``--frame``, with the reading of ``--distribution`` and the error profile of
