@@ -11,6 +11,7 @@ written, exits with :data:`studies.cli.options.STOPPED` (3).
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib
 import sys
 
@@ -79,7 +80,7 @@ def main(argv=None) -> int:
     from . import options
 
     try:
-        with threadpool_limits(limits=1), \
+        with threadpool_limits(limits=1), _reader_may_leave(), \
                 options.progress_shown(not getattr(args, "quiet", False)):
             return int(args.run(args))
     except _toolkit_errors() as exc:
@@ -88,6 +89,43 @@ def main(argv=None) -> int:
     except KeyboardInterrupt:
         print(f"{PROG}: interrupted", file=sys.stderr)
         return 130
+
+
+class _ReaderMayLeave:
+    """Standard output that keeps the command running when its reader leaves (``precrel
+    allocate ... | head``): the lines after that are dropped, the files are still written."""
+
+    def __init__(self, stream):
+        self.stream, self.gone = stream, False
+
+    def write(self, text: str) -> int:
+        if not self.gone:
+            try:
+                self.stream.write(text)
+            except BrokenPipeError:
+                self.gone = True
+        return len(text)
+
+    def flush(self) -> None:
+        if not self.gone:
+            try:
+                self.stream.flush()
+            except BrokenPipeError:
+                self.gone = True
+
+    def __getattr__(self, name):
+        return getattr(self.stream, name)
+
+
+@contextlib.contextmanager
+def _reader_may_leave():
+    """:class:`_ReaderMayLeave` in place of ``sys.stdout`` while a command runs."""
+    kept = sys.stdout
+    sys.stdout = _ReaderMayLeave(kept)
+    try:
+        yield
+    finally:
+        sys.stdout = kept
 
 
 def _one_line(exc: BaseException, args) -> str:
