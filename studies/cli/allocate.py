@@ -25,6 +25,7 @@ from reliability.basics import display
 from reliability.basics.errors import InputError
 from reliability.basics.files import write_csv
 from reliability.model.poses import workspace_grid
+from reliability.model.work_zone import grid_text
 from studies.report.machine_sections import shown_tolerance_table, tolerance_table
 from studies.report.writer import SIGNIFICANT
 
@@ -353,8 +354,10 @@ def describe_yield(result, verbose: bool = False) -> str:
     ``verbose``) and the search's size."""
     return "\n".join([
         f"machine yield target {result.yield_target:g}: profile {result.profile}; "
-        f"{options.reading_text(result.problem.machine)}; workspace: the {result.points}-point "
-        f"grid ({len(result.problem.poses):,} poses); box {result.problem.box_text()}",
+        f"{options.reading_text(result.problem.machine)}; outputs in the "
+        f"{result.problem.machine.frame} frame; workspace: the "
+        f"{grid_text(result.problem.machine, result.points, len(result.problem.poses))}; box "
+        f"{result.problem.box_text()}",
         *result.finding_lines(verbose),
         f"search: {result.evaluations} candidates on {result.machines:,} design machines "
         f"(aimed at yield {result.design_yield_target:.4f} there), seed {result.seed}"])
