@@ -300,7 +300,7 @@ def written_cost_text(result, significant: int = SIGNIFICANT) -> str:
 
 
 def allocation_to_csv(result, path, overwrite: bool = False, *,
-                      significant: int | None = None):
+                      significant: int | None = None, not_certified: str | None = None):
     """Write :func:`allocation_frame` to ``path``.
 
     Parameters
@@ -313,11 +313,17 @@ def allocation_to_csv(result, path, overwrite: bool = False, *,
         Significant digits of the numbers; all digits (an exact round trip) by default.
         The allocated tolerances are rounded down (:func:`written_tolerances`), so the file
         meets every target the result meets; the reference column to the nearest.
+    not_certified : str, optional
+        Why the allocation is not certified over the continuous workspace: the file then
+        has two more columns, ``certified`` (false) and ``reason``, which readers of
+        allocation files ignore.
     """
     float_format = None if significant is None else \
         f"%.{check_count(significant, 'significant')}g"
-    return write_csv(allocation_frame(result, significant), path, overwrite, index=False,
-                     float_format=float_format)
+    frame = allocation_frame(result, significant)
+    if not_certified is not None:
+        frame = frame.assign(certified=False, reason=not_certified)
+    return write_csv(frame, path, overwrite, index=False, float_format=float_format)
 
 
 def drawing_tolerances(names, tolerances, resolution=DRAWING_RESOLUTION

@@ -15,15 +15,13 @@ import pandas as pd
 from allocation import AllocationProblem, allocate_for_yield
 from allocation.per_pose.continuous import check_continuous, solve_continuous
 from allocation.per_pose.elasticity import requirement_text
-from allocation.per_pose.result_files import (DRAWING_RESOLUTION, allocation_frame,
-                                     allocation_to_csv, cost_shares_text, cost_units_text,
+from allocation.per_pose.result_files import (DRAWING_RESOLUTION, allocation_to_csv, cost_shares_text, cost_units_text,
                                      drawing_check_text, drawing_to_csv, gap_text,
                                      nearly_free_text, written_cost_text,
                                      written_tolerances)
 from allocation.machine_yield.yield_dual import not_log_concave
 from reliability.basics import display
 from reliability.basics.errors import InputError
-from reliability.basics.files import write_csv
 from reliability.model.poses import workspace_grid
 from reliability.model.work_zone import grid_text
 from studies.report.machine_sections import shown_tolerance_table, tolerance_table
@@ -222,15 +220,10 @@ def write_files(args, result, out: Path, drawing: Path, *, targets: bool = True,
     """The allocation CSV and the drawing file, each with a line on what it holds (with
     ``targets``, whether the drawing meets the per-pose targets of the result's problem).
 
-    ``verdict``: why an allocation of the continuous workspace is not certified; its CSV
-    then has two more columns, ``certified`` (false) and ``reason``, which readers of
-    allocation files ignore."""
-    if verdict is None:
-        allocation_to_csv(result, out, args.overwrite, significant=SIGNIFICANT)
-    else:
-        write_csv(allocation_frame(result, SIGNIFICANT).assign(certified=False,
-                                                                reason=verdict),
-                  out, args.overwrite, index=False, float_format=f"%.{SIGNIFICANT}g")
+    ``verdict``: why an allocation of the continuous workspace is not certified
+    (:func:`~allocation.per_pose.result_files.allocation_to_csv`'s ``not_certified``)."""
+    allocation_to_csv(result, out, args.overwrite, significant=SIGNIFICANT,
+                      not_certified=verdict)
     print(f"\nallocation written to {out}"
           + ("" if verdict is None else " (NOT certified: see its columns certified, reason)")
           + f", {written_cost_text(result)}")

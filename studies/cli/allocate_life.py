@@ -16,7 +16,7 @@ import pandas as pd
 from allocation import AllocationProblem
 from allocation.per_pose.continuous import ContinuousAllocation, check_continuous
 from allocation.per_pose.life import life_loads
-from allocation.per_pose.result_files import (allocation_frame, allocation_to_csv,
+from allocation.per_pose.result_files import (allocation_to_csv,
                                               drawing_check_text, drawing_to_csv,
                                               drawing_tolerances, gap_text)
 from reliability.basics import display
@@ -128,12 +128,8 @@ def write_files(args, found, out, drawing, summary_path) -> None:
     result = found.life_result
     reason = (found.life.reason if isinstance(found.life, ContinuousAllocation)
               and not found.life.certified else None)
-    if reason is None:
-        allocation_to_csv(result, out, args.overwrite, significant=SIGNIFICANT)
-    else:
-        write_csv(allocation_frame(result, SIGNIFICANT).assign(certified=False,
-                                                                reason=reason),
-                  out, args.overwrite, index=False, float_format=f"%.{SIGNIFICANT}g")
+    allocation_to_csv(result, out, args.overwrite, significant=SIGNIFICANT,
+                      not_certified=reason)
     print(f"\nlife allocation written to {out}"
           + ("" if reason is None else " (NOT certified: see its columns certified, reason)"))
     resolution = tuple(args.drawing_resolution)
