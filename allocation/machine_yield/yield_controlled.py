@@ -33,7 +33,7 @@ from reliability.basics.statistics import ProportionEstimate
 from reliability.sampling.radial_yield import (CONTROLLED_METHOD, Rays, controlled_yield,
                                                directions, rays, worst_rows)
 
-from .yield_dual import scaled_rows, unit_draws
+from .yield_dual import RESCALES, SLACK, scaled_rows, unit_draws
 from .yield_shape import bisected_scale
 
 #: Standard errors of a yield estimate on N machines added to Y for the design and
@@ -48,10 +48,6 @@ RAYS_FACTOR = 10
 #: seventh and eighth; the ninth is the log-concave bound's.
 RAY_STREAMS = {"calibration": 6, "verification": 7}
 BOUND_STREAM = 8
-#: Fixed-point steps of the calibration's factor.
-RESCALES = 4
-#: The calibration's factor is accepted within this relative distance of the largest.
-SLACK = 1e-3
 
 
 @dataclass(frozen=True, eq=False)

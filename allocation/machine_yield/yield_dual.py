@@ -48,8 +48,9 @@ What it holds for: the linearised outputs on the grid's poses (the model of the 
 relaxations of :mod:`allocation.machine_yield.yield_target`), the normal reading, independent
 errors, the ``constant`` profile here (on rays) and the ``independent`` and ``gp`` profiles
 through :mod:`allocation.machine_yield.profile_bound` (the same theorem, each error's draws
-along travel scaled by its tolerance alone; on crude machines); not the exact chain, on which the yield is sampled. Under
-those assumptions the error of the first-order outputs is second order in the errors.
+along travel scaled by its tolerance alone; on crude machines); not the exact chain, on
+which the yield is sampled. Under those assumptions the error of the first-order outputs is
+second order in the errors.
 """
 
 from __future__ import annotations
@@ -67,7 +68,7 @@ from reliability.basics.errors import InputError
 from reliability.basics.renamed import renamed
 from reliability.basics.threads import one_blas_thread
 from reliability.sampling.machine_yield import YieldModel
-from reliability.sampling.radial_yield import as_directions, radial_gradient, rays
+from reliability.sampling.radial_yield import as_directions, radial_gradient, rays, worst_rows
 
 from . import profile_bound
 from .yield_shape import bisected_scale
@@ -76,8 +77,9 @@ from .yield_shape import bisected_scale
 K_SIGMA = 3.0
 #: Floats of one block of machines × rows (memory bounded by chunking).
 BLOCK_FLOATS = 2_000_000
-#: Fixed-point steps of :func:`_at_yield`'s factor, and how far below the yield's factor
-#: it may end.
+#: Fixed-point steps of a factor rescaling an allocation to a yield (:func:`_at_yield` here,
+#: the calibration of :mod:`allocation.machine_yield.yield_controlled`), and the relative
+#: distance from the yield's factor within which it is accepted.
 RESCALES, SLACK = 4, 1e-3
 #: Shares of the way to the tangent problem's optimum a step tries (:func:`tangent_step`).
 STEP_SHARES = (1.0, 0.5, 0.25, 0.125, 0.0)
@@ -504,12 +506,11 @@ def _crude_at_yield(rows, tolerances, draws, yield_target, lower, upper) -> np.n
 
 
 def _worst_rows(rows, tolerances, draws) -> np.ndarray:
-    """Each crude machine's largest ``|row · (t ∘ z)|`` over the rows, in blocks."""
+    """Each crude machine's largest ``|row · (t ∘ z)|`` over the rows
+    (:func:`reliability.sampling.radial_yield.worst_rows`)."""
     if isinstance(rows, profile_bound.BlockRows):
         rows, tolerances = rows.rows, rows.expanded(tolerances)
-    block = max(1, BLOCK_FLOATS // len(rows))
-    return np.concatenate([np.abs((draws[s:s + block] * tolerances) @ rows.T).max(axis=1)
-                           for s in range(0, len(draws), block)])
+    return worst_rows(rows, tolerances, draws)[0]
 
 
 def _at_yield(rows, tolerances, draws, yield_target, lower, upper) -> np.ndarray:
