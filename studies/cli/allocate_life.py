@@ -15,7 +15,7 @@ import pandas as pd
 
 from allocation import AllocationProblem
 from allocation.per_pose.continuous import ContinuousAllocation, check_continuous
-from allocation.per_pose.life import life_loads
+from allocation.per_pose.life import checked_life, life_loads
 from allocation.per_pose.result_files import (allocation_to_csv,
                                               drawing_check_text, drawing_to_csv,
                                               drawing_tolerances, gap_text)
@@ -46,7 +46,7 @@ def run(args) -> int:
     summary_path = options.beside_destination(out, "life", args.overwrite)
     machine = options.allocation_machine(args)
     try:
-        years = life_allocation.check_life(machine, args.life)
+        years = checked_life(machine, args.life)
     except InputError as error:
         raise InputError(f"--life {args.life:g}: {error}") from None
     workspace = options.workspace(args)

@@ -92,13 +92,6 @@ class LifeAllocationRun:
                 "acceptance_seconds": float(self.seconds[0])}
 
 
-def check_life(machine, years) -> float:
-    """``years`` checked against ``machine`` before any work
-    (:func:`allocation.per_pose.life.checked_life`: a ``[drift]`` table of kind 'linear', a
-    life > 0); returns the life in years."""
-    return checked_life(machine, years)
-
-
 def run(problem, years, *, workspace: str = "continuous", rtol: float = DEFAULT_RTOL,
         progress=None, time_limit: float | None = None) -> LifeAllocationRun:
     """The acceptance and the life allocation of ``problem``.
@@ -125,7 +118,7 @@ def run(problem, years, *, workspace: str = "continuous", rtol: float = DEFAULT_
         raise InputError(f"workspace must be 'continuous' or 'grid'; got {workspace!r}")
     say = progress or (lambda text: None)
     drift = problem.machine.drift
-    check_life(problem.machine, years)
+    checked_life(problem.machine, years)
     started = time.perf_counter()
     acceptance = _solve(problem, workspace, rtol, time_limit,
                         lambda text: say(f"acceptance: {text}"))
